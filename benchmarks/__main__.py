@@ -1,0 +1,41 @@
+"""Run every benchmark: ``python -m benchmarks [NAME ...] [--quick]``.
+
+Each ``benchmarks/bench_NAME.py`` module exposes ``main(argv) -> list[dict]``; it prints its own
+table and writes ``benchmarks/results/NAME.json``. Timings are measurements, never assertions.
+"""
+
+from __future__ import annotations
+
+import importlib
+import pkgutil
+import sys
+from pathlib import Path
+
+
+def available() -> list[str]:
+    """Names of the benchmark modules, without the ``bench_`` prefix."""
+    here = Path(__file__).resolve().parent
+    return sorted(
+        m.name.removeprefix("bench_")
+        for m in pkgutil.iter_modules([str(here)])
+        if m.name.startswith("bench_")
+    )
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = list(sys.argv[1:] if argv is None else argv)
+    options = [a for a in args if a.startswith("-")]
+    names = [a for a in args if not a.startswith("-")] or available()
+    unknown = sorted(set(names) - set(available()))
+    if unknown:
+        print(f"benchmark {unknown[0]!r}: unknown; available: {', '.join(available())}")
+        return 2
+    for name in names:
+        print(f"\n## {name}\n", flush=True)
+        module = importlib.import_module(f"benchmarks.bench_{name}")
+        module.main(options)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
