@@ -1,0 +1,77 @@
+"""Preparation shared by the solvers: inactive points and the constant null spaces."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from elastoflow.linalg._kernels import (
+    active_mask_kernel,
+    label_components_kernel,
+    remove_component_means_kernel,
+)
+from elastoflow.linalg._operator import Operator5Point
+
+
+@dataclass
+class _NullSpace:
+    """Active points and the singular (pure Neumann) components of an operator."""
+
+    active: NDArray[np.bool_]
+    labels: NDArray[np.int64] | None
+    singular: NDArray[np.bool_] | None
+    count: int
+
+    @property
+    def has_singular(self) -> bool:
+        return self.singular is not None and bool(self.singular.any())
+
+    def remove_means(self, x: NDArray[np.float64]) -> None:
+        """Make ``x`` zero-mean on every singular component (in place)."""
+        if self.has_singular:
+            assert self.labels is not None and self.singular is not None
+            remove_component_means_kernel(x, self.labels, self.singular, self.count)
+
+
+def _analyse(operator: Operator5Point) -> _NullSpace:
+    active = np.empty(operator.shape, dtype=np.bool_)
+    all_have_diagonal = active_mask_kernel(
+        operator.diagonal, operator.weights_x, operator.weights_y, active
+    )
+    if all_have_diagonal:
+        return _NullSpace(active, None, None, 0)
+    labels = np.empty(operator.shape, dtype=np.int64)
+    count, singular = label_components_kernel(
+        operator.diagonal, operator.weights_x, operator.weights_y, active, labels
+    )
+    return _NullSpace(active, labels, singular, int(count))
+
+
+def _compatible_rhs(
+    operator: Operator5Point, rhs: NDArray[np.float64]
+) -> tuple[NDArray[np.float64], _NullSpace]:
+    """Copy of ``rhs`` zeroed at inactive points and zero-mean on singular components."""
+    rhs = np.asarray(rhs, dtype=np.float64)
+    if rhs.shape != operator.shape:
+        raise ValueError(f"rhs: shape {rhs.shape} is not allowed; expected {operator.shape}")
+    if not np.all(np.isfinite(rhs)):
+        raise ValueError("rhs: values must be finite; got NaN or inf")
+    null_space = _analyse(operator)
+    b = np.where(null_space.active, rhs, 0.0)
+    null_space.remove_means(b)
+    return b, null_space
+
+
+def _initial_guess(
+    operator: Operator5Point, x0: NDArray[np.float64] | None, active: NDArray[np.bool_]
+) -> NDArray[np.float64]:
+    if x0 is None:
+        return np.zeros(operator.shape)
+    x0 = np.asarray(x0, dtype=np.float64)
+    if x0.shape != operator.shape:
+        raise ValueError(f"x0: shape {x0.shape} is not allowed; expected {operator.shape}")
+    if not np.all(np.isfinite(x0)):
+        raise ValueError("x0: values must be finite; got NaN or inf")
+    return np.where(active, x0, 0.0)
