@@ -1,0 +1,74 @@
+"""Scenes as typed data: pydantic models, TOML files, the built-in library, and the builder
+that turns a scene into a ready `Simulation`.
+
+A scene file is TOML with one table per model (``[domain]``, ``[fluid]``, ``[boundaries]``,
+``[[jets]]``, ``[[obstacles]]``, ``[[bodies]]``, ``[time]``, ``[coupling]``, ``[outputs]``).
+``elastoflow dump NAME`` writes any built-in scene as a starting file.
+"""
+
+from elastoflow.scenes._build import (
+    build_fluid_solver,
+    build_grid,
+    build_simulation,
+    characteristic_speed,
+    obstacle_polygon,
+    resolve_scene,
+    step_count,
+    time_step,
+)
+from elastoflow.scenes._errors import SceneError
+from elastoflow.scenes._library import get_scene, list_scenes
+from elastoflow.scenes._schema import (
+    BodySpec,
+    BoundariesSpec,
+    CheckpointSpec,
+    CouplingSpec,
+    DomainSpec,
+    FieldsSpec,
+    FixedSpec,
+    FluidSpec,
+    JetSpec,
+    MaterialSpec,
+    MeshesSpec,
+    OutputsSpec,
+    ProbeSpec,
+    RigidMotionSpec,
+    Scene,
+    TimeSpec,
+    VideoSpec,
+)
+from elastoflow.scenes._toml import load_scene, parse_scene, scene_to_toml
+
+__all__ = [
+    "BodySpec",
+    "BoundariesSpec",
+    "CheckpointSpec",
+    "CouplingSpec",
+    "DomainSpec",
+    "FieldsSpec",
+    "FixedSpec",
+    "FluidSpec",
+    "JetSpec",
+    "MaterialSpec",
+    "MeshesSpec",
+    "OutputsSpec",
+    "ProbeSpec",
+    "RigidMotionSpec",
+    "Scene",
+    "SceneError",
+    "TimeSpec",
+    "VideoSpec",
+    "build_fluid_solver",
+    "build_grid",
+    "build_simulation",
+    "characteristic_speed",
+    "get_scene",
+    "list_scenes",
+    "load_scene",
+    "obstacle_polygon",
+    "parse_scene",
+    "resolve_scene",
+    "scene_to_toml",
+    "step_count",
+    "time_step",
+]

@@ -1,0 +1,256 @@
+"""Built-in scenes: named factories in a registry.
+
+The paper (METHOD section 9) gives neither physical sizes nor material constants for its two
+scenes; the values chosen for them are collected in ``_PAPER_SCENE_CHOICES`` below, with the
+reasoning, so that they can be tuned in one place.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+from elastoflow.scenes._errors import SceneError
+from elastoflow.scenes._schema import Scene
+from elastoflow.scenes._toml import parse_scene
+
+
+@dataclass(frozen=True)
+class _Entry:
+    factory: Callable[[], Scene]
+    summary: str
+
+
+_REGISTRY: dict[str, _Entry] = {}
+
+
+def _register(name: str) -> Callable[[Callable[[], dict]], Callable[[], dict]]:
+    def decorate(factory: Callable[[], dict]) -> Callable[[], dict]:
+        summary = (factory.__doc__ or "").strip().splitlines()[0]
+
+        def build() -> Scene:
+            data = factory()
+            data["name"] = name
+            data.setdefault("description", summary)
+            return parse_scene(data, source=f"built-in scene {name!r}")
+
+        _REGISTRY[name] = _Entry(build, summary)
+        return factory
+
+    return decorate
+
+
+def list_scenes() -> dict[str, str]:
+    """Built-in scene names with a one-line summary each, in registration order."""
+    return {name: entry.summary for name, entry in _REGISTRY.items()}
+
+
+def get_scene(name: str) -> Scene:
+    """A fresh copy of the built-in scene ``name``.
+
+    Raises:
+        SceneError: ``name`` is not a built-in scene (the message lists those that are).
+    """
+    entry = _REGISTRY.get(name)
+    if entry is None:
+        allowed = ", ".join(_REGISTRY)
+        raise SceneError([f"scene = {name!r}: unknown scene name (built-in scenes: {allowed})"])
+    return entry.factory()
+
+
+# Physical choices for the paper's scenes (the paper gives only grid, dt, substeps, element
+# count). Both use a 1 m x 1 m box of water-like fluid. The explicit FEM substep
+# (dt / substeps) must stay below element size / sqrt((lambda + 2 mu) / rho_s); the moduli are
+# soft rubber so that the published substep counts are stable on meshes of the published size.
+_PAPER_SCENE_CHOICES = {
+    "bar_in_jet": {
+        # 5 cm x 40 cm bar hanging from y = 0.85 m; 2 x 48 divisions give 192 triangles
+        # (paper: 194). Substep 0.013/35 = 3.7e-4 s; shortest element edge 8.3 mm; wave speed
+        # sqrt(1.35 E / rho) = 11 m/s -> 0.5 of the stable limit.
+        "fluid_density": 1000.0,
+        "fluid_viscosity": 1e-4,
+        "bar_box": (0.475, 0.45, 0.525, 0.85),
+        "bar_divisions": (2, 48),
+        "bar_density": 1100.0,
+        "bar_young_modulus": 1.0e5,
+        "bar_poisson_ratio": 0.3,
+        "bar_damping": 5.0,
+        # Jet from the floor, offset from the bar's axis so that the bar bends rather than
+        # only being compressed.
+        "jet_region": (0.43, 0.02, 0.49, 0.06),
+        "jet_velocity": (0.0, 1.0),
+    },
+    "windmill": {
+        # Four blades of 20 cm tip radius, hub pinned at its centre; element_size gives about 160
+        # triangles (paper: 160). Substep 0.05/100 = 5e-4 s; edges about 2 cm; wave speed 18 m/s.
+        "fluid_density": 1000.0,
+        "fluid_viscosity": 1e-4,
+        "center": (0.62, 0.5),
+        "radius": 0.2,
+        "hub_radius": 0.04,
+        "blade_width": 0.045,
+        "element_size": 0.03,
+        "density": 800.0,
+        "young_modulus": 2.0e5,
+        "poisson_ratio": 0.3,
+        "damping": 5.0,
+        # The pipe: two static walls along x; the jet inside drives the flow out of its mouth,
+        # above the hub so that it turns the windmill.
+        "pipe_walls": ((0.0, 0.74, 0.3, 0.78), (0.0, 0.56, 0.3, 0.60)),
+        "jet_region": (0.02, 0.60, 0.08, 0.74),
+        "jet_velocity": (0.6, 0.0),
+    },
+}
+
+
+@_register("bar_in_jet")
+def _bar_in_jet() -> dict:
+    """Paper Fig. 6: elastic bar, top end fixed, bottom end in a jet from below."""
+    c = _PAPER_SCENE_CHOICES["bar_in_jet"]
+    x0, y0, x1, y1 = c["bar_box"]
+    return {
+        "domain": {"lx": 1.0, "ly": 1.0, "nx": 256},
+        "fluid": {"density": c["fluid_density"], "viscosity": c["fluid_viscosity"],
+                  "gravity": (0.0, -9.81)},
+        "boundaries": {"left": "no_slip", "right": "no_slip", "bottom": "no_slip",
+                       "top": "outflow"},
+        "jets": [{"region": c["jet_region"], "velocity": c["jet_velocity"], "dye": 1.0}],
+        "bodies": [{
+            "name": "bar",
+            "shape": {"type": "rectangle", "box": c["bar_box"], "divisions": c["bar_divisions"]},
+            "material": {"density": c["bar_density"], "young_modulus": c["bar_young_modulus"],
+                         "poisson_ratio": c["bar_poisson_ratio"],
+                         "damping_lambda": c["bar_damping"], "damping_mu": c["bar_damping"]},
+            "fixed": {"box": (round(x0 - 0.01, 6), round(y1 - 0.005, 6), round(x1 + 0.01, 6),
+                              round(y1 + 0.005, 6))},
+        }],
+        "time": {"dt": 0.013, "duration": 10.0, "substeps": 35},
+        "coupling": {"force_model": "momentum_exchange"},
+        "outputs": {
+            "video": {"view": "speed", "fps": 30},
+            "probes": [
+                {"kind": "node_displacement", "body": 0, "point": ((x0 + x1) / 2, y0)},
+                {"kind": "body_force", "body": 0},
+                {"kind": "pressure_iterations"},
+            ],
+            "checkpoint": {"every": 200},
+        },
+    }
+
+
+@_register("windmill")
+def _windmill() -> dict:
+    """Paper Fig. 7: elastic windmill pivoted at its hub, turned by flow out of a pipe."""
+    c = _PAPER_SCENE_CHOICES["windmill"]
+    return {
+        "domain": {"lx": 1.0, "ly": 1.0, "nx": 256},
+        "fluid": {"density": c["fluid_density"], "viscosity": c["fluid_viscosity"]},
+        "boundaries": {"left": "no_slip", "right": "outflow", "bottom": "no_slip",
+                       "top": "no_slip"},
+        "jets": [{"region": c["jet_region"], "velocity": c["jet_velocity"], "dye": 1.0}],
+        "obstacles": [{"shape": "rectangle", "box": wall} for wall in c["pipe_walls"]],
+        "bodies": [{
+            "name": "windmill",
+            "shape": {"type": "windmill", "center": c["center"], "radius": c["radius"],
+                      "hub_radius": c["hub_radius"], "blade_width": c["blade_width"],
+                      "blades": 4, "element_size": c["element_size"]},
+            "material": {"density": c["density"], "young_modulus": c["young_modulus"],
+                         "poisson_ratio": c["poisson_ratio"],
+                         "damping_lambda": c["damping"], "damping_mu": c["damping"]},
+            "pivot": c["center"],
+        }],
+        "time": {"dt": 0.05, "duration": 20.0, "substeps": 100},
+        "coupling": {"force_model": "momentum_exchange"},
+        "outputs": {
+            "video": {"view": "speed", "fps": 20},
+            "meshes": {"format": "obj", "thickness": 0.05, "every": 1},
+            "probes": [{"kind": "kinetic_energy", "body": 0}, {"kind": "body_force", "body": 0},
+                       {"kind": "pressure_iterations"}],
+            "checkpoint": {"every": 100},
+        },
+    }
+
+
+@_register("cavity")
+def _cavity() -> dict:
+    """Lid-driven cavity at Re = 100 (unit box, lid speed 1 m/s, nu = 0.01 m^2/s)."""
+    return {
+        "domain": {"lx": 1.0, "ly": 1.0, "nx": 64},
+        "fluid": {"density": 1.0, "viscosity": 0.01},
+        "boundaries": {"top": {"type": "moving", "velocity": 1.0}},
+        "time": {"dt": 0.01, "duration": 20.0, "substeps": 1},
+        "outputs": {
+            "video": {"view": "speed", "fps": 30, "every": 10},
+            "probes": [{"kind": "kinetic_energy"}, {"kind": "pressure_iterations"}],
+            "checkpoint": {"every": 500},
+        },
+    }
+
+
+@_register("dfg_cylinder")
+def _dfg_cylinder() -> dict:
+    """DFG 2D-1 (Schaefer & Turek 1996): channel flow past a cylinder at Re = 20."""
+    return {
+        "domain": {"lx": 2.2, "ly": 0.41, "h": 0.01},
+        "fluid": {"density": 1.0, "viscosity": 1e-3},
+        "boundaries": {"left": {"type": "inflow", "speed": 0.3, "profile": "parabolic"},
+                       "right": "outflow", "bottom": "no_slip", "top": "no_slip"},
+        "obstacles": [{"shape": "circle", "center": (0.2, 0.2), "radius": 0.05}],
+        "time": {"dt": 0.01, "duration": 10.0, "substeps": 1},
+        "outputs": {
+            "video": {"view": "vorticity", "fps": 30, "every": 5},
+            "probes": [{"kind": "kinetic_energy"}, {"kind": "pressure_iterations"}],
+            "checkpoint": {"every": 500},
+        },
+    }
+
+
+# Turek & Hron (2006) FSI1, as collected in shared/reference/turek_hron.json: channel
+# 2.5 x 0.41 m, cylinder (0.2, 0.2) r = 0.05, flag 0.35 x 0.02 m clamped on the cylinder at
+# x = 0.2 + sqrt(0.05^2 - 0.01^2); rho_f = rho_s = 1000, nu_f = 1e-3, E = 1.4 MPa, nu_s = 0.4,
+# mean inflow 0.2 m/s (peak 0.3), cosine ramp over 2 s.
+_FLAG_LEFT_X = 0.2 + (0.05**2 - 0.01**2) ** 0.5
+
+
+@_register("flag")
+def _flag() -> dict:
+    """Turek-Hron FSI1: elastic flag behind a cylinder in a channel."""
+    return {
+        "domain": {"lx": 2.5, "ly": 0.41, "h": 0.01},
+        "fluid": {"density": 1000.0, "viscosity": 1e-3},
+        "boundaries": {"left": {"type": "inflow", "speed": 0.3, "profile": "parabolic",
+                                "ramp_time": 2.0},
+                       "right": "outflow", "bottom": "no_slip", "top": "no_slip"},
+        "obstacles": [{"shape": "circle", "center": (0.2, 0.2), "radius": 0.05}],
+        "bodies": [{
+            "name": "flag",
+            "shape": {"type": "rectangle", "box": (_FLAG_LEFT_X, 0.19, 0.6, 0.21),
+                      "divisions": (35, 2)},
+            "material": {"density": 1000.0, "young_modulus": 1.4e6, "poisson_ratio": 0.4},
+            "fixed": {"box": (_FLAG_LEFT_X - 0.005, 0.185, _FLAG_LEFT_X + 0.001, 0.215)},
+        }],
+        "time": {"dt": 0.005, "duration": 20.0, "substeps": "auto"},
+        "coupling": {"force_model": "traction"},
+        "outputs": {
+            "video": {"view": "speed", "fps": 30, "every": 10},
+            "probes": [{"kind": "node_displacement", "body": 0, "point": (0.6, 0.2)},
+                       {"kind": "body_force", "body": 0}, {"kind": "pressure_iterations"}],
+            "checkpoint": {"every": 1000},
+        },
+    }
+
+
+@_register("jet_in_box")
+def _jet_in_box() -> dict:
+    """Fluid only: a dyed jet rising in a closed box."""
+    return {
+        "domain": {"lx": 1.0, "ly": 1.0, "nx": 128},
+        "fluid": {"density": 1.0, "viscosity": 1e-4},
+        "jets": [{"region": (0.46, 0.02, 0.54, 0.06), "velocity": (0.0, 0.8), "dye": 1.0}],
+        "time": {"dt": 0.01, "duration": 10.0, "substeps": 1},
+        "outputs": {
+            "video": {"view": "dye", "fps": 30, "every": 2},
+            "probes": [{"kind": "kinetic_energy"}, {"kind": "pressure_iterations"}],
+            "checkpoint": {"every": 500},
+        },
+    }

@@ -1,0 +1,437 @@
+"""The scene description: pydantic models, one per TOML table.
+
+Every model forbids unknown keys, so a typo is an error rather than a silently ignored setting.
+Lengths in metres, times in seconds, densities in kg/m^3, moduli in Pa.
+"""
+
+from __future__ import annotations
+
+from typing import Annotated, Any, Literal
+
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    NonNegativeFloat,
+    PositiveFloat,
+    PositiveInt,
+    model_validator,
+)
+
+Point = tuple[float, float]
+Box = tuple[float, float, float, float]
+"""Axis-aligned box ``(x0, y0, x1, y1)`` [m]."""
+
+
+class _Spec(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+
+def _check_box(box: Box, name: str) -> Box:
+    if not (box[2] > box[0] and box[3] > box[1]):
+        raise ValueError(f"{name} {list(box)}: must be (x0, y0, x1, y1) with x1 > x0 and y1 > y0")
+    return box
+
+
+# --------------------------------------------------------------------------------------------
+# domain and fluid
+
+
+class DomainSpec(_Spec):
+    """Rectangular domain ``[0, lx] x [0, ly]`` cut into square cells.
+
+    Give exactly one of ``nx`` (cells across ``lx``) or ``h`` (cell side [m]); ``ly`` must then
+    be a whole number of cells.
+    """
+
+    lx: PositiveFloat
+    ly: PositiveFloat
+    nx: Annotated[int, Field(ge=2)] | None = None
+    h: PositiveFloat | None = None
+
+    @model_validator(mode="after")
+    def _one_resolution(self) -> DomainSpec:
+        if (self.nx is None) == (self.h is None):
+            raise ValueError("give exactly one of nx (cells along x) or h (cell side)")
+        cells_x = self.lx / self.cell_size
+        cells_y = self.ly / self.cell_size
+        for label, cells in (("lx", cells_x), ("ly", cells_y)):
+            if abs(cells - round(cells)) > 1e-6 or round(cells) < 2:
+                raise ValueError(
+                    f"{label} must be a whole number (>= 2) of cells of side {self.cell_size:g}, "
+                    f"got {cells:g} cells"
+                )
+        return self
+
+    @property
+    def cell_size(self) -> float:
+        """Cell side h [m]."""
+        return self.h if self.h is not None else self.lx / float(self.nx)  # type: ignore[arg-type]
+
+    @property
+    def cells(self) -> tuple[int, int]:
+        """``(nx, ny)``."""
+        h = self.cell_size
+        return int(round(self.lx / h)), int(round(self.ly / h))
+
+
+class FluidSpec(_Spec):
+    """Fluid properties and numerical choices."""
+
+    density: PositiveFloat = 1.0
+    viscosity: NonNegativeFloat = 1e-3
+    """Kinematic viscosity [m^2/s]."""
+    gravity: Point = (0.0, 0.0)
+    """Gravity [m/s^2], also applied to the elastic bodies."""
+    pressure_solver: Literal["mgpcg", "jacobi"] = "mgpcg"
+    pressure_rtol: PositiveFloat = 1e-6
+
+
+# --------------------------------------------------------------------------------------------
+# domain sides
+
+
+class NoSlipSpec(_Spec):
+    type: Literal["no_slip"] = "no_slip"
+
+
+class FreeSlipSpec(_Spec):
+    type: Literal["free_slip"] = "free_slip"
+
+
+class MovingWallSpec(_Spec):
+    type: Literal["moving"] = "moving"
+    velocity: float
+    """Tangential wall velocity [m/s]."""
+
+
+class InflowSpec(_Spec):
+    type: Literal["inflow"] = "inflow"
+    speed: float
+    """Mean speed for a uniform profile, peak speed for a parabolic one [m/s], into the domain."""
+    profile: Literal["uniform", "parabolic"] = "uniform"
+    ramp_time: NonNegativeFloat = 0.0
+
+
+class OutflowSpec(_Spec):
+    type: Literal["outflow"] = "outflow"
+
+
+SideSpec = Annotated[
+    NoSlipSpec | FreeSlipSpec | MovingWallSpec | InflowSpec | OutflowSpec,
+    Field(discriminator="type"),
+]
+
+
+class BoundariesSpec(_Spec):
+    """One condition per side; a bare string such as ``"outflow"`` is accepted for short."""
+
+    left: SideSpec = Field(default_factory=NoSlipSpec)
+    right: SideSpec = Field(default_factory=NoSlipSpec)
+    bottom: SideSpec = Field(default_factory=NoSlipSpec)
+    top: SideSpec = Field(default_factory=NoSlipSpec)
+
+    @model_validator(mode="before")
+    @classmethod
+    def _strings_to_tables(cls, data: Any) -> Any:
+        if isinstance(data, dict):
+            return {k: ({"type": v} if isinstance(v, str) else v) for k, v in data.items()}
+        return data
+
+
+class JetSpec(_Spec):
+    """Faces inside ``region`` are given ``velocity``; cells inside get ``dye``."""
+
+    region: Box
+    velocity: Point
+    dye: NonNegativeFloat = 1.0
+
+    @model_validator(mode="after")
+    def _box(self) -> JetSpec:
+        _check_box(self.region, "region")
+        return self
+
+
+# --------------------------------------------------------------------------------------------
+# obstacles
+
+
+class RigidMotionSpec(_Spec):
+    """Prescribed rigid motion: translation at ``velocity`` and rotation at ``angular_velocity``
+    about ``center`` (which moves with the body)."""
+
+    velocity: Point = (0.0, 0.0)
+    angular_velocity: float = 0.0
+    """[rad/s], counter-clockwise positive."""
+    center: Point = (0.0, 0.0)
+
+
+class CircleObstacleSpec(_Spec):
+    shape: Literal["circle"] = "circle"
+    center: Point
+    radius: PositiveFloat
+    segments: Annotated[int, Field(ge=8)] = 64
+    motion: RigidMotionSpec | None = None
+
+    def bounds(self) -> Box:
+        (cx, cy), r = self.center, self.radius
+        return (cx - r, cy - r, cx + r, cy + r)
+
+
+class RectangleObstacleSpec(_Spec):
+    shape: Literal["rectangle"] = "rectangle"
+    box: Box
+    motion: RigidMotionSpec | None = None
+
+    @model_validator(mode="after")
+    def _box(self) -> RectangleObstacleSpec:
+        _check_box(self.box, "box")
+        return self
+
+    def bounds(self) -> Box:
+        return self.box
+
+
+class PolygonObstacleSpec(_Spec):
+    shape: Literal["polygon"] = "polygon"
+    points: Annotated[list[Point], Field(min_length=3)]
+    """Closed polygon, counter-clockwise [m]."""
+    motion: RigidMotionSpec | None = None
+
+    def bounds(self) -> Box:
+        xs = [p[0] for p in self.points]
+        ys = [p[1] for p in self.points]
+        return (min(xs), min(ys), max(xs), max(ys))
+
+
+ObstacleSpec = Annotated[
+    CircleObstacleSpec | RectangleObstacleSpec | PolygonObstacleSpec,
+    Field(discriminator="shape"),
+]
+
+
+# --------------------------------------------------------------------------------------------
+# elastic bodies
+
+
+class RectangleShapeSpec(_Spec):
+    """Structured triangulation of a box, ``2 * divisions[0] * divisions[1]`` triangles."""
+
+    type: Literal["rectangle"] = "rectangle"
+    box: Box
+    divisions: tuple[PositiveInt, PositiveInt]
+
+    @model_validator(mode="after")
+    def _box(self) -> RectangleShapeSpec:
+        _check_box(self.box, "box")
+        return self
+
+    def bounds(self) -> Box | None:
+        return self.box
+
+
+class WindmillShapeSpec(_Spec):
+    """A hub with ``blades`` rectangular blades, meshed with Triangle."""
+
+    type: Literal["windmill"] = "windmill"
+    center: Point
+    radius: PositiveFloat
+    """Blade tip radius [m]."""
+    hub_radius: PositiveFloat
+    blade_width: PositiveFloat
+    blades: Annotated[int, Field(ge=1)] = 4
+    angle: float = 0.0
+    """Direction of the first blade [rad]."""
+    element_size: PositiveFloat | None = None
+    """Target edge length [m]; None: half the blade width."""
+
+    @model_validator(mode="after")
+    def _sizes(self) -> WindmillShapeSpec:
+        if self.hub_radius >= self.radius:
+            raise ValueError(f"hub_radius {self.hub_radius:g}: must be below radius {self.radius:g}")
+        return self
+
+    def bounds(self) -> Box | None:
+        (cx, cy), r = self.center, self.radius
+        return (cx - r, cy - r, cx + r, cy + r)
+
+
+class PolygonShapeSpec(_Spec):
+    """A polygon (counter-clockwise) meshed with Triangle."""
+
+    type: Literal["polygon"] = "polygon"
+    points: Annotated[list[Point], Field(min_length=3)]
+    element_size: PositiveFloat | None = None
+    """Target edge length [m]; None lets the mesher pick."""
+
+    def bounds(self) -> Box | None:
+        xs = [p[0] for p in self.points]
+        ys = [p[1] for p in self.points]
+        return (min(xs), min(ys), max(xs), max(ys))
+
+
+class MeshFileShapeSpec(_Spec):
+    """A triangle mesh read from a file (any format meshio reads, e.g. Gmsh .msh)."""
+
+    type: Literal["mesh"] = "mesh"
+    path: str
+    """Relative paths are taken from the scene file's folder."""
+    scale: PositiveFloat = 1.0
+    offset: Point = (0.0, 0.0)
+
+    def bounds(self) -> Box | None:
+        return None
+
+
+ShapeSpec = Annotated[
+    RectangleShapeSpec | WindmillShapeSpec | PolygonShapeSpec | MeshFileShapeSpec,
+    Field(discriminator="type"),
+]
+
+
+class MaterialSpec(_Spec):
+    """St. Venant-Kirchhoff material with Voigt damping (METHOD section 4)."""
+
+    density: PositiveFloat
+    young_modulus: PositiveFloat
+    poisson_ratio: Annotated[float, Field(gt=-1.0, lt=0.5)]
+    damping_lambda: NonNegativeFloat = 0.0
+    """Damping constant lambda' [Pa s]."""
+    damping_mu: NonNegativeFloat = 0.0
+    """Damping constant mu' [Pa s]."""
+    plane: Literal["strain", "stress"] = "strain"
+
+
+class FixedSpec(_Spec):
+    """Nodes held at their rest position: those inside ``box`` and those listed in ``nodes``."""
+
+    box: Box | None = None
+    nodes: list[Annotated[int, Field(ge=0)]] = Field(default_factory=list)
+
+    @model_validator(mode="after")
+    def _box(self) -> FixedSpec:
+        if self.box is not None:
+            _check_box(self.box, "box")
+        return self
+
+
+class BodySpec(_Spec):
+    """An elastic body: its shape, material and constraints."""
+
+    name: str | None = None
+    shape: ShapeSpec
+    material: MaterialSpec
+    fixed: FixedSpec | None = None
+    pivot: Point | None = None
+    """The node nearest this point [m] is pinned; the body rotates freely about it."""
+
+
+# --------------------------------------------------------------------------------------------
+# time and coupling
+
+
+class TimeSpec(_Spec):
+    """Fluid step (``dt`` [s], or ``cfl`` with the scene's characteristic speed), run length
+    (``duration`` [s] or ``steps``) and solid substeps per fluid step."""
+
+    dt: PositiveFloat | None = None
+    cfl: PositiveFloat | None = None
+    duration: PositiveFloat | None = None
+    steps: PositiveInt | None = None
+    substeps: PositiveInt | Literal["auto"] = "auto"
+
+    @model_validator(mode="after")
+    def _exactly_one(self) -> TimeSpec:
+        if (self.dt is None) == (self.cfl is None):
+            raise ValueError("give exactly one of dt (seconds) or cfl (Courant number)")
+        if (self.duration is None) == (self.steps is None):
+            raise ValueError("give exactly one of duration (seconds) or steps (count)")
+        return self
+
+
+class CouplingSpec(_Spec):
+    force_model: Literal["traction", "momentum_exchange"] = "traction"
+    alpha: Annotated[float, Field(gt=0.0, le=1.0)] = 0.5
+    """Volume fraction in eq. 8 of the momentum-exchange model."""
+
+
+# --------------------------------------------------------------------------------------------
+# outputs
+
+View = Literal["speed", "vorticity", "pressure", "dye"]
+
+
+class VideoSpec(_Spec):
+    view: View = "speed"
+    fps: PositiveInt = 30
+    every: PositiveInt = 1
+    """Render a frame every this many fluid steps."""
+
+
+class FieldsSpec(_Spec):
+    formats: Annotated[list[Literal["npz", "vtk", "xdmf"]], Field(min_length=1)] = Field(
+        default_factory=lambda: ["npz"]
+    )
+    every: PositiveInt = 10
+
+
+class MeshesSpec(_Spec):
+    """Bodies extruded to 3D prisms (pseudo-3D, paper Fig. 7)."""
+
+    format: Literal["obj", "ply"] = "obj"
+    thickness: PositiveFloat = 0.05
+    every: PositiveInt = 1
+
+
+class ProbeSpec(_Spec):
+    kind: Literal["node_displacement", "body_force", "kinetic_energy", "pressure_iterations"]
+    body: Annotated[int, Field(ge=0)] | None = None
+    """Body index (node_displacement, body_force; kinetic_energy of a body, else the fluid's)."""
+    node: Annotated[int, Field(ge=0)] | None = None
+    point: Point | None = None
+    """For node_displacement: the node nearest this rest position, instead of ``node``."""
+
+    @model_validator(mode="after")
+    def _needs(self) -> ProbeSpec:
+        if self.kind in ("node_displacement", "body_force") and self.body is None:
+            raise ValueError(f"probe kind {self.kind!r} needs body (an index)")
+        if self.kind == "node_displacement" and (self.node is None) == (self.point is None):
+            raise ValueError("probe kind 'node_displacement' needs exactly one of node or point")
+        return self
+
+
+class CheckpointSpec(_Spec):
+    every: PositiveInt = 100
+
+
+class OutputsSpec(_Spec):
+    """Each output is off when left out."""
+
+    video: VideoSpec | None = None
+    fields: FieldsSpec | None = None
+    meshes: MeshesSpec | None = None
+    probes: list[ProbeSpec] = Field(default_factory=list)
+    probes_every: PositiveInt = 1
+    checkpoint: CheckpointSpec | None = None
+
+
+# --------------------------------------------------------------------------------------------
+# the scene
+
+
+class Scene(_Spec):
+    """A complete simulation set-up: typed data, loadable from TOML (``load_scene``)."""
+
+    name: str = "scene"
+    description: str = ""
+    domain: DomainSpec
+    fluid: FluidSpec = Field(default_factory=FluidSpec)
+    boundaries: BoundariesSpec = Field(default_factory=BoundariesSpec)
+    jets: list[JetSpec] = Field(default_factory=list)
+    obstacles: list[ObstacleSpec] = Field(default_factory=list)
+    bodies: list[BodySpec] = Field(default_factory=list)
+    time: TimeSpec
+    coupling: CouplingSpec = Field(default_factory=CouplingSpec)
+    outputs: OutputsSpec = Field(default_factory=OutputsSpec)
+    base_dir: str | None = Field(default=None, exclude=True)
+    """Folder that relative mesh paths are taken from (the scene file's folder); not saved."""
