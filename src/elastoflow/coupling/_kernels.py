@@ -1,0 +1,510 @@
+"""Numba kernels of the boundary map, the classification, the cut data and the forces.
+
+Every kernel works on one family of half-grid lines of one map. A line is a row ``J`` of the
+x-map (``y = J h/2``, coordinates along x) or a column ``I`` of the y-map (``x = I h/2``,
+coordinates along y). Entries of line ``L`` are ``offsets[L]:offsets[L+1]`` of the entry arrays,
+sorted by coordinate. Grid points on a line sit at half-grid index ``point_start + 2 k``; the
+``point_first`` flag says whether an output array is indexed ``[k, l]`` (x-map rows, where the
+point index is ``i``) or ``[l, k]`` (y-map columns, where the line index is ``i``).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit, prange
+
+# Sorting a line switches from insertion sort to a merge sort above this many entries.
+_INSERTION_SORT_LIMIT = 32
+
+# A grid point lying exactly on the boundary has a cut distance of 0; the contract asks for a
+# fraction in (0, 1], so it is floored here (the fluid guards small fractions further).
+THETA_FLOOR = 1.0e-6
+
+
+@njit(cache=True)
+def _line_range(across_a: float, across_b: float, line_count: int) -> tuple[int, int]:
+    """Half-open range of lines crossed by an edge, in half-cell units: lo <= L < hi."""
+    lo = min(across_a, across_b)
+    hi = max(across_a, across_b)
+    first = max(int(math.ceil(lo)), 0)
+    last = min(int(math.ceil(hi)) - 1, line_count - 1)
+    return first, last
+
+
+@njit(cache=True)
+def build_axis_map(
+    along: np.ndarray,
+    across: np.ndarray,
+    velocities: np.ndarray,
+    edges: np.ndarray,
+    origin_across: float,
+    half_h: float,
+    line_count: int,
+    entering_when_decreasing: bool,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """One map (x-map or y-map): count pass, prefix sum, fill pass, per-line sort.
+
+    Args:
+        along: Point coordinate along the lines [m], shape (P,).
+        across: Point coordinate across the lines [m], shape (P,).
+        velocities: Point velocities [m/s], shape (P, 2).
+        edges: Boundary edges (a, b), body on the left of a->b, shape (E, 2).
+        origin_across: Coordinate of line 0 [m].
+        half_h: Line spacing h/2 [m].
+        line_count: Number of lines.
+        entering_when_decreasing: True for the x-map (an edge going down has the body on +x),
+            False for the y-map (an edge going right has the body on +y).
+
+    Returns:
+        offsets (line_count+1,), coordinate (C,), edge (C,), parameter (C,),
+        velocity (C, 2), sign (C,) int8.
+    """
+    edge_count = edges.shape[0]
+    scaled = np.empty(along.shape[0])
+    for p in range(along.shape[0]):
+        scaled[p] = (across[p] - origin_across) / half_h
+
+    counts = np.zeros(line_count + 1, dtype=np.int64)
+    for e in range(edge_count):
+        sa = scaled[edges[e, 0]]
+        sb = scaled[edges[e, 1]]
+        if sa == sb:
+            continue
+        first, last = _line_range(sa, sb, line_count)
+        for line in range(first, last + 1):
+            counts[line + 1] += 1
+    offsets = np.cumsum(counts)
+    total = offsets[line_count]
+
+    coordinate = np.empty(total)
+    edge_index = np.empty(total, dtype=np.int64)
+    parameter = np.empty(total)
+    velocity = np.empty((total, 2))
+    sign = np.empty(total, dtype=np.int8)
+    cursor = offsets[:line_count].copy()
+    for e in range(edge_count):
+        a = edges[e, 0]
+        b = edges[e, 1]
+        sa = scaled[a]
+        sb = scaled[b]
+        if sa == sb:
+            continue
+        decreasing = sb < sa
+        entering = decreasing == entering_when_decreasing
+        first, last = _line_range(sa, sb, line_count)
+        for line in range(first, last + 1):
+            t = (line - sa) / (sb - sa)
+            t = min(max(t, 0.0), 1.0)
+            slot = cursor[line]
+            cursor[line] += 1
+            coordinate[slot] = along[a] + t * (along[b] - along[a])
+            edge_index[slot] = e
+            parameter[slot] = t
+            velocity[slot, 0] = (1.0 - t) * velocities[a, 0] + t * velocities[b, 0]
+            velocity[slot, 1] = (1.0 - t) * velocities[a, 1] + t * velocities[b, 1]
+            sign[slot] = 1 if entering else -1
+
+    for line in range(line_count):
+        _sort_line(offsets[line], offsets[line + 1], coordinate, edge_index, parameter,
+                   velocity, sign)
+    return offsets, coordinate, edge_index, parameter, velocity, sign
+
+
+@njit(cache=True)
+def _before(ca: float, sa: int, cb: float, sb: int) -> bool:
+    # Ties put a leaving crossing first so that two bodies touching along a line keep the
+    # winding number in {0, 1}.
+    return ca < cb or (ca == cb and sa < sb)
+
+
+@njit(cache=True)
+def _sort_line(
+    begin: int,
+    end: int,
+    coordinate: np.ndarray,
+    edge_index: np.ndarray,
+    parameter: np.ndarray,
+    velocity: np.ndarray,
+    sign: np.ndarray,
+) -> None:
+    """Sort entries begin:end in place by (coordinate, sign)."""
+    n = end - begin
+    if n < 2:
+        return
+    if n > _INSERTION_SORT_LIMIT:
+        order = np.argsort(coordinate[begin:end], kind="mergesort")
+        coordinate[begin:end] = coordinate[begin:end][order]
+        edge_index[begin:end] = edge_index[begin:end][order]
+        parameter[begin:end] = parameter[begin:end][order]
+        sign[begin:end] = sign[begin:end][order]
+        velocity[begin:end, 0] = velocity[begin:end, 0][order]
+        velocity[begin:end, 1] = velocity[begin:end, 1][order]
+    # Insertion sort: the whole sort for short lines, the tie fix-up after the merge sort.
+    for k in range(begin + 1, end):
+        c = coordinate[k]
+        e = edge_index[k]
+        t = parameter[k]
+        vx = velocity[k, 0]
+        vy = velocity[k, 1]
+        s = sign[k]
+        m = k - 1
+        while m >= begin and _before(c, s, coordinate[m], sign[m]):
+            coordinate[m + 1] = coordinate[m]
+            edge_index[m + 1] = edge_index[m]
+            parameter[m + 1] = parameter[m]
+            velocity[m + 1, 0] = velocity[m, 0]
+            velocity[m + 1, 1] = velocity[m, 1]
+            sign[m + 1] = sign[m]
+            m -= 1
+        coordinate[m + 1] = c
+        edge_index[m + 1] = e
+        parameter[m + 1] = t
+        velocity[m + 1, 0] = vx
+        velocity[m + 1, 1] = vy
+        sign[m + 1] = s
+
+
+@njit(cache=True, parallel=True)
+def classify_lines(
+    offsets: np.ndarray,
+    coordinate: np.ndarray,
+    sign: np.ndarray,
+    edge_index: np.ndarray,
+    velocity: np.ndarray,
+    edge_body: np.ndarray,
+    line_start: int,
+    line_count_out: int,
+    point_start: int,
+    point_count: int,
+    origin_along: float,
+    half_h: float,
+    component: int,
+    solid_out: np.ndarray,
+    body_out: np.ndarray,
+    velocity_out: np.ndarray,
+) -> None:
+    """Scanline fill of x-map rows: solid flag, body id and body velocity, outputs [k, l].
+
+    A point at coordinate x is solid when the winding number of the crossings at coordinates
+    <= x is non-zero (for a simple, consistently oriented loop this is the parity rule; it also
+    survives a loop given clockwise). Inside a span the body velocity is interpolated linearly
+    between the span's two crossings (exact for rigid motion). ``component < 0`` skips the
+    velocity.
+    """
+    for l in prange(line_count_out):
+        line = line_start + 2 * l
+        begin = offsets[line]
+        end = offsets[line + 1]
+        c = begin
+        winding = 0
+        for k in range(point_count):
+            x = origin_along + (point_start + 2 * k) * half_h
+            while c < end and coordinate[c] <= x:
+                winding += sign[c]
+                c += 1
+            if winding == 0:
+                continue
+            solid_out[k, l] = True
+            body_out[k, l] = edge_body[edge_index[c - 1]]
+            if component < 0:
+                continue
+            value = velocity[c - 1, component]
+            if c < end:
+                width = coordinate[c] - coordinate[c - 1]
+                if width > 0.0:
+                    w = (x - coordinate[c - 1]) / width
+                    value = (1.0 - w) * value + w * velocity[c, component]
+            velocity_out[k, l] = value
+
+
+@njit(cache=True, parallel=True)
+def cut_lines(
+    offsets: np.ndarray,
+    coordinate: np.ndarray,
+    velocity: np.ndarray,
+    component: int,
+    line_start: int,
+    line_count_out: int,
+    point_start: int,
+    point_count: int,
+    origin_along: float,
+    h: float,
+    point_first: bool,
+    theta_minus: np.ndarray,
+    theta_plus: np.ndarray,
+    velocity_minus: np.ndarray,
+    velocity_plus: np.ndarray,
+) -> None:
+    """Cut fractions towards the lower and upper neighbour along a line.
+
+    Windows are half-open like the classification (a point at x sees crossings <= x as behind
+    it): towards minus the crossing lies in (x - h, x], towards plus in (x, x + h]. Outputs
+    that see no crossing are left untouched (the caller fills them with inf and 0).
+    """
+    half_h = 0.5 * h
+    for l in prange(line_count_out):
+        line = line_start + 2 * l
+        begin = offsets[line]
+        end = offsets[line + 1]
+        c = begin
+        for k in range(point_count):
+            x = origin_along + (point_start + 2 * k) * half_h
+            while c < end and coordinate[c] <= x:
+                c += 1
+            if c > begin:
+                d = x - coordinate[c - 1]
+                if d < h:
+                    theta = max(d / h, THETA_FLOOR)
+                    value = velocity[c - 1, component]
+                    if point_first:
+                        theta_minus[k, l] = theta
+                        velocity_minus[k, l] = value
+                    else:
+                        theta_minus[l, k] = theta
+                        velocity_minus[l, k] = value
+            if c < end:
+                d = coordinate[c] - x
+                if d <= h:
+                    theta = max(d / h, THETA_FLOOR)
+                    value = velocity[c, component]
+                    if point_first:
+                        theta_plus[k, l] = theta
+                        velocity_plus[k, l] = value
+                    else:
+                        theta_plus[l, k] = theta
+                        velocity_plus[l, k] = value
+
+
+@njit(cache=True, parallel=True)
+def open_fraction_lines(
+    offsets: np.ndarray,
+    coordinate: np.ndarray,
+    sign: np.ndarray,
+    line_start: int,
+    line_count_out: int,
+    point_count: int,
+    origin_along: float,
+    h: float,
+    point_first: bool,
+    open_out: np.ndarray,
+) -> None:
+    """Open (fluid) fraction of the segments [k h, (k+1) h] along each line.
+
+    ``open_out`` must hold 1 on entry; the solid length of every solid span is subtracted.
+    """
+    for l in prange(line_count_out):
+        line = line_start + 2 * l
+        begin = offsets[line]
+        end = offsets[line + 1]
+        winding = 0
+        extent = point_count * h
+        for c in range(begin, end - 1):
+            winding += sign[c]
+            if winding == 0:
+                continue
+            a = max(coordinate[c] - origin_along, 0.0)
+            b = min(coordinate[c + 1] - origin_along, extent)
+            if b <= a:
+                continue
+            k0 = min(int(a / h), point_count - 1)
+            k1 = min(int(b / h), point_count - 1)
+            for k in range(k0, k1 + 1):
+                lo = max(a, k * h)
+                hi = min(b, (k + 1) * h)
+                if hi > lo:
+                    if point_first:
+                        open_out[k, l] -= (hi - lo) / h
+                    else:
+                        open_out[l, k] -= (hi - lo) / h
+        for k in range(point_count):
+            if point_first:
+                open_out[k, l] = min(max(open_out[k, l], 0.0), 1.0)
+            else:
+                open_out[l, k] = min(max(open_out[l, k], 0.0), 1.0)
+
+
+@njit(cache=True)
+def momentum_exchange_lines(
+    offsets: np.ndarray,
+    coordinate: np.ndarray,
+    sign: np.ndarray,
+    edge_index: np.ndarray,
+    parameter: np.ndarray,
+    velocity: np.ndarray,
+    edges: np.ndarray,
+    component: int,
+    line_start: int,
+    line_count_out: int,
+    face_count: int,
+    origin_along: float,
+    h: float,
+    field: np.ndarray,
+    point_first: bool,
+    coefficient: float,
+    force_out: np.ndarray,
+) -> None:
+    """Paper eq. (8) along lines through velocity points of one component.
+
+    For each crossing the velocity point of that component next to it on the fluid side (the
+    side the edge orientation says is fluid) gives ``coefficient * (u_P - u_s)``, split between
+    the edge's nodes by the edge parameter. A crossing whose neighbour point is separated from
+    it by another crossing (a sliver thinner than h) is skipped.
+    """
+    for l in range(line_count_out):
+        line = line_start + 2 * l
+        begin = offsets[line]
+        end = offsets[line + 1]
+        for c in range(begin, end):
+            s = (coordinate[c] - origin_along) / h
+            if sign[c] > 0:
+                # Entering: fluid on the minus side; the point exactly at the crossing is solid.
+                k = int(math.ceil(s)) - 1
+                if c > begin and coordinate[c - 1] > origin_along + k * h:
+                    continue
+            else:
+                k = int(math.ceil(s))
+                if c + 1 < end and coordinate[c + 1] <= origin_along + k * h:
+                    continue
+            if k < 0 or k >= face_count:
+                continue
+            fluid_value = field[k, l] if point_first else field[l, k]
+            f = coefficient * (fluid_value - velocity[c, component])
+            t = parameter[c]
+            e = edge_index[c]
+            force_out[edges[e, 0], component] += (1.0 - t) * f
+            force_out[edges[e, 1], component] += t * f
+
+
+@njit(cache=True)
+def _sample_fluid(
+    field: np.ndarray,
+    solid: np.ndarray,
+    fx: float,
+    fy: float,
+    x0: float,
+    y0: float,
+    h: float,
+    gravity_x: float,
+    gravity_y: float,
+    density: float,
+) -> tuple[float, bool]:
+    """Bilinear sample at index-space position (fx, fy) over fluid, in-range points only.
+
+    Weights of solid or out-of-range points are dropped and the rest renormalised. The value
+    sampled is ``field - density * gravity . x`` (x of each stencil point, whose index (i, j)
+    sits at ``(x0 + i h, y0 + j h)``), which removes a hydrostatic part before interpolating.
+    """
+    i0 = int(math.floor(fx))
+    j0 = int(math.floor(fy))
+    wx = fx - i0
+    wy = fy - j0
+    total_weight = 0.0
+    total = 0.0
+    for di in range(2):
+        i = i0 + di
+        if i < 0 or i >= field.shape[0]:
+            continue
+        weight_x = wx if di == 1 else 1.0 - wx
+        for dj in range(2):
+            j = j0 + dj
+            if j < 0 or j >= field.shape[1]:
+                continue
+            if solid[i, j]:
+                continue
+            weight = weight_x * (wy if dj == 1 else 1.0 - wy)
+            if weight <= 0.0:
+                continue
+            hydrostatic = density * (gravity_x * (x0 + i * h) + gravity_y * (y0 + j * h))
+            total += weight * (field[i, j] - hydrostatic)
+            total_weight += weight
+    if total_weight <= 1.0e-12:
+        return 0.0, False
+    return total / total_weight, True
+
+
+@njit(cache=True)
+def traction_edges(
+    points: np.ndarray,
+    velocities: np.ndarray,
+    edges: np.ndarray,
+    velocity_x: np.ndarray,
+    velocity_y: np.ndarray,
+    pressure: np.ndarray,
+    solid_faces_x: np.ndarray,
+    solid_faces_y: np.ndarray,
+    solid_cells: np.ndarray,
+    origin_x: float,
+    origin_y: float,
+    h: float,
+    density: float,
+    dynamic_viscosity: float,
+    gravity_x: float,
+    gravity_y: float,
+    distances: np.ndarray,
+    force_out: np.ndarray,
+) -> None:
+    """Traction integral (-p n + mu (grad u + grad u^T) n) ds along every edge, see
+    ``force_traction`` for the estimate. Sub-segments no longer than h, midpoint rule."""
+    for e in range(edges.shape[0]):
+        a = edges[e, 0]
+        b = edges[e, 1]
+        dx = points[b, 0] - points[a, 0]
+        dy = points[b, 1] - points[a, 1]
+        length = math.sqrt(dx * dx + dy * dy)
+        if length <= 0.0:
+            continue
+        # Body on the left of a->b: the outward normal (into the fluid) is on the right.
+        nx = dy / length
+        ny = -dx / length
+        pieces = max(1, int(math.ceil(length / h)))
+        ds = length / pieces
+        for q in range(pieces):
+            t = (q + 0.5) / pieces
+            xq = points[a, 0] + t * dx
+            yq = points[a, 1] + t * dy
+            wall_u = (1.0 - t) * velocities[a, 0] + t * velocities[b, 0]
+            wall_v = (1.0 - t) * velocities[a, 1] + t * velocities[b, 1]
+
+            wall_pressure = 0.0
+            for m in range(distances.shape[0]):
+                xs = xq + distances[m] * nx
+                ys = yq + distances[m] * ny
+                value, found = _sample_fluid(
+                    pressure, solid_cells, (xs - origin_x) / h - 0.5, (ys - origin_y) / h - 0.5,
+                    origin_x + 0.5 * h, origin_y + 0.5 * h, h, gravity_x, gravity_y, density)
+                if found:
+                    wall_pressure = value + density * (gravity_x * xq + gravity_y * yq)
+                    break
+
+            traction_x = -wall_pressure * nx
+            traction_y = -wall_pressure * ny
+            if dynamic_viscosity > 0.0:
+                for m in range(distances.shape[0]):
+                    delta = distances[m]
+                    xs = xq + delta * nx
+                    ys = yq + delta * ny
+                    u, found_u = _sample_fluid(
+                        velocity_x, solid_faces_x, (xs - origin_x) / h,
+                        (ys - origin_y) / h - 0.5, origin_x, origin_y + 0.5 * h, h,
+                        0.0, 0.0, 0.0)
+                    v, found_v = _sample_fluid(
+                        velocity_y, solid_faces_y, (xs - origin_x) / h - 0.5,
+                        (ys - origin_y) / h, origin_x + 0.5 * h, origin_y, h,
+                        0.0, 0.0, 0.0)
+                    if found_u and found_v:
+                        # One-sided normal derivative; with no slip the tangential derivatives
+                        # of u - u_wall vanish, so grad u = a n^T and the strain-rate
+                        # traction is a + n (a . n).
+                        ax = (u - wall_u) / delta
+                        ay = (v - wall_v) / delta
+                        normal_part = ax * nx + ay * ny
+                        traction_x += dynamic_viscosity * (ax + nx * normal_part)
+                        traction_y += dynamic_viscosity * (ay + ny * normal_part)
+                        break
+
+            force_out[a, 0] += (1.0 - t) * traction_x * ds
+            force_out[a, 1] += (1.0 - t) * traction_y * ds
+            force_out[b, 0] += t * traction_x * ds
+            force_out[b, 1] += t * traction_y * ds
