@@ -137,18 +137,494 @@ def remove_component_means_kernel(x, labels, singular, count):
                 x[i, j] -= sums[c]
 
 
+@njit(cache=True, inline="always")
+def _jacobi_row(diagonal, weights_x, weights_y, rhs, x, x_next, omega, i, m, n):
+    squared = 0.0
+    for j in range(n):
+        total, coupled = _neighbour_sum(diagonal, weights_x, weights_y, x, i, j, m, n)
+        residual = rhs[i, j] - total * x[i, j] + coupled
+        squared += residual * residual
+        if total > 0.0:
+            x_next[i, j] = x[i, j] + omega * residual / total
+        else:
+            x_next[i, j] = 0.0
+    return squared
+
+
 @njit(cache=True, parallel=True)
-def jacobi_sweep_kernel(diagonal, weights_x, weights_y, rhs, x, x_next, omega):
-    """One weighted Jacobi sweep ``x_next = x + omega D^-1 (b - A x)``; return ``|b - A x|^2``."""
+def _jacobi_sweep_parallel(diagonal, weights_x, weights_y, rhs, x, x_next, omega):
     m, n = x.shape
     squared = 0.0
     for i in prange(m):
-        for j in range(n):
-            total, coupled = _neighbour_sum(diagonal, weights_x, weights_y, x, i, j, m, n)
-            residual = rhs[i, j] - total * x[i, j] + coupled
-            squared += residual * residual
-            if total > 0.0:
-                x_next[i, j] = x[i, j] + omega * residual / total
-            else:
-                x_next[i, j] = 0.0
+        squared += _jacobi_row(diagonal, weights_x, weights_y, rhs, x, x_next, omega, i, m, n)
     return squared
+
+
+@njit(cache=True)
+def _jacobi_sweep_serial(diagonal, weights_x, weights_y, rhs, x, x_next, omega):
+    m, n = x.shape
+    squared = 0.0
+    for i in range(m):
+        squared += _jacobi_row(diagonal, weights_x, weights_y, rhs, x, x_next, omega, i, m, n)
+    return squared
+
+
+@njit(cache=True)
+def jacobi_kernel(diagonal, weights_x, weights_y, rhs, x, x_next, omega, threshold,
+                  max_iterations):
+    """Weighted Jacobi sweeps ``x <- x + omega D^-1 (b - A x)`` until ``|b - A x|^2 <=
+    threshold`` or ``max_iterations`` sweeps. Returns ``(sweeps, |b - A x|^2)``; the iterate
+    ends in ``x``."""
+    parallel = x.size >= 64 * 64
+    current = x
+    following = x_next
+    iterations = 0
+    while True:
+        if parallel:
+            squared = _jacobi_sweep_parallel(diagonal, weights_x, weights_y, rhs, current,
+                                             following, omega)
+        else:
+            squared = _jacobi_sweep_serial(diagonal, weights_x, weights_y, rhs, current,
+                                           following, omega)
+        if squared <= threshold or iterations >= max_iterations:
+            if iterations % 2 == 1:
+                x[:, :] = current
+            return iterations, squared
+        current, following = following, current
+        iterations += 1
+
+
+# Multigrid-preconditioned CG on padded flat levels.
+#
+# Each level of ``m x n`` unknowns is stored flat with a ring of ghost points, index
+# ``k = (i + 1) * (n + 2) + (j + 1)``. Ghost values and every weight to a ghost are 0, which
+# makes the stencil loops branch-free. ``weights_x[k]`` couples ``k`` with ``k + n + 2`` (the
+# +x neighbour), ``weights_y[k]`` couples ``k`` with ``k + 1``; ``total[k]`` is the diagonal
+# plus the four weights and ``inverse[k]`` its inverse (0 at inactive points).
+
+_PARALLEL_MINIMUM = 64 * 64
+
+
+@njit(cache=True, parallel=True)
+def pad_operator_kernel(diagonal, weights_x, weights_y, diagonal_flat, weights_x_flat,
+                        weights_y_flat):
+    m, n = diagonal.shape
+    stride = n + 2
+    for i in prange(m):
+        row = (i + 1) * stride + 1
+        for j in range(n):
+            diagonal_flat[row + j] = diagonal[i, j]
+        if i < m - 1:
+            for j in range(n):
+                weights_x_flat[row + j] = weights_x[i, j]
+        else:
+            for j in range(n):
+                weights_x_flat[row + j] = 0.0
+        for j in range(n - 1):
+            weights_y_flat[row + j] = weights_y[i, j]
+        weights_y_flat[row + n - 1] = 0.0
+
+
+@njit(cache=True, parallel=True)
+def pad_values_kernel(values, flat):
+    m, n = values.shape
+    stride = n + 2
+    for i in prange(m):
+        row = (i + 1) * stride + 1
+        for j in range(n):
+            flat[row + j] = values[i, j]
+
+
+@njit(cache=True, parallel=True)
+def unpad_values_kernel(flat, values):
+    m, n = values.shape
+    stride = n + 2
+    for i in prange(m):
+        row = (i + 1) * stride + 1
+        for j in range(n):
+            values[i, j] = flat[row + j]
+
+
+@njit(cache=True, inline="always")
+def _total_row(diagonal, weights_x, weights_y, total, inverse, row, n, stride):
+    for k in range(row, row + n):
+        value = (diagonal[k] + weights_x[k] + weights_x[k - stride] + weights_y[k]
+                 + weights_y[k - 1])
+        total[k] = value
+        inverse[k] = 1.0 / value if value > 0.0 else 0.0
+
+
+@njit(cache=True, parallel=True)
+def totals_parallel(diagonal, weights_x, weights_y, total, inverse, m, n):
+    stride = n + 2
+    for i in prange(m):
+        _total_row(diagonal, weights_x, weights_y, total, inverse, (i + 1) * stride + 1, n, stride)
+
+
+@njit(cache=True)
+def totals_serial(diagonal, weights_x, weights_y, total, inverse, m, n):
+    stride = n + 2
+    for i in range(m):
+        _total_row(diagonal, weights_x, weights_y, total, inverse, (i + 1) * stride + 1, n, stride)
+
+
+@njit(cache=True, inline="always")
+def _coarsen_row(fine_diagonal, fine_weights_x, fine_weights_y, coarse_diagonal,
+                 coarse_weights_x, coarse_weights_y, row_c, n_c, fine_row0, stride_f, stride_c):
+    # Diagonal terms add up (a sum over the children, like the restriction); face weights are
+    # averaged over the two fine faces of a coarse face, so that the coarse operator is the
+    # rediscretised one (4x the coarse unscaled Laplacian) rather than twice too stiff.
+    fine_row1 = fine_row0 + stride_f
+    kc = (row_c + 1) * stride_c + 1
+    for jc in range(n_c):
+        k0 = fine_row0 + 2 * jc
+        k1 = fine_row1 + 2 * jc
+        coarse_diagonal[kc + jc] = (fine_diagonal[k0] + fine_diagonal[k0 + 1]
+                                    + fine_diagonal[k1] + fine_diagonal[k1 + 1])
+        coarse_weights_x[kc + jc] = 0.5 * (fine_weights_x[k1] + fine_weights_x[k1 + 1])
+        coarse_weights_y[kc + jc] = 0.5 * (fine_weights_y[k0 + 1] + fine_weights_y[k1 + 1])
+
+
+@njit(cache=True, parallel=True)
+def coarsen_parallel(fine_diagonal, fine_weights_x, fine_weights_y, coarse_diagonal,
+                     coarse_weights_x, coarse_weights_y, n_f, m_c, n_c):
+    stride_f = n_f + 2
+    stride_c = n_c + 2
+    for ic in prange(m_c):
+        _coarsen_row(fine_diagonal, fine_weights_x, fine_weights_y, coarse_diagonal,
+                     coarse_weights_x, coarse_weights_y, ic, n_c,
+                     (2 * ic + 1) * stride_f + 1, stride_f, stride_c)
+
+
+@njit(cache=True)
+def coarsen_serial(fine_diagonal, fine_weights_x, fine_weights_y, coarse_diagonal,
+                   coarse_weights_x, coarse_weights_y, n_f, m_c, n_c):
+    stride_f = n_f + 2
+    stride_c = n_c + 2
+    for ic in range(m_c):
+        _coarsen_row(fine_diagonal, fine_weights_x, fine_weights_y, coarse_diagonal,
+                     coarse_weights_x, coarse_weights_y, ic, n_c,
+                     (2 * ic + 1) * stride_f + 1, stride_f, stride_c)
+
+
+@njit(cache=True, inline="always")
+def _smooth_row(x, b, inverse, weights_x, weights_y, row, start, n, stride):
+    for k in range(row + start, row + n, 2):
+        x[k] = inverse[k] * (b[k] + weights_x[k] * x[k + stride]
+                             + weights_x[k - stride] * x[k - stride]
+                             + weights_y[k] * x[k + 1] + weights_y[k - 1] * x[k - 1])
+
+
+@njit(cache=True, inline="always")
+def _first_smooth_row(x, b, inverse, row, start, n):
+    # First half sweep from x = 0: points of this colour get D^-1 b, the others are set to 0
+    # so that the level needs no separate clearing pass.
+    for k in range(row + start, row + n, 2):
+        x[k] = inverse[k] * b[k]
+    for k in range(row + 1 - start, row + n, 2):
+        x[k] = 0.0
+
+
+@njit(cache=True, parallel=True)
+def smooth_parallel(x, b, inverse, weights_x, weights_y, m, n, colour, from_zero):
+    """Gauss-Seidel half sweep over the points with ``(i + j) % 2 == colour``."""
+    stride = n + 2
+    for i in prange(m):
+        row = (i + 1) * stride + 1
+        start = (i + colour) & 1
+        if from_zero:
+            _first_smooth_row(x, b, inverse, row, start, n)
+        else:
+            _smooth_row(x, b, inverse, weights_x, weights_y, row, start, n, stride)
+
+
+@njit(cache=True)
+def smooth_serial(x, b, inverse, weights_x, weights_y, m, n, colour, from_zero):
+    stride = n + 2
+    for i in range(m):
+        row = (i + 1) * stride + 1
+        start = (i + colour) & 1
+        if from_zero:
+            _first_smooth_row(x, b, inverse, row, start, n)
+        else:
+            _smooth_row(x, b, inverse, weights_x, weights_y, row, start, n, stride)
+
+
+@njit(cache=True, inline="always")
+def _residual_at(x, b, total, weights_x, weights_y, k, stride):
+    return (b[k] - total[k] * x[k] + weights_x[k] * x[k + stride]
+            + weights_x[k - stride] * x[k - stride] + weights_y[k] * x[k + 1]
+            + weights_y[k - 1] * x[k - 1])
+
+
+@njit(cache=True, inline="always")
+def _restrict_row(x, b, total, weights_x, weights_y, coarse_b, m, n, ic, n_c):
+    # Restriction is the transpose of piecewise-constant prolongation: the coarse right-hand
+    # side is the sum of the fine residuals of the (up to four) children.
+    stride = n + 2
+    stride_c = n_c + 2
+    kc = (ic + 1) * stride_c + 1
+    for jc in range(n_c):
+        coarse_b[kc + jc] = 0.0
+    for i in range(2 * ic, min(2 * ic + 2, m)):
+        row = (i + 1) * stride + 1
+        for jc in range(n // 2):
+            k = row + 2 * jc
+            coarse_b[kc + jc] += (_residual_at(x, b, total, weights_x, weights_y, k, stride)
+                                  + _residual_at(x, b, total, weights_x, weights_y, k + 1, stride))
+        if n % 2 == 1:
+            k = row + n - 1
+            coarse_b[kc + n_c - 1] += _residual_at(x, b, total, weights_x, weights_y, k, stride)
+
+
+@njit(cache=True, parallel=True)
+def restrict_parallel(x, b, total, weights_x, weights_y, coarse_b, m, n, m_c, n_c):
+    for ic in prange(m_c):
+        _restrict_row(x, b, total, weights_x, weights_y, coarse_b, m, n, ic, n_c)
+
+
+@njit(cache=True)
+def restrict_serial(x, b, total, weights_x, weights_y, coarse_b, m, n, m_c, n_c):
+    for ic in range(m_c):
+        _restrict_row(x, b, total, weights_x, weights_y, coarse_b, m, n, ic, n_c)
+
+
+@njit(cache=True, inline="always")
+def _prolong_row(coarse_x, x, i, n, n_c):
+    stride = n + 2
+    row = (i + 1) * stride + 1
+    kc = (i // 2 + 1) * (n_c + 2) + 1
+    for jc in range(n // 2):
+        value = coarse_x[kc + jc]
+        x[row + 2 * jc] += value
+        x[row + 2 * jc + 1] += value
+    if n % 2 == 1:
+        x[row + n - 1] += coarse_x[kc + n_c - 1]
+
+
+@njit(cache=True, parallel=True)
+def prolong_parallel(coarse_x, x, m, n, n_c):
+    for i in prange(m):
+        _prolong_row(coarse_x, x, i, n, n_c)
+
+
+@njit(cache=True)
+def prolong_serial(coarse_x, x, m, n, n_c):
+    for i in range(m):
+        _prolong_row(coarse_x, x, i, n, n_c)
+
+
+@njit(cache=True)
+def coarse_solve_kernel(pseudo_inverse, b, x, m, n):
+    stride = n + 2
+    size = m * n
+    gathered = np.empty(size)
+    for i in range(m):
+        for j in range(n):
+            gathered[i * n + j] = b[(i + 1) * stride + j + 1]
+    for i in range(m):
+        for j in range(n):
+            value = 0.0
+            row = i * n + j
+            for c in range(size):
+                value += pseudo_inverse[row, c] * gathered[c]
+            x[(i + 1) * stride + j + 1] = value
+
+
+@njit(cache=True)
+def v_cycle(rows, cols, offsets, diagonal, weights_x, weights_y, total, inverse, level_x,
+            level_b, pseudo_inverse, r, z, sweeps):
+    """Symmetric V-cycle ``z = M r``: red-black Gauss-Seidel before, black-red after."""
+    levels = rows.shape[0]
+    for level in range(levels - 1):
+        m = rows[level]
+        n = cols[level]
+        start = offsets[level]
+        stop = offsets[level + 1]
+        if level == 0:
+            x = z
+            b = r
+        else:
+            x = level_x[start:stop]
+            b = level_b[start:stop]
+        inv = inverse[start:stop]
+        wx = weights_x[start:stop]
+        wy = weights_y[start:stop]
+        coarse_b = level_b[stop:offsets[level + 2]]
+        if m * n >= _PARALLEL_MINIMUM:
+            for sweep in range(sweeps):
+                smooth_parallel(x, b, inv, wx, wy, m, n, 0, sweep == 0)
+                smooth_parallel(x, b, inv, wx, wy, m, n, 1, False)
+            restrict_parallel(x, b, total[start:stop], wx, wy, coarse_b, m, n,
+                              rows[level + 1], cols[level + 1])
+        else:
+            for sweep in range(sweeps):
+                smooth_serial(x, b, inv, wx, wy, m, n, 0, sweep == 0)
+                smooth_serial(x, b, inv, wx, wy, m, n, 1, False)
+            restrict_serial(x, b, total[start:stop], wx, wy, coarse_b, m, n,
+                            rows[level + 1], cols[level + 1])
+    last = levels - 1
+    if last == 0:
+        coarse_solve_kernel(pseudo_inverse, r, z, rows[0], cols[0])
+        return
+    coarse_solve_kernel(pseudo_inverse, level_b[offsets[last]:offsets[last + 1]],
+                        level_x[offsets[last]:offsets[last + 1]], rows[last], cols[last])
+    for level in range(levels - 2, -1, -1):
+        m = rows[level]
+        n = cols[level]
+        start = offsets[level]
+        stop = offsets[level + 1]
+        if level == 0:
+            x = z
+            b = r
+        else:
+            x = level_x[start:stop]
+            b = level_b[start:stop]
+        inv = inverse[start:stop]
+        wx = weights_x[start:stop]
+        wy = weights_y[start:stop]
+        coarse_x = level_x[stop:offsets[level + 2]]
+        if m * n >= _PARALLEL_MINIMUM:
+            prolong_parallel(coarse_x, x, m, n, cols[level + 1])
+            for sweep in range(sweeps):
+                smooth_parallel(x, b, inv, wx, wy, m, n, 1, False)
+                smooth_parallel(x, b, inv, wx, wy, m, n, 0, False)
+        else:
+            prolong_serial(coarse_x, x, m, n, cols[level + 1])
+            for sweep in range(sweeps):
+                smooth_serial(x, b, inv, wx, wy, m, n, 1, False)
+                smooth_serial(x, b, inv, wx, wy, m, n, 0, False)
+
+
+@njit(cache=True, parallel=True)
+def residual_norm_kernel(x, b, total, weights_x, weights_y, r, m, n):
+    """``r = b - A x``; return ``|r|^2``."""
+    stride = n + 2
+    squared = 0.0
+    for i in prange(m):
+        row = (i + 1) * stride + 1
+        for k in range(row, row + n):
+            value = _residual_at(x, b, total, weights_x, weights_y, k, stride)
+            r[k] = value
+            squared += value * value
+    return squared
+
+
+@njit(cache=True, parallel=True)
+def dot_kernel(a, b, m, n):
+    stride = n + 2
+    total = 0.0
+    for i in prange(m):
+        row = (i + 1) * stride + 1
+        for k in range(row, row + n):
+            total += a[k] * b[k]
+    return total
+
+
+@njit(cache=True, parallel=True)
+def search_direction_kernel(z, p, q, total, weights_x, weights_y, beta, m, n):
+    """``p = z + beta p`` and ``q = A z + beta q`` (= ``A p``) in one pass; return ``p . q``."""
+    stride = n + 2
+    product = 0.0
+    for i in prange(m):
+        row = (i + 1) * stride + 1
+        for k in range(row, row + n):
+            applied = (total[k] * z[k] - weights_x[k] * z[k + stride]
+                       - weights_x[k - stride] * z[k - stride] - weights_y[k] * z[k + 1]
+                       - weights_y[k - 1] * z[k - 1])
+            direction = z[k] + beta * p[k]
+            image = applied + beta * q[k]
+            p[k] = direction
+            q[k] = image
+            product += direction * image
+    return product
+
+
+@njit(cache=True, parallel=True)
+def step_kernel(x, r, p, q, alpha, m, n):
+    """``x += alpha p``, ``r -= alpha q``; return ``|r|^2``."""
+    stride = n + 2
+    squared = 0.0
+    for i in prange(m):
+        row = (i + 1) * stride + 1
+        for k in range(row, row + n):
+            x[k] += alpha * p[k]
+            value = r[k] - alpha * q[k]
+            r[k] = value
+            squared += value * value
+    return squared
+
+
+@njit(cache=True)
+def pcg_kernel(rows, cols, offsets, diagonal, weights_x, weights_y, total, inverse, level_x,
+               level_b, pseudo_inverse, b, x, r, p, q, z, threshold, max_iterations, sweeps):
+    """Preconditioned CG on level 0 until ``|b - A x|^2 <= threshold`` (checked on the true
+    residual). Returns ``(iterations, |b - A x|^2)``."""
+    m = rows[0]
+    n = cols[0]
+    stride = n + 2
+    size = offsets[1]
+    d_total = total[:size]
+    wx = weights_x[:size]
+    wy = weights_y[:size]
+    squared = residual_norm_kernel(x, b, d_total, wx, wy, r, m, n)
+    iterations = 0
+    while True:
+        # The recursive residual drifts from b - A x; confirm convergence on the true one and
+        # restart CG from it when they disagree.
+        if squared <= threshold:
+            squared = residual_norm_kernel(x, b, d_total, wx, wy, r, m, n)
+            if squared <= threshold:
+                break
+        if iterations >= max_iterations:
+            squared = residual_norm_kernel(x, b, d_total, wx, wy, r, m, n)
+            break
+        v_cycle(rows, cols, offsets, diagonal, weights_x, weights_y, total, inverse, level_x,
+                level_b, pseudo_inverse, r, z, sweeps)
+        rz = dot_kernel(r, z, m, n)
+        p[:] = 0.0
+        q[:] = 0.0
+        beta = 0.0
+        pq = 1.0
+        while iterations < max_iterations:
+            pq = search_direction_kernel(z, p, q, d_total, wx, wy, beta, m, n)
+            if pq <= 0.0:
+                break
+            alpha = rz / pq
+            squared = step_kernel(x, r, p, q, alpha, m, n)
+            iterations += 1
+            if squared <= threshold:
+                break
+            v_cycle(rows, cols, offsets, diagonal, weights_x, weights_y, total, inverse,
+                    level_x, level_b, pseudo_inverse, r, z, sweeps)
+            rz_next = dot_kernel(r, z, m, n)
+            beta = rz_next / rz
+            rz = rz_next
+        if pq <= 0.0:
+            squared = residual_norm_kernel(x, b, d_total, wx, wy, r, m, n)
+            break
+    return iterations, squared
+
+
+@njit(cache=True)
+def dense_matrix_kernel(diagonal, weights_x, weights_y, m, n, matrix):
+    """The level's operator as a dense ``(m n, m n)`` matrix (unpadded row-major numbering)."""
+    stride = n + 2
+    matrix[:, :] = 0.0
+    for i in range(m):
+        for j in range(n):
+            a = i * n + j
+            k = (i + 1) * stride + j + 1
+            matrix[a, a] += diagonal[k]
+            if i < m - 1:
+                w = weights_x[k]
+                matrix[a, a] += w
+                matrix[a + n, a + n] += w
+                matrix[a, a + n] -= w
+                matrix[a + n, a] -= w
+            if j < n - 1:
+                w = weights_y[k]
+                matrix[a, a] += w
+                matrix[a + 1, a + 1] += w
+                matrix[a, a + 1] -= w
+                matrix[a + 1, a] -= w

@@ -1,0 +1,263 @@
+"""Operator application and both Poisson solvers against an independent scipy.sparse reference."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.sparse as sparse
+from scipy.sparse.csgraph import connected_components
+from scipy.sparse.linalg import spsolve
+
+from elastoflow.linalg import (
+    Operator5Point,
+    PoissonSolverJacobi,
+    PoissonSolverMGPCG,
+    SolveReport,
+    apply_operator,
+)
+
+
+def sparse_matrix(operator: Operator5Point) -> sparse.csr_matrix:
+    """The operator assembled face by face as a sparse matrix (row-major numbering)."""
+    m, n = operator.shape
+    index = np.arange(m * n).reshape(m, n)
+    rows, cols, values = [index.ravel()], [index.ravel()], [operator.diagonal.ravel()]
+    for weights, first, second in (
+        (operator.weights_x, index[:-1, :], index[1:, :]),
+        (operator.weights_y, index[:, :-1], index[:, 1:]),
+    ):
+        a, b, w = first.ravel(), second.ravel(), weights.ravel()
+        rows += [a, b, a, b]
+        cols += [a, b, b, a]
+        values += [w, w, -w, -w]
+    return sparse.csr_matrix(
+        (np.concatenate(values), (np.concatenate(rows), np.concatenate(cols))), shape=(m * n, m * n)
+    )
+
+
+def reference_solve(operator: Operator5Point, rhs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Solution and compatible right-hand side by a direct solve, one point pinned per singular
+    component (components found by scipy's graph routines)."""
+    matrix = sparse_matrix(operator)
+    size = matrix.shape[0]
+    diagonal = operator.diagonal.ravel()
+    coupling = matrix.copy()
+    coupling.setdiag(0.0)
+    coupling.eliminate_zeros()
+    active = (diagonal > 0) | (np.diff(coupling.indptr) > 0)
+    _, labels = connected_components(coupling, directed=False)
+    b = np.where(active, rhs.ravel(), 0.0)
+    keep = active.copy()
+    singular_components = []
+    for label in np.unique(labels[active]):
+        members = (labels == label) & active
+        if not np.any(diagonal[members] > 0):
+            singular_components.append(members)
+            b[members] -= b[members].mean()
+            keep[np.flatnonzero(members)[0]] = False
+    x = np.zeros(size)
+    reduced = matrix[keep][:, keep].tocsc()
+    if reduced.shape[0]:
+        x[keep] = spsolve(reduced, b[keep])
+    for members in singular_components:
+        x[members] -= x[members].mean()
+    return x.reshape(operator.shape), b.reshape(operator.shape)
+
+
+def random_operator(
+    shape: tuple[int, int], seed: int, *, dirichlet: bool = True, walls: bool = True
+) -> Operator5Point:
+    """Fractional weights, some closed faces, an inactive block, optional Dirichlet diagonal."""
+    rng = np.random.default_rng(seed)
+    m, n = shape
+    weights_x = rng.uniform(0.1, 1.0, (m - 1, n))
+    weights_y = rng.uniform(0.1, 1.0, (m, n - 1))
+    if walls:
+        weights_x[rng.random(weights_x.shape) < 0.1] = 0.0
+        weights_y[rng.random(weights_y.shape) < 0.1] = 0.0
+    diagonal = np.zeros(shape)
+    if dirichlet:
+        diagonal[-1, :] = 2.0
+        diagonal[rng.random(shape) < 0.05] = rng.uniform(0.1, 1.0)
+    i0, j0 = m // 3, n // 3
+    i1, j1 = i0 + max(1, m // 4), j0 + max(1, n // 4)
+    diagonal[i0:i1, j0:j1] = 0.0
+    weights_x[max(i0 - 1, 0):i1, j0:j1] = 0.0
+    weights_y[i0:i1, max(j0 - 1, 0):j1] = 0.0
+    return Operator5Point(diagonal, weights_x, weights_y)
+
+
+def true_relative_residual(operator: Operator5Point, x: np.ndarray, b: np.ndarray) -> float:
+    residual = b.ravel() - sparse_matrix(operator) @ x.ravel()
+    return float(np.linalg.norm(residual) / np.linalg.norm(b))
+
+
+SOLVERS = [
+    pytest.param(lambda rtol: PoissonSolverJacobi(rtol=rtol, max_iterations=400_000), id="jacobi"),
+    pytest.param(lambda rtol: PoissonSolverMGPCG(rtol=rtol), id="mgpcg"),
+]
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_apply_operator_matches_sparse_matrix(seed: int) -> None:
+    operator = random_operator((9, 7), seed)
+    x = np.random.default_rng(seed + 10).standard_normal((9, 7))
+    expected = (sparse_matrix(operator) @ x.ravel()).reshape(9, 7)
+    out = np.empty((9, 7))
+    result = apply_operator(operator, x, out=out)
+    assert result is out
+    np.testing.assert_allclose(result, expected, rtol=1e-13, atol=1e-13)
+
+
+@pytest.mark.parametrize("make_solver", SOLVERS)
+@pytest.mark.parametrize(
+    ("shape", "seed", "dirichlet"),
+    [((9, 7), 0, True), ((16, 16), 1, True), ((13, 5), 2, True), ((1, 11), 3, True),
+     ((12, 10), 4, False), ((17, 9), 5, False)],
+)
+def test_solver_matches_direct_solve(make_solver, shape, seed, dirichlet) -> None:
+    operator = random_operator(shape, seed, dirichlet=dirichlet)
+    rhs = np.random.default_rng(seed + 100).standard_normal(shape)
+    expected, b = reference_solve(operator, rhs)
+    x, report = make_solver(1e-10).solve(operator, rhs)
+    assert isinstance(report, SolveReport)
+    assert report.converged and report.residual <= 1e-10
+    np.testing.assert_allclose(x, expected, atol=1e-7 * np.abs(expected).max())
+    assert report.residual == pytest.approx(true_relative_residual(operator, x, b), rel=1e-3,
+                                            abs=1e-14)
+
+
+@pytest.mark.parametrize("shape", [(8, 8), (15, 6)])
+def test_jacobi_and_mgpcg_reach_the_same_pressure(shape) -> None:
+    operator = random_operator(shape, 7)
+    rhs = np.random.default_rng(8).standard_normal(shape)
+    x_jacobi, report_jacobi = PoissonSolverJacobi(rtol=1e-8).solve(operator, rhs)
+    x_mgpcg, report_mgpcg = PoissonSolverMGPCG(rtol=1e-8).solve(operator, rhs)
+    assert report_jacobi.converged and report_mgpcg.converged
+    assert report_jacobi.iterations > report_mgpcg.iterations
+    np.testing.assert_allclose(x_jacobi, x_mgpcg, atol=1e-5 * np.abs(x_mgpcg).max())
+
+
+@pytest.mark.parametrize("make_solver", SOLVERS)
+def test_singular_neumann_problem(make_solver) -> None:
+    shape = (14, 11)
+    rng = np.random.default_rng(3)
+    operator = Operator5Point(
+        np.zeros(shape), rng.uniform(0.2, 1.0, (13, 11)), rng.uniform(0.2, 1.0, (14, 10))
+    )
+    rhs = rng.standard_normal(shape) + 5.0  # incompatible: nonzero mean
+    x, report = make_solver(1e-6).solve(operator, rhs)
+    compatible = rhs - rhs.mean()
+    assert report.converged
+    assert abs(x.mean()) <= 1e-12 * np.abs(x).max()
+    assert true_relative_residual(operator, x, compatible) <= 1e-6
+    expected, _ = reference_solve(operator, rhs)
+    np.testing.assert_allclose(x, expected, atol=1e-4 * np.abs(expected).max())
+
+
+@pytest.mark.parametrize("make_solver", SOLVERS)
+def test_two_disconnected_components(make_solver) -> None:
+    # Closed faces make three components: rows 0-1 and rows 3-5 are pure Neumann, rows 6-12
+    # have a Dirichlet row; row 2 is cut off from everything and has no diagonal: inactive.
+    shape = (13, 9)
+    weights_x = np.ones((12, 9))
+    weights_y = np.ones((13, 8))
+    weights_x[5, :] = 0.0
+    weights_x[1:3, :] = 0.0
+    weights_y[2, :] = 0.0
+    diagonal = np.zeros(shape)
+    diagonal[-1, :] = 1.0
+    operator = Operator5Point(diagonal, weights_x, weights_y)
+    rhs = np.random.default_rng(4).standard_normal(shape) + 1.0
+    x, report = make_solver(1e-8).solve(operator, rhs)
+    expected, b = reference_solve(operator, rhs)
+    assert report.converged
+    assert np.all(x[2, :] == 0.0)
+    scale = np.abs(x).max()
+    assert abs(x[:2].mean()) < 1e-9 * scale
+    assert abs(x[3:6].mean()) < 1e-9 * scale
+    assert abs(x[6:].mean()) > 1e-3 * scale
+    np.testing.assert_allclose(x, expected, atol=1e-6 * np.abs(expected).max())
+    assert true_relative_residual(operator, x, b) <= 1e-8
+
+
+def test_mgpcg_on_a_channel_sized_grid_and_viscosity_operator() -> None:
+    solver = PoissonSolverMGPCG()
+    operator = random_operator((220, 41), 11)
+    rhs = np.random.default_rng(12).standard_normal((220, 41))
+    x, report = solver.solve(operator, rhs)
+    expected, b = reference_solve(operator, rhs)
+    assert report.converged
+    assert true_relative_residual(operator, x, b) == pytest.approx(report.residual, rel=1e-3)
+    np.testing.assert_allclose(x, expected, atol=1e-4 * np.abs(expected).max())
+    # Implicit viscosity of u on (nx + 1, ny): identity plus nu dt / h^2 couplings.
+    viscosity = Operator5Point(np.ones((221, 41)), np.full((220, 41), 3.0), np.full((221, 40), 3.0))
+    rhs = np.random.default_rng(13).standard_normal((221, 41))
+    x, report = solver.solve(viscosity, rhs)
+    expected, _ = reference_solve(viscosity, rhs)
+    assert report.converged
+    np.testing.assert_allclose(x, expected, atol=1e-5 * np.abs(expected).max())
+
+
+@pytest.mark.parametrize("make_solver", SOLVERS)
+def test_warm_start(make_solver) -> None:
+    operator = random_operator((12, 12), 21)
+    rhs = np.random.default_rng(22).standard_normal((12, 12))
+    solver = make_solver(1e-6)
+    x, cold = solver.solve(operator, rhs)
+    _, warm = solver.solve(operator, rhs, x0=x)
+    assert warm.iterations == 0 and warm.converged
+    assert cold.iterations > 0
+
+
+@pytest.mark.parametrize("make_solver", SOLVERS)
+def test_zero_rhs_gives_zero(make_solver) -> None:
+    operator = random_operator((6, 5), 1)
+    x, report = make_solver(1e-6).solve(operator, np.zeros((6, 5)))
+    assert np.all(x == 0.0) and report == SolveReport(0, 0.0, True)
+
+
+def test_bad_input_raises() -> None:
+    with pytest.raises(ValueError, match="weights_x"):
+        Operator5Point(np.zeros((4, 3)), np.ones((4, 3)), np.ones((4, 2)))
+    with pytest.raises(ValueError, match="diagonal"):
+        Operator5Point(-np.ones((4, 3)), np.ones((3, 3)), np.ones((4, 2)))
+    operator = Operator5Point(np.ones((4, 3)), np.ones((3, 3)), np.ones((4, 2)))
+    with pytest.raises(ValueError, match="rhs"):
+        PoissonSolverMGPCG().solve(operator, np.ones((3, 4)))
+    with pytest.raises(ValueError, match="rtol"):
+        PoissonSolverJacobi(rtol=0.0)
+
+
+def flow_problem(size: int, body: bool) -> tuple[Operator5Point, np.ndarray]:
+    """Pressure-like problem on the unit square: smooth right-hand side, outflow (Dirichlet) on
+    the right side; with ``body`` a disc of closed cells with fractional faces around it."""
+    centres = (np.arange(size) + 0.5) / size
+    faces = np.arange(1, size) / size
+    x, y = np.meshgrid(centres, centres, indexing="ij")
+    rhs = np.cos(3 * np.pi * x) * np.sin(2 * np.pi * y) + x**2
+    diagonal = np.zeros((size, size))
+    diagonal[-1, :] = 2.0
+    weights_x = np.ones((size - 1, size))
+    weights_y = np.ones((size, size - 1))
+    if body:
+        def open_fraction(px: np.ndarray, py: np.ndarray) -> np.ndarray:
+            signed = np.hypot(px - 0.4, py - 0.55) - 0.15
+            return np.clip(0.5 + signed * size, 0.0, 1.0)
+
+        weights_x = open_fraction(*np.meshgrid(faces, centres, indexing="ij"))
+        weights_y = open_fraction(*np.meshgrid(centres, faces, indexing="ij"))
+        rhs = rhs * (np.hypot(x - 0.4, y - 0.55) > 0.15)
+    return Operator5Point(diagonal, weights_x, weights_y), rhs
+
+
+@pytest.mark.parametrize("body", [False, True], ids=["smooth", "body"])
+def test_mgpcg_iterations_nearly_independent_of_grid_size(body: bool) -> None:
+    solver = PoissonSolverMGPCG(rtol=1e-6)
+    counts = []
+    for size in (128, 512):
+        operator, rhs = flow_problem(size, body)
+        x, report = solver.solve(operator, rhs)
+        assert report.converged
+        counts.append(report.iterations)
+    assert counts[1] <= 1.5 * counts[0], counts
