@@ -19,9 +19,9 @@ class PointClassification:
         solid_faces_x: u point inside a body, bool, shape (nx+1, ny).
         solid_faces_y: v point inside a body, bool, shape (nx, ny+1).
         body_cells: Body index (``edge_body`` of the map) of each solid cell centre, -1 in
-            fluid, int64, shape (nx, ny).
-        body_faces_x: Body index at u points, -1 in fluid, int64, shape (nx+1, ny).
-        body_faces_y: Body index at v points, -1 in fluid, int64, shape (nx, ny+1).
+            fluid, int32, shape (nx, ny).
+        body_faces_x: Body index at u points, -1 in fluid, int32, shape (nx+1, ny).
+        body_faces_y: Body index at v points, -1 in fluid, int32, shape (nx, ny+1).
         velocity_faces_x: Body x-velocity [m/s] at solid u points, 0 in fluid, shape (nx+1, ny).
         velocity_faces_y: Body y-velocity [m/s] at solid v points, 0 in fluid, shape (nx, ny+1).
     """
@@ -41,26 +41,31 @@ def _check_grid(grid: Grid2D, bmap: BoundaryMap) -> None:
         raise ValueError(f"boundary map grid {bmap.grid!r}: must be the grid {grid!r}")
 
 
-def classify_points(grid: Grid2D, bmap: BoundaryMap) -> PointClassification:
-    """Solid flags, body ids and body velocities by scanline fill of the x-map rows.
+def _check_out(name: str, value: np.ndarray, shape: tuple[int, ...], dtype: type) -> None:
+    if value.shape != shape or value.dtype != dtype or not value.flags.c_contiguous:
+        raise ValueError(
+            f"out.{name} shape {value.shape}, dtype {value.dtype}: must be a C-contiguous "
+            f"{np.dtype(dtype)} array of shape {shape}"
+        )
 
-    Cell centres and u points lie on odd rows ``J = 2j+1``, v points on even rows ``J = 2j``.
-    A point at x is solid when the crossings of its row at coordinates <= x have a non-zero
-    winding number (the parity rule for simple loops; a point exactly on an entering crossing
-    counts as solid, on a leaving one as fluid). Inside a body the velocity is interpolated
-    linearly between the two crossings that bound the span, which is exact for rigid motion.
-    Several non-overlapping bodies are filled at once.
-    """
-    _check_grid(grid, bmap)
+
+def _fill_classification(
+    grid: Grid2D,
+    bmap: BoundaryMap,
+    cells: np.ndarray,
+    faces_x: np.ndarray,
+    faces_y: np.ndarray,
+    body_cells: np.ndarray,
+    body_x: np.ndarray,
+    body_y: np.ndarray,
+    velocity_x: np.ndarray,
+    velocity_y: np.ndarray,
+) -> None:
+    """Reset and fill the classification arrays in place; empty body arrays are skipped."""
+    for array, value in ((cells, False), (faces_x, False), (faces_y, False), (body_cells, -1),
+                         (body_x, -1), (body_y, -1), (velocity_x, 0.0), (velocity_y, 0.0)):
+        array.fill(value)
     nx, ny = grid.nx, grid.ny
-    cells = np.zeros((nx, ny), dtype=np.bool_)
-    faces_x = np.zeros((nx + 1, ny), dtype=np.bool_)
-    faces_y = np.zeros((nx, ny + 1), dtype=np.bool_)
-    body_cells = np.full((nx, ny), -1, dtype=np.int64)
-    body_x = np.full((nx + 1, ny), -1, dtype=np.int64)
-    body_y = np.full((nx, ny + 1), -1, dtype=np.int64)
-    velocity_x = np.zeros((nx + 1, ny))
-    velocity_y = np.zeros((nx, ny + 1))
     half_h = 0.5 * grid.h
     ox = grid.origin[0]
     common = (bmap.x_offsets, bmap.x_coordinate, bmap.x_sign, bmap.x_edge, bmap.x_velocity,
@@ -71,16 +76,63 @@ def classify_points(grid: Grid2D, bmap: BoundaryMap) -> PointClassification:
                             velocity_x)
     _kernels.classify_lines(*common, 0, ny + 1, 1, nx, ox, half_h, 1, faces_y, body_y,
                             velocity_y)
-    return PointClassification(cells, faces_x, faces_y, body_cells, body_x, body_y,
-                               velocity_x, velocity_y)
+
+
+def classify_points(
+    grid: Grid2D, bmap: BoundaryMap, *, out: PointClassification | None = None
+) -> PointClassification:
+    """Solid flags, body ids and body velocities by scanline fill of the x-map rows.
+
+    Cell centres and u points lie on odd rows ``J = 2j+1``, v points on even rows ``J = 2j``.
+    A point at x is solid when the crossings of its row at coordinates <= x have a non-zero
+    winding number (the parity rule for simple loops; a point exactly on an entering crossing
+    counts as solid, on a leaving one as fluid). Crossings outside the domain count too, so
+    bodies may cross its edges. Inside a body the velocity is interpolated linearly between
+    the two crossings that bound the span, which is exact for rigid motion. Several
+    non-overlapping bodies are filled at once. Cost: crossings plus solid points.
+
+    Args:
+        grid: The MAC grid.
+        bmap: The boundary map of that grid.
+        out: A classification of this grid to overwrite (saves allocating every step).
+
+    Returns:
+        The classification (``out`` when given).
+    """
+    _check_grid(grid, bmap)
+    nx, ny = grid.nx, grid.ny
+    if out is None:
+        out = PointClassification(
+            np.zeros((nx, ny), dtype=np.bool_), np.zeros((nx + 1, ny), dtype=np.bool_),
+            np.zeros((nx, ny + 1), dtype=np.bool_), np.empty((nx, ny), dtype=np.int32),
+            np.empty((nx + 1, ny), dtype=np.int32), np.empty((nx, ny + 1), dtype=np.int32),
+            np.zeros((nx + 1, ny)), np.zeros((nx, ny + 1)),
+        )
+    else:
+        for name, shape, dtype in (
+            ("solid_cells", (nx, ny), np.bool_), ("solid_faces_x", (nx + 1, ny), np.bool_),
+            ("solid_faces_y", (nx, ny + 1), np.bool_), ("body_cells", (nx, ny), np.int32),
+            ("body_faces_x", (nx + 1, ny), np.int32), ("body_faces_y", (nx, ny + 1), np.int32),
+            ("velocity_faces_x", (nx + 1, ny), np.float64),
+            ("velocity_faces_y", (nx, ny + 1), np.float64),
+        ):
+            _check_out(name, getattr(out, name), shape, dtype)
+    _fill_classification(grid, bmap, out.solid_cells, out.solid_faces_x, out.solid_faces_y,
+                         out.body_cells, out.body_faces_x, out.body_faces_y,
+                         out.velocity_faces_x, out.velocity_faces_y)
+    return out
 
 
 def interior_boundary_from_map(
-    grid: Grid2D, bmap: BoundaryMap, classification: PointClassification | None = None
+    grid: Grid2D,
+    bmap: BoundaryMap,
+    classification: PointClassification | None = None,
+    *,
+    out: InteriorBoundary | None = None,
 ) -> InteriorBoundary:
     """The fluid's ``InteriorBoundary`` from the boundary map (METHOD.md §5–6).
 
-    * solid flags and body velocities: ``classify_points``;
+    * solid flags and body velocities: as ``classify_points``;
     * open fractions: the solid length of the segment of length h through each face,
       across the flow direction (u faces: the y-map column ``I = 2i``; v faces: the x-map row
       ``J = 2j``);
@@ -88,35 +140,77 @@ def interior_boundary_from_map(
       ±x from the x-map row ``J = 2j+1`` and ±y from the y-map column ``I = 2i``; v point
       ``((i+1/2) h, j h)`` reads ±x from the row ``J = 2j`` and ±y from the column
       ``I = 2i+1``. The windows are half-open like the classification: towards minus the
-      crossing lies in (x - h, x], towards plus in (x, x + h]. A point lying exactly on the
-      boundary gets a fraction floored at ``1e-6`` instead of 0. Cut data are filled for
-      every point, solid ones included.
+      nearest crossing at or behind the point counts if it lies in (x - h, x], towards plus
+      the nearest one ahead if it lies in (x, x + h]. A point lying exactly on the boundary
+      gets a fraction floored at ``1e-6`` instead of 0. Cut data are filled for every point,
+      solid ones included.
+
+    The work is proportional to the number of crossings and solid points, apart from
+    allocating (or, with ``out``, resetting) the dense arrays of the result.
 
     Args:
         grid: The MAC grid.
         bmap: The boundary map of that grid.
         classification: The result of ``classify_points`` when the caller already has it.
+        out: An interior boundary of this grid to overwrite in place (saves allocating the
+            dense arrays every step).
 
     Returns:
-        The interior boundary.
+        The interior boundary (``out`` when given).
     """
     _check_grid(grid, bmap)
-    if classification is None:
-        classification = classify_points(grid, bmap)
     nx, ny, h = grid.nx, grid.ny, grid.h
     ox, oy = grid.origin
+    if out is None:
+        fx, fy = (nx + 1, ny), (nx, ny + 1)
+        out = InteriorBoundary(
+            solid_cells=np.zeros((nx, ny), dtype=np.bool_),
+            solid_faces_x=np.zeros(fx, dtype=np.bool_),
+            solid_faces_y=np.zeros(fy, dtype=np.bool_),
+            velocity_faces_x=np.zeros(fx),
+            velocity_faces_y=np.zeros(fy),
+            open_fraction_x=np.empty(fx),
+            open_fraction_y=np.empty(fy),
+            cut_theta_x=np.empty((4, *fx)),
+            cut_theta_y=np.empty((4, *fy)),
+            cut_velocity_x=np.empty((4, *fx)),
+            cut_velocity_y=np.empty((4, *fy)),
+        )
+    else:
+        out.check(grid)
+        for name in ("solid_cells", "solid_faces_x", "solid_faces_y"):
+            _check_out(name, getattr(out, name), getattr(out, name).shape, np.bool_)
+        for name in ("velocity_faces_x", "velocity_faces_y", "open_fraction_x",
+                     "open_fraction_y", "cut_theta_x", "cut_theta_y", "cut_velocity_x",
+                     "cut_velocity_y"):
+            _check_out(name, getattr(out, name), getattr(out, name).shape, np.float64)
 
-    open_x = np.ones((nx + 1, ny))
-    open_y = np.ones((nx, ny + 1))
+    if classification is None:
+        no_body = np.empty((0, 0), dtype=np.int32)
+        _fill_classification(grid, bmap, out.solid_cells, out.solid_faces_x, out.solid_faces_y,
+                             no_body, no_body, no_body, out.velocity_faces_x,
+                             out.velocity_faces_y)
+    else:
+        out.solid_cells[...] = classification.solid_cells
+        out.solid_faces_x[...] = classification.solid_faces_x
+        out.solid_faces_y[...] = classification.solid_faces_y
+        out.velocity_faces_x[...] = classification.velocity_faces_x
+        out.velocity_faces_y[...] = classification.velocity_faces_y
+
+    open_x, open_y = out.open_fraction_x, out.open_fraction_y
+    open_x.fill(1.0)
+    open_y.fill(1.0)
     _kernels.open_fraction_lines(bmap.y_offsets, bmap.y_coordinate, bmap.y_sign, 0, nx + 1, ny,
                                  oy, h, False, open_x)
     _kernels.open_fraction_lines(bmap.x_offsets, bmap.x_coordinate, bmap.x_sign, 0, ny + 1, nx,
                                  ox, h, True, open_y)
 
-    theta_x = np.full((4, nx + 1, ny), np.inf)
-    theta_y = np.full((4, nx, ny + 1), np.inf)
-    cut_velocity_x = np.zeros((4, nx + 1, ny))
-    cut_velocity_y = np.zeros((4, nx, ny + 1))
+    theta_x, theta_y = out.cut_theta_x, out.cut_theta_y
+    cut_velocity_x, cut_velocity_y = out.cut_velocity_x, out.cut_velocity_y
+    theta_x.fill(np.inf)
+    theta_y.fill(np.inf)
+    cut_velocity_x.fill(0.0)
+    cut_velocity_y.fill(0.0)
     x_map = (bmap.x_offsets, bmap.x_coordinate, bmap.x_velocity)
     y_map = (bmap.y_offsets, bmap.y_coordinate, bmap.y_velocity)
     # u points: ±x on rows J = 2j+1 (points I = 2i), ±y on columns I = 2i (points J = 2j+1).
@@ -129,17 +223,4 @@ def interior_boundary_from_map(
                        theta_y[0], theta_y[1], cut_velocity_y[0], cut_velocity_y[1])
     _kernels.cut_lines(*y_map, 1, 1, nx, 0, ny + 1, oy, h, False,
                        theta_y[2], theta_y[3], cut_velocity_y[2], cut_velocity_y[3])
-
-    return InteriorBoundary(
-        solid_cells=classification.solid_cells,
-        solid_faces_x=classification.solid_faces_x,
-        solid_faces_y=classification.solid_faces_y,
-        velocity_faces_x=classification.velocity_faces_x,
-        velocity_faces_y=classification.velocity_faces_y,
-        open_fraction_x=open_x,
-        open_fraction_y=open_y,
-        cut_theta_x=theta_x,
-        cut_theta_y=theta_y,
-        cut_velocity_x=cut_velocity_x,
-        cut_velocity_y=cut_velocity_y,
-    )
+    return out

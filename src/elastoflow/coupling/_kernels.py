@@ -13,7 +13,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 # Sorting a line switches from insertion sort to a merge sort above this many entries.
 _INSERTION_SORT_LIMIT = 32
@@ -166,7 +166,26 @@ def _sort_line(
         sign[m + 1] = s
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True)
+def _point_position(origin_along: float, half_h: float, point_start: int, k: int) -> float:
+    """Coordinate [m] of point k of a line; every kernel uses this one formula."""
+    return origin_along + (point_start + 2 * k) * half_h
+
+
+@njit(cache=True)
+def _first_point_at_or_after(
+    value: float, origin_along: float, half_h: float, point_start: int
+) -> int:
+    """Smallest k (unclipped) with point position >= value, exact for the position formula."""
+    k = int(math.ceil(((value - origin_along) / half_h - point_start) * 0.5))
+    while _point_position(origin_along, half_h, point_start, k - 1) >= value:
+        k -= 1
+    while _point_position(origin_along, half_h, point_start, k) < value:
+        k += 1
+    return k
+
+
+@njit(cache=True)
 def classify_lines(
     offsets: np.ndarray,
     coordinate: np.ndarray,
@@ -187,39 +206,43 @@ def classify_lines(
 ) -> None:
     """Scanline fill of x-map rows: solid flag, body id and body velocity, outputs [k, l].
 
-    A point at coordinate x is solid when the winding number of the crossings at coordinates
-    <= x is non-zero (for a simple, consistently oriented loop this is the parity rule; it also
-    survives a loop given clockwise). Inside a span the body velocity is interpolated linearly
-    between the span's two crossings (exact for rigid motion). ``component < 0`` skips the
-    velocity.
+    A point at x is solid when the winding number of the crossings at coordinates <= x is
+    non-zero (for a simple, consistently oriented loop this is the parity rule; it also
+    survives a loop given clockwise). Each solid span [c_m, c_m+1) is filled in one go, so the
+    cost is the number of crossings plus the number of solid points. Inside a span the body
+    velocity is interpolated linearly between the span's two crossings (exact for rigid
+    motion). ``component < 0`` skips the velocity, an empty ``body_out`` the body ids.
     """
-    for l in prange(line_count_out):
+    for l in range(line_count_out):
         line = line_start + 2 * l
         begin = offsets[line]
         end = offsets[line + 1]
-        c = begin
         winding = 0
-        for k in range(point_count):
-            x = origin_along + (point_start + 2 * k) * half_h
-            while c < end and coordinate[c] <= x:
-                winding += sign[c]
-                c += 1
+        for c in range(begin, end):
+            winding += sign[c]
             if winding == 0:
                 continue
-            solid_out[k, l] = True
-            body_out[k, l] = edge_body[edge_index[c - 1]]
-            if component < 0:
-                continue
-            value = velocity[c - 1, component]
-            if c < end:
-                width = coordinate[c] - coordinate[c - 1]
-                if width > 0.0:
-                    w = (x - coordinate[c - 1]) / width
-                    value = (1.0 - w) * value + w * velocity[c, component]
-            velocity_out[k, l] = value
+            k = max(_first_point_at_or_after(coordinate[c], origin_along, half_h, point_start), 0)
+            has_next = c + 1 < end
+            while k < point_count:
+                x = _point_position(origin_along, half_h, point_start, k)
+                if has_next and x >= coordinate[c + 1]:
+                    break
+                solid_out[k, l] = True
+                if body_out.shape[0] > 0:
+                    body_out[k, l] = edge_body[edge_index[c]]
+                if component >= 0:
+                    value = velocity[c, component]
+                    if has_next:
+                        width = coordinate[c + 1] - coordinate[c]
+                        if width > 0.0:
+                            w = (x - coordinate[c]) / width
+                            value = (1.0 - w) * value + w * velocity[c + 1, component]
+                    velocity_out[k, l] = value
+                k += 1
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True)
 def cut_lines(
     offsets: np.ndarray,
     coordinate: np.ndarray,
@@ -240,44 +263,58 @@ def cut_lines(
     """Cut fractions towards the lower and upper neighbour along a line.
 
     Windows are half-open like the classification (a point at x sees crossings <= x as behind
-    it): towards minus the crossing lies in (x - h, x], towards plus in (x, x + h]. Outputs
-    that see no crossing are left untouched (the caller fills them with inf and 0).
+    it): towards minus the nearest crossing at or behind x counts if it lies in (x - h, x],
+    towards plus the nearest crossing ahead if it lies in (x, x + h]. Only the one or two
+    points next to each crossing are visited. Outputs that see no crossing are left untouched
+    (the caller fills them with inf and 0).
     """
     half_h = 0.5 * h
-    for l in prange(line_count_out):
+    for l in range(line_count_out):
         line = line_start + 2 * l
         begin = offsets[line]
         end = offsets[line + 1]
-        c = begin
-        for k in range(point_count):
-            x = origin_along + (point_start + 2 * k) * half_h
-            while c < end and coordinate[c] <= x:
-                c += 1
-            if c > begin:
-                d = x - coordinate[c - 1]
-                if d < h:
-                    theta = max(d / h, THETA_FLOOR)
-                    value = velocity[c - 1, component]
-                    if point_first:
-                        theta_minus[k, l] = theta
-                        velocity_minus[k, l] = value
-                    else:
-                        theta_minus[l, k] = theta
-                        velocity_minus[l, k] = value
-            if c < end:
+        for c in range(begin, end):
+            first = _first_point_at_or_after(coordinate[c], origin_along, half_h, point_start)
+            # Points for which c is the last crossing at or behind them: minus direction.
+            k = max(first, 0)
+            while k < point_count:
+                x = _point_position(origin_along, half_h, point_start, k)
+                if c + 1 < end and x >= coordinate[c + 1]:
+                    break
+                d = x - coordinate[c]
+                if d >= h:
+                    break
+                theta = max(d / h, THETA_FLOOR)
+                if point_first:
+                    theta_minus[k, l] = theta
+                    velocity_minus[k, l] = velocity[c, component]
+                else:
+                    theta_minus[l, k] = theta
+                    velocity_minus[l, k] = velocity[c, component]
+                k += 1
+            # Points for which c is the first crossing ahead of them: plus direction. Among
+            # crossings at one coordinate the first in the sorted order is that one.
+            if c > begin and coordinate[c - 1] == coordinate[c]:
+                continue
+            k = min(first - 1, point_count - 1)
+            while k >= 0:
+                x = _point_position(origin_along, half_h, point_start, k)
+                if c > begin and x < coordinate[c - 1]:
+                    break
                 d = coordinate[c] - x
-                if d <= h:
-                    theta = max(d / h, THETA_FLOOR)
-                    value = velocity[c, component]
-                    if point_first:
-                        theta_plus[k, l] = theta
-                        velocity_plus[k, l] = value
-                    else:
-                        theta_plus[l, k] = theta
-                        velocity_plus[l, k] = value
+                if d > h:
+                    break
+                theta = max(d / h, THETA_FLOOR)
+                if point_first:
+                    theta_plus[k, l] = theta
+                    velocity_plus[k, l] = velocity[c, component]
+                else:
+                    theta_plus[l, k] = theta
+                    velocity_plus[l, k] = velocity[c, component]
+                k -= 1
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True)
 def open_fraction_lines(
     offsets: np.ndarray,
     coordinate: np.ndarray,
@@ -294,12 +331,12 @@ def open_fraction_lines(
 
     ``open_out`` must hold 1 on entry; the solid length of every solid span is subtracted.
     """
-    for l in prange(line_count_out):
+    extent = point_count * h
+    for l in range(line_count_out):
         line = line_start + 2 * l
         begin = offsets[line]
         end = offsets[line + 1]
         winding = 0
-        extent = point_count * h
         for c in range(begin, end - 1):
             winding += sign[c]
             if winding == 0:
@@ -315,14 +352,9 @@ def open_fraction_lines(
                 hi = min(b, (k + 1) * h)
                 if hi > lo:
                     if point_first:
-                        open_out[k, l] -= (hi - lo) / h
+                        open_out[k, l] = max(open_out[k, l] - (hi - lo) / h, 0.0)
                     else:
-                        open_out[l, k] -= (hi - lo) / h
-        for k in range(point_count):
-            if point_first:
-                open_out[k, l] = min(max(open_out[k, l], 0.0), 1.0)
-            else:
-                open_out[l, k] = min(max(open_out[l, k], 0.0), 1.0)
+                        open_out[l, k] = max(open_out[l, k] - (hi - lo) / h, 0.0)
 
 
 @njit(cache=True)

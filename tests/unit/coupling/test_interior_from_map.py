@@ -9,6 +9,7 @@ from elastoflow.coupling import (
     Obstacle,
     RigidMotion,
     build_boundary_map,
+    classify_points,
     interior_boundary_from_map,
     obstacle_circle,
     obstacle_rectangle,
@@ -193,3 +194,28 @@ def test_body_on_a_face_point_sees_the_floored_fraction():
     assert not interior.solid_faces_x[4, 3]
     assert 0.0 < interior.cut_theta_x[0, 4, 3] <= 1e-6
     assert interior.cut_theta_x[1, 3, 3] == 1.0
+
+
+def test_out_is_reset_and_refilled_like_a_fresh_result():
+    grid = Grid2D(16, 16, 1.0 / 16.0)
+    first = obstacle_circle((0.3, 0.4), 0.2, 24, motion=RigidMotion((1.0, 0.5), 2.0))
+    second = obstacle_rectangle((0.55, 0.2), (0.8, 0.6), motion=RigidMotion((-0.3, 0.1)))
+    out = _interior(grid, first)
+    classification = classify_points(grid, build_boundary_map(
+        grid, first.points_at(0.0), first.velocities_at(0.0), first.edges))
+    bmap = build_boundary_map(grid, second.points_at(0.0), second.velocities_at(0.0),
+                              second.edges)
+    fresh = interior_boundary_from_map(grid, bmap)
+    reused = interior_boundary_from_map(grid, bmap, out=out)
+    assert reused is out
+    fresh_classification = classify_points(grid, bmap)
+    classify_points(grid, bmap, out=classification)
+    for name in ("solid_cells", "solid_faces_x", "body_faces_y", "velocity_faces_x"):
+        np.testing.assert_array_equal(getattr(classification, name),
+                                      getattr(fresh_classification, name))
+    for name in ("solid_cells", "solid_faces_x", "solid_faces_y", "velocity_faces_x",
+                 "velocity_faces_y", "open_fraction_x", "open_fraction_y", "cut_theta_x",
+                 "cut_theta_y", "cut_velocity_x", "cut_velocity_y"):
+        np.testing.assert_array_equal(getattr(reused, name), getattr(fresh, name))
+    with_classification = interior_boundary_from_map(grid, bmap, fresh_classification)
+    np.testing.assert_array_equal(with_classification.velocity_faces_y, fresh.velocity_faces_y)
