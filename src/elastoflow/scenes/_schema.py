@@ -158,12 +158,12 @@ class JetSpec(_Spec):
 
 class RigidMotionSpec(_Spec):
     """Prescribed rigid motion: translation at ``velocity`` and rotation at ``angular_velocity``
-    about ``center`` (which moves with the body)."""
+    about ``center`` (which moves with the body; the polygon's centroid when left out)."""
 
     velocity: Point = (0.0, 0.0)
     angular_velocity: float = 0.0
     """[rad/s], counter-clockwise positive."""
-    center: Point = (0.0, 0.0)
+    center: Point | None = None
 
 
 class CircleObstacleSpec(_Spec):

@@ -1,0 +1,351 @@
+"""The ``elastoflow`` command: run, list, validate, dump, view, render, bench.
+
+Exit codes: 0 success, 2 bad input (one line per problem, no traceback), 1 the run failed
+(the message says at which step, body and element).
+"""
+
+from __future__ import annotations
+
+import signal
+import sys
+import time as _time
+from pathlib import Path
+from typing import Annotated, Any, NoReturn
+
+import typer
+
+EXIT_BAD_INPUT = 2
+EXIT_RUN_FAILED = 1
+
+app = typer.Typer(
+    name="elastoflow",
+    help=(
+        "Fluid and elastic bodies coupled through a boundary map (Imamura, Harada & Kawaguchi).\n\n"
+        "Examples:\n\n"
+        "  elastoflow list                                  # built-in scenes\n\n"
+        "  elastoflow run bar_in_jet --steps 200            # video + probes in out/bar_in_jet\n\n"
+        "  elastoflow run my_scene.toml --fields npz,vtk    # also ParaView files\n\n"
+        "  elastoflow run bar_in_jet --resume               # continue after Ctrl-C\n\n"
+        "  elastoflow dump windmill -o windmill.toml        # a built-in scene as a starting file\n\n"
+        "  elastoflow validate windmill.toml                # check a scene file\n\n"
+        "  elastoflow view jet_in_box                       # interactive window\n\n"
+        "  elastoflow render out/bar_in_jet --view vorticity  # new video from saved fields"
+    ),
+    no_args_is_help=True,
+    add_completion=False,
+    pretty_exceptions_enable=False,
+)
+
+
+def _fail(lines: list[str] | str, code: int = EXIT_BAD_INPUT) -> NoReturn:
+    for line in [lines] if isinstance(lines, str) else lines:
+        typer.echo(f"error: {line}", err=True)
+    raise typer.Exit(code)
+
+
+def _scene(name_or_path: str) -> Any:
+    from elastoflow.scenes import SceneError, resolve_scene
+
+    try:
+        return resolve_scene(name_or_path)
+    except SceneError as error:
+        _fail(str(error).splitlines())
+
+
+def _parse_formats(text: str | None) -> list[str] | None:
+    from elastoflow.io import FIELD_FORMATS
+
+    if text is None:
+        return None
+    formats = [f.strip() for f in text.split(",") if f.strip()]
+    if formats in (["none"], ["off"]):
+        return []
+    bad = [f for f in formats if f not in FIELD_FORMATS]
+    if bad:
+        _fail(f"--fields = {text!r}: formats must be among {', '.join(FIELD_FORMATS)} "
+              "(comma separated) or 'none'")
+    return formats
+
+
+class _StopRequest:
+    """First Ctrl-C: finish the current step, then stop cleanly. Second: stop at once."""
+
+    def __init__(self) -> None:
+        self.requested = False
+        self._previous: Any = None
+
+    def __enter__(self) -> _StopRequest:
+        self._previous = signal.signal(signal.SIGINT, self._handle)
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        signal.signal(signal.SIGINT, self._previous)
+
+    def _handle(self, signum: int, frame: Any) -> None:
+        if self.requested:
+            raise KeyboardInterrupt
+        self.requested = True
+
+
+@app.command()
+def run(
+    scene: Annotated[str, typer.Argument(help="Built-in scene name or scene TOML file.")],
+    steps: Annotated[int | None, typer.Option(help="Run until this step (default: the scene's "
+                                              "duration).", min=1)] = None,
+    out: Annotated[Path | None, typer.Option(help="Output folder (default out/<scene name>).")] = None,
+    video: Annotated[bool | None, typer.Option("--video/--no-video", help="Write (or not) a "
+                                               "video; default as the scene says.")] = None,
+    view: Annotated[str | None, typer.Option(help="Video view: speed, vorticity, pressure, "
+                                             "dye.")] = None,
+    fields: Annotated[str | None, typer.Option(help="Field formats to save, comma separated: "
+                                               "npz,vtk,xdmf; 'none' for none.")] = None,
+    meshes: Annotated[bool | None, typer.Option("--meshes/--no-meshes", help="Extruded body "
+                                                "meshes (OBJ) per frame.")] = None,
+    probes: Annotated[bool | None, typer.Option("--probes/--no-probes", help="Probe time "
+                                                "series (CSV + PNG).")] = None,
+    every: Annotated[int | None, typer.Option(help="Save video frames, fields and meshes every "
+                                              "N steps.", min=1)] = None,
+    checkpoint_every: Annotated[int | None, typer.Option(help="Checkpoint every N steps (0: "
+                                                         "only at the end).", min=0)] = None,
+    resume: Annotated[bool, typer.Option(help="Continue from the newest checkpoint in the "
+                                         "output folder.")] = False,
+    quiet: Annotated[bool, typer.Option(help="No progress bar.")] = False,
+) -> None:
+    """Run a scene, writing video, fields, meshes, probes and checkpoints.
+
+    Ctrl-C stops after the current step, keeps everything written so far (the video is
+    finished, a checkpoint saved) and prints how to resume.
+    """
+    from elastoflow.io import (
+        OutputSession,
+        apply_output_overrides,
+        find_resume_checkpoint,
+        load_checkpoint,
+    )
+    from elastoflow.render import VIEWS
+    from elastoflow.scenes import SceneError, build_simulation, step_count
+
+    chosen = _scene(scene)
+    if view is not None and view not in VIEWS:
+        _fail(f"--view = {view!r}: must be one of {', '.join(VIEWS)}")
+    chosen = apply_output_overrides(
+        chosen, video=video, fields=_parse_formats(fields), meshes=meshes, probes=probes,
+        checkpoint_every=checkpoint_every, view=view, every=every,
+    )
+    out_dir = out if out is not None else Path("out") / chosen.name
+    try:
+        total = steps if steps is not None else step_count(chosen)
+        simulation = build_simulation(chosen)
+    except SceneError as error:
+        _fail(str(error).splitlines())
+    except ValueError as error:
+        _fail(f"cannot build scene {chosen.name!r}: {error}")
+
+    resumed = False
+    if resume:
+        checkpoint = find_resume_checkpoint(out_dir)
+        if checkpoint is None:
+            _fail(f"--resume: no checkpoint in {out_dir / 'checkpoints'}")
+        try:
+            load_checkpoint(checkpoint, simulation)
+        except (ValueError, KeyError, OSError) as error:
+            _fail(f"--resume: checkpoint {checkpoint} does not fit this scene: {error}")
+        resumed = True
+        typer.echo(f"resuming from {checkpoint} (step {simulation.step_index}, "
+                   f"t = {simulation.time:.4g} s)")
+    if simulation.step_index >= total:
+        typer.echo(f"nothing to do: already at step {simulation.step_index} of {total}")
+        return
+
+    session = OutputSession(chosen, simulation, out_dir, resumed=resumed)
+    failure: BaseException | None = None
+    stopped = False
+    try:
+        with _StopRequest() as stop:
+            _step_loop(simulation, session, total, stop, quiet)
+            stopped = stop.requested
+    except KeyboardInterrupt:
+        stopped = True
+    except Exception as error:  # noqa: BLE001 - reported with its step, then exit 1
+        failure = error
+    finally:
+        # A failed step may leave a half-updated state: keep the periodic checkpoints only.
+        written = session.close(final_checkpoint=failure is None)
+
+    if session.video_note:
+        typer.echo(f"note: {session.video_note}", err=True)
+    for path in written:
+        typer.echo(f"wrote {path}")
+    if failure is not None:
+        where = f"step {simulation.step_index + 1} (t = {simulation.time:.6g} s)"
+        message = str(failure)
+        if not message.startswith("step"):
+            message = f"{where}: {type(failure).__name__}: {message}"
+        _fail(f"run failed at {message}", EXIT_RUN_FAILED)
+    if stopped:
+        typer.echo(f"stopped at step {simulation.step_index} of {total}; resume with:\n"
+                   f"  elastoflow run {scene} --out {out_dir} --resume --steps {total}")
+        raise typer.Exit(130)
+
+
+def _step_loop(simulation: Any, session: Any, total: int, stop: _StopRequest, quiet: bool) -> None:
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        TextColumn,
+        TimeElapsedColumn,
+        TimeRemainingColumn,
+    )
+
+    start = simulation.step_index
+    progress = Progress(
+        TextColumn("[bold]{task.description}"), BarColumn(), MofNCompleteColumn(),
+        TextColumn("{task.fields[rate]:.2f} steps/s"), TimeElapsedColumn(), TextColumn("ETA"),
+        TimeRemainingColumn(), disable=quiet,
+    )
+    began = _time.perf_counter()
+    with progress:
+        task = progress.add_task("steps", total=total, completed=start, rate=0.0)
+        while simulation.step_index < total and not stop.requested:
+            report = simulation.step()
+            session.after_step(simulation, report)
+            done = simulation.step_index - start
+            progress.update(task, completed=simulation.step_index,
+                            rate=done / max(_time.perf_counter() - began, 1e-9))
+
+
+@app.command("list")
+def list_command() -> None:
+    """List the built-in scenes."""
+    from rich.console import Console
+    from rich.table import Table
+
+    from elastoflow.scenes import list_scenes
+
+    table = Table("scene", "description")
+    for name, summary in list_scenes().items():
+        table.add_row(name, summary)
+    Console().print(table)
+
+
+@app.command()
+def validate(
+    scene: Annotated[str, typer.Argument(help="Scene TOML file (or built-in name).")],
+) -> None:
+    """Check a scene file: prints one line per problem (exit 2) or a summary (exit 0)."""
+    from elastoflow.scenes import SceneError, step_count, time_step
+
+    chosen = _scene(scene)
+    try:
+        dt, steps = time_step(chosen), step_count(chosen)
+    except SceneError as error:
+        _fail(str(error).splitlines())
+    nx, ny = chosen.domain.cells
+    typer.echo(f"ok: {chosen.name}: {nx}x{ny} cells, {len(chosen.bodies)} bodies, "
+               f"{len(chosen.obstacles)} obstacles, dt = {dt:.4g} s, {steps} steps")
+
+
+@app.command()
+def dump(
+    scene: Annotated[str, typer.Argument(help="Built-in scene name.")],
+    output: Annotated[Path | None, typer.Option("--output", "-o", help="File to write "
+                                                "(default: print).")] = None,
+) -> None:
+    """Write a built-in scene as TOML, a starting point for your own."""
+    from elastoflow.io import write_text_atomic
+    from elastoflow.scenes import scene_to_toml
+
+    text = scene_to_toml(_scene(scene))
+    if output is None:
+        typer.echo(text, nl=False)
+    else:
+        write_text_atomic(output, text)
+        typer.echo(f"wrote {output}")
+
+
+@app.command()
+def view(
+    scene: Annotated[str, typer.Argument(help="Built-in scene name or scene TOML file.")],
+    scale: Annotated[int | None, typer.Option(help="Pixels per cell.", min=1)] = None,
+) -> None:
+    """Interactive window: left-drag pushes the fluid, right-drag grabs a body node.
+
+    Keys: space pause, s single step, r reset, v cycle view, p screenshot, q/esc quit.
+    """
+    from elastoflow.scenes import SceneError
+
+    chosen = _scene(scene)
+    try:
+        from elastoflow.viewer import run_viewer
+    except ImportError as error:
+        _fail(f"the viewer needs pygame-ce (pip install 'elastoflow[viewer]'): {error}")
+    try:
+        run_viewer(chosen, scale=scale)
+    except SceneError as error:
+        _fail(str(error).splitlines())
+
+
+@app.command()
+def render(
+    out_dir: Annotated[Path, typer.Argument(help="Output folder of a run with npz fields.")],
+    view: Annotated[str, typer.Option(help="speed, vorticity, pressure or dye.")] = "speed",
+    fps: Annotated[int, typer.Option(min=1)] = 30,
+    output: Annotated[Path | None, typer.Option("--output", "-o", help="Video file (default "
+                                                "OUT_DIR/render_<view>.mp4).")] = None,
+) -> None:
+    """Render a video again from the saved field snapshots (fields/step_*.npz)."""
+    from elastoflow.render import VIEWS
+    from elastoflow.render._replay import render_saved_frames
+
+    if view not in VIEWS:
+        _fail(f"--view = {view!r}: must be one of {', '.join(VIEWS)}")
+    folder = out_dir / "fields"
+    if not any(folder.glob("step_*.npz")):
+        _fail(f"{folder}: no step_*.npz snapshots (run with --fields npz)")
+    target = output if output is not None else out_dir / f"render_{view}.mp4"
+    written, count = render_saved_frames(folder, target, view=view, fps=fps)
+    typer.echo(f"wrote {written} ({count} frames)")
+
+
+@app.command()
+def bench(
+    scene: Annotated[str | None, typer.Argument(help="Time this scene's steps instead of the "
+                                                "benchmark suite.")] = None,
+    steps: Annotated[int, typer.Option(min=1, help="Steps to time (scene timing).")] = 20,
+) -> None:
+    """Run the benchmark suite (python -m benchmarks), or time the steps of one scene."""
+    import importlib.util
+    import subprocess
+
+    if scene is None and importlib.util.find_spec("benchmarks") is not None:
+        raise typer.Exit(subprocess.call([sys.executable, "-m", "benchmarks"]))
+    from elastoflow.scenes import SceneError, build_simulation
+
+    chosen = _scene(scene or "bar_in_jet")
+    try:
+        simulation = build_simulation(chosen)
+    except SceneError as error:
+        _fail(str(error).splitlines())
+    simulation.step()  # compile the kernels outside the timing
+    began = _time.perf_counter()
+    phases: dict[str, float] = {}
+    for _ in range(steps):
+        report = simulation.step()
+        for phase, seconds in report.seconds_by_phase.items():
+            phases[phase] = phases.get(phase, 0.0) + seconds
+    elapsed = _time.perf_counter() - began
+    nx, ny = chosen.domain.cells
+    typer.echo(f"{chosen.name}: {nx}x{ny}, {steps} steps in {elapsed:.3f} s = "
+               f"{steps / elapsed:.2f} steps/s")
+    for phase, seconds in sorted(phases.items(), key=lambda item: -item[1]):
+        typer.echo(f"  {phase:<16} {1000 * seconds / steps:8.2f} ms/step")
+
+
+def main() -> None:
+    """Entry point of the ``elastoflow`` command."""
+    app()
+
+
+if __name__ == "__main__":
+    main()

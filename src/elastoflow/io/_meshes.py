@@ -1,0 +1,85 @@
+"""Body meshes extruded to 3D prisms (pseudo-3D, paper Fig. 7), as OBJ or PLY surfaces."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from elastoflow.io._atomic import write_text_atomic
+
+
+def boundary_edges_of(triangles: np.ndarray) -> np.ndarray:
+    """Edges used by one triangle only, oriented as in that triangle (body on the left for
+    counter-clockwise triangles), shape (k, 2) int."""
+    edges = np.concatenate((triangles[:, [0, 1]], triangles[:, [1, 2]], triangles[:, [2, 0]]))
+    keys = np.sort(edges, axis=1)
+    _, inverse, counts = np.unique(keys, axis=0, return_inverse=True, return_counts=True)
+    return edges[counts[inverse.ravel()] == 1]
+
+
+def extrude_surface(points: np.ndarray, triangles: np.ndarray,
+                    thickness: float) -> tuple[np.ndarray, np.ndarray]:
+    """Closed surface of the prism ``mesh x [-thickness/2, thickness/2]``.
+
+    Args:
+        points: Node positions (n, 2) [m].
+        triangles: Counter-clockwise triangles (m, 3).
+        thickness: Extent along z [m].
+
+    Returns:
+        ``(vertices (2n, 3), faces (2m + 2k, 3))`` with outward normals: bottom nodes first,
+        then top nodes; k is the number of boundary edges.
+    """
+    points = np.asarray(points, dtype=np.float64)
+    triangles = np.asarray(triangles, dtype=np.int64)
+    n = points.shape[0]
+    half = 0.5 * thickness
+    vertices = np.empty((2 * n, 3))
+    vertices[:n, :2] = points
+    vertices[:n, 2] = -half
+    vertices[n:, :2] = points
+    vertices[n:, 2] = half
+    top = triangles + n
+    bottom = triangles[:, ::-1]
+    edges = boundary_edges_of(triangles)
+    a, b = edges[:, 0], edges[:, 1]
+    # Body on the left of a -> b: the outward side quad is a, b, b', a' seen from outside.
+    sides = np.concatenate((np.column_stack((a, b, b + n)), np.column_stack((a, b + n, a + n))))
+    return vertices, np.concatenate((bottom, top, sides))
+
+
+def write_obj(path: str | Path, vertices: np.ndarray, faces: np.ndarray) -> None:
+    """Wavefront OBJ (vertices and triangular faces), written atomically."""
+    lines = ["# elastoflow extruded body mesh"]
+    lines += [f"v {x:.9g} {y:.9g} {z:.9g}" for x, y, z in vertices]
+    lines += [f"f {a + 1} {b + 1} {c + 1}" for a, b, c in faces]
+    write_text_atomic(path, "\n".join(lines) + "\n")
+
+
+def write_ply(path: str | Path, vertices: np.ndarray, faces: np.ndarray) -> None:
+    """ASCII PLY (vertices and triangular faces), written atomically."""
+    header = [
+        "ply", "format ascii 1.0", "comment elastoflow extruded body mesh",
+        f"element vertex {len(vertices)}", "property float x", "property float y",
+        "property float z", f"element face {len(faces)}", "property list uchar int vertex_indices",
+        "end_header",
+    ]
+    lines = header + [f"{x:.9g} {y:.9g} {z:.9g}" for x, y, z in vertices]
+    lines += [f"3 {a} {b} {c}" for a, b, c in faces]
+    write_text_atomic(path, "\n".join(lines) + "\n")
+
+
+MESH_WRITERS = {"obj": write_obj, "ply": write_ply}
+
+
+def write_extruded_meshes(folder: str | Path, frame: int, meshes: list[tuple[np.ndarray, np.ndarray]],
+                          thickness: float, file_format: str = "obj") -> list[Path]:
+    """One file per body, ``folder/body{k}_{frame:06d}.{format}``; returns the paths."""
+    writer = MESH_WRITERS[file_format]
+    paths = []
+    for index, (points, triangles) in enumerate(meshes):
+        path = Path(folder) / f"body{index}_{frame:06d}.{file_format}"
+        writer(path, *extrude_surface(points, triangles, thickness))
+        paths.append(path)
+    return paths

@@ -1,0 +1,36 @@
+"""Frames and videos: the fluid field in colour with bodies and obstacles drawn on top.
+
+Rendering reads the simulation's arrays and never changes them. Fields are coloured through a
+lookup table and bodies rasterised by small Numba kernels, so a frame costs milliseconds.
+"""
+
+from elastoflow.render._colormap import apply_colormap, colormap_lut
+from elastoflow.render._fields import speed_at_cells, velocity_at_cells, vorticity_at_cells
+from elastoflow.render._frame import (
+    BODY_EDGE_COLOR,
+    BODY_FILL_COLOR,
+    OBSTACLE_FILL_COLOR,
+    VIEWS,
+    default_value_range,
+    render_frame,
+    triangle_edges,
+    view_values,
+)
+from elastoflow.render._video import VideoWriter
+
+__all__ = [
+    "BODY_EDGE_COLOR",
+    "BODY_FILL_COLOR",
+    "OBSTACLE_FILL_COLOR",
+    "VIEWS",
+    "VideoWriter",
+    "apply_colormap",
+    "colormap_lut",
+    "default_value_range",
+    "render_frame",
+    "speed_at_cells",
+    "triangle_edges",
+    "velocity_at_cells",
+    "view_values",
+    "vorticity_at_cells",
+]

@@ -1,0 +1,211 @@
+"""One frame of the simulation as an RGB image, in the look of the paper's Fig. 6."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from elastoflow.render._colormap import COLORMAP_BY_VIEW, apply_colormap, colormap_lut
+from elastoflow.render._fields import speed_at_cells, vorticity_at_cells
+from elastoflow.render._kernels import draw_segments, fill_polygon, fill_triangles
+
+VIEWS: tuple[str, ...] = ("speed", "vorticity", "pressure", "dye")
+BODY_FILL_COLOR = np.array([235, 235, 235], dtype=np.uint8)
+BODY_EDGE_COLOR = np.array([40, 40, 40], dtype=np.uint8)
+OBSTACLE_FILL_COLOR = np.array([128, 128, 128], dtype=np.uint8)
+OBSTACLE_EDGE_COLOR = np.array([20, 20, 20], dtype=np.uint8)
+PANEL_COLOR = (255, 255, 255)
+_LABELS = {"speed": "speed [m/s]", "vorticity": "vorticity [1/s]", "pressure": "pressure [Pa]",
+           "dye": "dye"}
+
+
+def view_values(grid: Any, state: Any, view: str) -> np.ndarray:
+    """The cell-centred scalar field that ``view`` shows, shape (nx, ny)."""
+    if view == "speed":
+        return speed_at_cells(state)
+    if view == "vorticity":
+        return vorticity_at_cells(state, grid.h)
+    if view == "pressure":
+        return np.asarray(state.pressure)
+    if view == "dye":
+        return np.asarray(state.dye)
+    raise ValueError(f"view = {view!r}: must be one of {VIEWS}")
+
+
+def default_value_range(values: np.ndarray, view: str) -> tuple[float, float]:
+    """Colour range of a view: from 0 for speed and dye, symmetric about 0 for vorticity."""
+    finite = values[np.isfinite(values)]
+    if finite.size == 0:
+        return (0.0, 1.0)
+    if view == "speed":
+        return (0.0, max(float(finite.max()), 1e-12))
+    if view == "dye":
+        return (0.0, max(float(finite.max()), 1.0))
+    if view == "vorticity":
+        bound = max(float(np.abs(finite).max()), 1e-12)
+        return (-bound, bound)
+    low, high = float(finite.min()), float(finite.max())
+    return (low, high) if high > low else (low - 1.0, low + 1.0)
+
+
+def default_scale(grid: Any) -> int:
+    """Pixels per cell: about 512 pixels along the longer side, at least 128 along the other."""
+    return max(1, round(512 / max(grid.nx, grid.ny)), math.ceil(128 / min(grid.nx, grid.ny)))
+
+
+def _body_geometry(body: Any) -> tuple[np.ndarray, np.ndarray]:
+    if isinstance(body, tuple):
+        points, triangles = body
+    else:
+        points, triangles = body.positions, body.mesh.triangles
+    return np.asarray(points, dtype=np.float64), np.asarray(triangles, dtype=np.int64)
+
+
+def _obstacle_outline(obstacle: Any, time: float) -> np.ndarray:
+    if hasattr(obstacle, "points_at"):
+        return np.asarray(obstacle.points_at(time), dtype=np.float64)
+    return np.asarray(obstacle, dtype=np.float64)
+
+
+def triangle_edges(triangles: np.ndarray) -> np.ndarray:
+    """Each edge of a triangle mesh once, shape (k, 2) int."""
+    edges = np.concatenate((triangles[:, [0, 1]], triangles[:, [1, 2]], triangles[:, [2, 0]]))
+    return np.unique(np.sort(edges, axis=1), axis=0)
+
+
+def render_frame(
+    grid: Any,
+    state: Any,
+    bodies: Sequence[Any] = (),
+    obstacles: Sequence[Any] = (),
+    view: str = "speed",
+    time: float | None = None,
+    *,
+    value_range: tuple[float, float] | None = None,
+    scale: int | None = None,
+    colorbar: bool = True,
+) -> np.ndarray:
+    """Draw the fluid field with bodies and obstacles on top.
+
+    The field is coloured cell by cell through a lookup table; body triangles are filled and
+    their edges drawn; obstacles are filled; the elapsed time is written in the top-left corner
+    and a colour bar with its range sits on the right.
+
+    Args:
+        grid: The `Grid2D`.
+        state: Fluid state (``velocity_x``, ``velocity_y``, ``pressure``, ``dye``).
+        bodies: Elastic bodies (``positions`` and ``mesh.triangles``) or ``(points (n, 2),
+            triangles (m, 3))`` pairs [m].
+        obstacles: Obstacles (with ``points_at(time)``) or outlines (k, 2) [m].
+        view: ``"speed"``, ``"vorticity"``, ``"pressure"`` or ``"dye"``.
+        time: Elapsed time [s] to print; nothing printed when None.
+        value_range: Colour range (low, high); default from this frame's values.
+        scale: Pixels per cell (default `default_scale`).
+        colorbar: Add the colour bar panel.
+
+    Returns:
+        RGB image, shape (H, W, 3) uint8, H and W even (video encoders need that).
+    """
+    values = view_values(grid, state, view)
+    low, high = value_range if value_range is not None else default_value_range(values, view)
+    scale = default_scale(grid) if scale is None else int(scale)
+    colormap = COLORMAP_BY_VIEW[view]
+
+    # Row 0 is the top of the picture: flip y.
+    cells = apply_colormap(values.T[::-1], low, high, colormap)
+    field = np.repeat(np.repeat(cells, scale, axis=0), scale, axis=1)
+    height, width = field.shape[:2]
+
+    origin = np.asarray(getattr(grid, "origin", (0.0, 0.0)), dtype=np.float64)
+    pixels_per_metre = scale / grid.h
+
+    def to_pixels(points: np.ndarray) -> np.ndarray:
+        pixels = np.empty_like(points)
+        pixels[:, 0] = (points[:, 0] - origin[0]) * pixels_per_metre
+        pixels[:, 1] = height - (points[:, 1] - origin[1]) * pixels_per_metre
+        return pixels
+
+    now = 0.0 if time is None else float(time)
+    for obstacle in obstacles:
+        outline = to_pixels(_obstacle_outline(obstacle, now))
+        fill_polygon(field, outline, OBSTACLE_FILL_COLOR)
+        draw_segments(field, outline, np.roll(outline, -1, axis=0), OBSTACLE_EDGE_COLOR)
+    for body in bodies:
+        points, triangles = _body_geometry(body)
+        pixels = to_pixels(points)
+        fill_triangles(field, pixels, triangles, BODY_FILL_COLOR)
+        edges = triangle_edges(triangles)
+        draw_segments(field, pixels[edges[:, 0]], pixels[edges[:, 1]], BODY_EDGE_COLOR)
+
+    panel_width = _panel_width(height) if colorbar else 0
+    out_height = height + (height % 2)
+    out_width = width + panel_width
+    out_width += out_width % 2
+    image = np.empty((out_height, out_width, 3), dtype=np.uint8)
+    image[...] = PANEL_COLOR
+    image[:height, :width] = field
+    if colorbar:
+        _draw_colorbar(image, width, height, colormap, low, high, _LABELS[view])
+    if time is not None:
+        _draw_time(image, now, height)
+    return image
+
+
+def _panel_width(height: int) -> int:
+    return max(64, min(110, height // 5))
+
+
+def _font(size: int) -> Any:
+    from PIL import ImageFont
+
+    try:
+        return ImageFont.load_default(size=size)
+    except TypeError:  # Pillow < 10.1 has only the fixed bitmap font.
+        return ImageFont.load_default()
+
+
+def _text_size(height: int) -> int:
+    return max(9, min(16, height // 28))
+
+
+def _draw_colorbar(image: np.ndarray, x_start: int, height: int, colormap: str, low: float,
+                   high: float, label: str) -> None:
+    from PIL import Image, ImageDraw
+
+    margin = max(6, height // 20)
+    bar_width = max(8, height // 32)
+    top, bottom = margin + 2 * _text_size(height), height - margin
+    left = x_start + margin // 2 + 2
+    if bottom - top < 8:
+        top, bottom = 2, height - 2
+    # Highest value at the top.
+    ramp = colormap_lut(colormap)[np.linspace(255, 0, bottom - top).astype(np.intp)]
+    image[top:bottom, left:left + bar_width] = ramp[:, None, :]
+    image[top:bottom, left - 1] = 0
+    image[top:bottom, left + bar_width] = 0
+    image[top - 1, left - 1:left + bar_width + 1] = 0
+    image[bottom, left - 1:left + bar_width + 1] = 0
+
+    picture = Image.fromarray(image)
+    draw = ImageDraw.Draw(picture)
+    font = _font(_text_size(height))
+    draw.text((x_start + 3, 2), label, fill=(0, 0, 0), font=font)
+    for value, row in ((high, top), (0.5 * (low + high), (top + bottom) // 2), (low, bottom)):
+        draw.text((left + bar_width + 3, row - _text_size(height) // 2), f"{value:.3g}",
+                  fill=(0, 0, 0), font=font)
+    image[...] = np.asarray(picture)
+
+
+def _draw_time(image: np.ndarray, time: float, height: int) -> None:
+    from PIL import Image, ImageDraw
+
+    picture = Image.fromarray(image)
+    draw = ImageDraw.Draw(picture)
+    size = _text_size(height) + 2
+    text = f"t = {time:.2f} s"
+    draw.rectangle((2, 2, 4 + size * len(text) * 0.6, 4 + size * 1.2), fill=(0, 0, 0))
+    draw.text((4, 3), text, fill=(255, 255, 255), font=_font(size))
+    image[...] = np.asarray(picture)

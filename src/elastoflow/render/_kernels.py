@@ -1,0 +1,87 @@
+"""Small rasterisers for frames: triangles, polygons and line segments into an RGB array.
+
+Coordinates are in pixels with x to the right and y down; pixel ``(row, col)`` covers
+``[col, col+1) x [row, row+1)`` and is sampled at its centre.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+
+@njit(cache=True)
+def fill_triangles(image: np.ndarray, points: np.ndarray, triangles: np.ndarray,
+                   color: np.ndarray) -> None:
+    """Paint every pixel whose centre lies in a triangle (edges inclusive)."""
+    height, width = image.shape[0], image.shape[1]
+    for t in range(triangles.shape[0]):
+        x0, y0 = points[triangles[t, 0], 0], points[triangles[t, 0], 1]
+        x1, y1 = points[triangles[t, 1], 0], points[triangles[t, 1], 1]
+        x2, y2 = points[triangles[t, 2], 0], points[triangles[t, 2], 1]
+        area = (x1 - x0) * (y2 - y0) - (x2 - x0) * (y1 - y0)
+        if area == 0.0 or not math.isfinite(area):
+            continue
+        col_min = max(int(math.floor(min(x0, x1, x2))), 0)
+        col_max = min(int(math.ceil(max(x0, x1, x2))), width - 1)
+        row_min = max(int(math.floor(min(y0, y1, y2))), 0)
+        row_max = min(int(math.ceil(max(y0, y1, y2))), height - 1)
+        for row in range(row_min, row_max + 1):
+            sy = row + 0.5
+            for col in range(col_min, col_max + 1):
+                sx = col + 0.5
+                w0 = ((x1 - sx) * (y2 - sy) - (x2 - sx) * (y1 - sy)) / area
+                w1 = ((x2 - sx) * (y0 - sy) - (x0 - sx) * (y2 - sy)) / area
+                w2 = 1.0 - w0 - w1
+                if w0 >= 0.0 and w1 >= 0.0 and w2 >= 0.0:
+                    for c in range(3):
+                        image[row, col, c] = color[c]
+
+
+@njit(cache=True)
+def fill_polygon(image: np.ndarray, polygon: np.ndarray, color: np.ndarray) -> None:
+    """Paint the pixels whose centre is inside a closed polygon (even-odd scanlines)."""
+    height, width = image.shape[0], image.shape[1]
+    k = polygon.shape[0]
+    row_min = max(int(math.floor(polygon[:, 1].min())), 0)
+    row_max = min(int(math.ceil(polygon[:, 1].max())), height - 1)
+    crossings = np.empty(k)
+    for row in range(row_min, row_max + 1):
+        sy = row + 0.5
+        count = 0
+        for e in range(k):
+            xa, ya = polygon[e, 0], polygon[e, 1]
+            xb, yb = polygon[(e + 1) % k, 0], polygon[(e + 1) % k, 1]
+            # Half-open rule so that a vertex on the scanline is counted once.
+            if (ya <= sy) != (yb <= sy):
+                crossings[count] = xa + (sy - ya) * (xb - xa) / (yb - ya)
+                count += 1
+        xs = np.sort(crossings[:count])
+        for pair in range(0, count - 1, 2):
+            col_start = max(int(math.ceil(xs[pair] - 0.5)), 0)
+            col_end = min(int(math.floor(xs[pair + 1] - 0.5)), width - 1)
+            for col in range(col_start, col_end + 1):
+                for c in range(3):
+                    image[row, col, c] = color[c]
+
+
+@njit(cache=True)
+def draw_segments(image: np.ndarray, starts: np.ndarray, ends: np.ndarray,
+                  color: np.ndarray) -> None:
+    """Draw one-pixel line segments from ``starts[k]`` to ``ends[k]`` (DDA)."""
+    height, width = image.shape[0], image.shape[1]
+    for k in range(starts.shape[0]):
+        xa, ya = starts[k, 0], starts[k, 1]
+        dx, dy = ends[k, 0] - xa, ends[k, 1] - ya
+        if not (math.isfinite(dx) and math.isfinite(dy)):
+            continue
+        samples = int(max(abs(dx), abs(dy))) + 1
+        for s in range(samples + 1):
+            f = s / samples
+            col = int(math.floor(xa + f * dx))
+            row = int(math.floor(ya + f * dy))
+            if 0 <= row < height and 0 <= col < width:
+                for c in range(3):
+                    image[row, col, c] = color[c]

@@ -1,0 +1,135 @@
+"""Video files from RGB frames: MP4 (h264, yuv420p) through imageio-ffmpeg, GIF as fallback."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from types import TracebackType
+from typing import Any
+
+import numpy as np
+
+
+def _even(frame: np.ndarray) -> np.ndarray:
+    """Pad to even height and width by repeating the last row/column (h264 needs even sizes)."""
+    height, width = frame.shape[:2]
+    if height % 2 == 0 and width % 2 == 0:
+        return frame
+    return np.pad(frame, ((0, height % 2), (0, width % 2), (0, 0)), mode="edge")
+
+
+class VideoWriter:
+    """Context manager that writes frames to a video, atomically.
+
+    Frames go to a temporary file beside ``path``; `close` (or leaving the ``with`` block, also
+    on an exception or Ctrl-C) finishes it and renames it to ``path``, so the file at ``path``
+    is always a complete video. If ffmpeg cannot be started or fails, the frames go to a GIF
+    (``path`` with suffix ``.gif``) instead; `path` then names the file actually written.
+
+    Args:
+        path: Output file (``.mp4``; ``.gif`` writes a GIF directly).
+        fps: Frames per second.
+        quality: imageio-ffmpeg quality, 0-10.
+
+    Example:
+        >>> with VideoWriter("out/run.mp4", fps=30) as video:  # doctest: +SKIP
+        ...     video.append(frame)
+    """
+
+    def __init__(self, path: str | Path, fps: int = 30, quality: float = 7.0) -> None:
+        self.path = Path(path)
+        self.fps = int(fps)
+        self.quality = quality
+        self.frame_count = 0
+        self.fallback_reason: str | None = None
+        self._writer: Any = None
+        self._temporary: Path | None = None
+        self._frames_for_gif: list[np.ndarray] = []
+        self._format = "gif" if self.path.suffix.lower() == ".gif" else "mp4"
+        self._size: tuple[int, int] | None = None
+
+    def __enter__(self) -> VideoWriter:
+        return self
+
+    def __exit__(self, kind: type[BaseException] | None, value: BaseException | None,
+                 traceback: TracebackType | None) -> None:
+        self.close()
+
+    def _open_ffmpeg(self) -> None:
+        import imageio.v2 as imageio
+
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self._temporary = self.path.with_name(f".{self.path.stem}.{os.getpid()}.tmp.mp4")
+        self._writer = imageio.get_writer(
+            str(self._temporary), format="FFMPEG", mode="I", fps=self.fps, codec="libx264",
+            pixelformat="yuv420p", quality=self.quality, macro_block_size=1,
+            ffmpeg_log_level="error",
+        )
+
+    def _fall_back(self, error: Exception) -> None:
+        self.fallback_reason = f"ffmpeg failed ({error}); writing a GIF instead"
+        if self._writer is not None:
+            try:
+                self._writer.close()
+            except Exception:  # noqa: BLE001 - the writer is broken already
+                pass
+        self._writer = None
+        self._discard_temporary()
+        self._format = "gif"
+        self.path = self.path.with_suffix(".gif")
+
+    def append(self, frame: np.ndarray) -> None:
+        """Add one RGB frame (H, W, 3) uint8; every frame must have the first one's size."""
+        frame = _even(np.ascontiguousarray(frame, dtype=np.uint8))
+        size = (frame.shape[0], frame.shape[1])
+        if self._size is None:
+            self._size = size
+        elif size != self._size:
+            raise ValueError(f"frame size {size}: must match the first frame's {self._size}")
+        if self._format == "mp4":
+            try:
+                if self._writer is None:
+                    self._open_ffmpeg()
+                self._writer.append_data(frame)
+            except Exception as error:  # noqa: BLE001 - any ffmpeg failure means: use GIF
+                self._fall_back(error)
+        if self._format == "gif":
+            self._frames_for_gif.append(frame)
+        self.frame_count += 1
+
+    def close(self) -> Path | None:
+        """Finish the file and move it into place; returns its path (None if no frames)."""
+        if self._format == "mp4" and self._writer is not None:
+            try:
+                self._writer.close()
+            except Exception as error:  # noqa: BLE001
+                self._fall_back(error)
+            else:
+                self._writer = None
+                os.replace(self._temporary, self.path)  # type: ignore[arg-type]
+                self._temporary = None
+                return self.path
+        if self._format == "gif" and self._frames_for_gif:
+            self._write_gif()
+            self._frames_for_gif = []
+            return self.path
+        return self.path if self.path.exists() else None
+
+    def _write_gif(self) -> None:
+        from PIL import Image
+
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        temporary = self.path.with_name(f".{self.path.stem}.{os.getpid()}.tmp.gif")
+        images = [Image.fromarray(f) for f in self._frames_for_gif]
+        try:
+            images[0].save(temporary, save_all=True, append_images=images[1:],
+                           duration=max(1, round(1000 / self.fps)), loop=0)
+            os.replace(temporary, self.path)
+        finally:
+            if temporary.exists():
+                temporary.unlink()
+
+    def _discard_temporary(self) -> None:
+        if self._temporary is not None and self._temporary.exists():
+            self._temporary.unlink()
+        self._temporary = None
