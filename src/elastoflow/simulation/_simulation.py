@@ -196,7 +196,7 @@ class Simulation:
         if self.bodies and self.force_model == "traction":
             t0 = clock()
             nodal_force = force_traction(
-                self.grid, points, edges, state.velocity_x, state.velocity_y,
+                self.grid, bmap, state.velocity_x, state.velocity_y,
                 state.pressure, fluid.density, fluid.viscosity, interior,
                 gravity=fluid.gravity,
             )
