@@ -28,8 +28,8 @@ def _line_range(across_a: float, across_b: float, line_count: int) -> tuple[int,
     """Half-open range of lines crossed by an edge, in half-cell units: lo <= L < hi."""
     lo = min(across_a, across_b)
     hi = max(across_a, across_b)
-    first = max(int(math.ceil(lo)), 0)
-    last = min(int(math.ceil(hi)) - 1, line_count - 1)
+    first = max(math.ceil(lo), 0)
+    last = min(math.ceil(hi) - 1, line_count - 1)
     return first, last
 
 
@@ -177,7 +177,7 @@ def _first_point_at_or_after(
     value: float, origin_along: float, half_h: float, point_start: int
 ) -> int:
     """Smallest k (unclipped) with point position >= value, exact for the position formula."""
-    k = int(math.ceil(((value - origin_along) / half_h - point_start) * 0.5))
+    k = math.ceil(((value - origin_along) / half_h - point_start) * 0.5)
     while _point_position(origin_along, half_h, point_start, k - 1) >= value:
         k -= 1
     while _point_position(origin_along, half_h, point_start, k) < value:
@@ -392,11 +392,11 @@ def momentum_exchange_lines(
             s = (coordinate[c] - origin_along) / h
             if sign[c] > 0:
                 # Entering: fluid on the minus side; the point exactly at the crossing is solid.
-                k = int(math.ceil(s)) - 1
+                k = math.ceil(s) - 1
                 if c > begin and coordinate[c - 1] > origin_along + k * h:
                     continue
             else:
-                k = int(math.ceil(s))
+                k = math.ceil(s)
                 if c + 1 < end and coordinate[c + 1] <= origin_along + k * h:
                     continue
             if k < 0 or k >= face_count:
@@ -428,8 +428,8 @@ def _sample_fluid(
     sampled is ``field - density * gravity . x`` (x of each stencil point, whose index (i, j)
     sits at ``(x0 + i h, y0 + j h)``), which removes a hydrostatic part before interpolating.
     """
-    i0 = int(math.floor(fx))
-    j0 = int(math.floor(fy))
+    i0 = math.floor(fx)
+    j0 = math.floor(fy)
     wx = fx - i0
     wy = fy - j0
     total_weight = 0.0
@@ -490,7 +490,7 @@ def traction_edges(
         # Body on the left of a->b: the outward normal (into the fluid) is on the right.
         nx = dy / length
         ny = -dx / length
-        pieces = max(1, int(math.ceil(length / h)))
+        pieces = max(1, math.ceil(length / h))
         ds = length / pieces
         for q in range(pieces):
             t = (q + 0.5) / pieces

@@ -1,7 +1,7 @@
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -58,13 +58,13 @@ class Obstacle:
         polygon: Rest vertices [m], shape (k, 2), k >= 3, stored counter-clockwise.
         motion: None (fixed), a ``RigidMotion``, or any callable ``motion(t) -> (offset (2,),
             angle, velocity (2,), angular_velocity)``.
-        pivot: Rotation centre of the rest polygon [m]; the motion's ``center`` if it has one,
-            else the polygon centroid.
+        pivot: Rotation centre of the rest polygon [m], shape (2,) after construction; when
+            None, the motion's ``center`` if it has one, else the polygon centroid.
     """
 
     polygon: np.ndarray
     motion: Callable[[float], MotionState] | None = None
-    pivot: np.ndarray = field(default=None)  # type: ignore[assignment]
+    pivot: np.ndarray | tuple[float, float] | None = None
 
     def __post_init__(self) -> None:
         polygon = np.array(self.polygon, dtype=np.float64)
@@ -108,15 +108,16 @@ class Obstacle:
         """Vertex positions [m] at time ``time`` [s], shape (k, 2)."""
         offset, angle, _, _ = self._state(time)
         c, s = np.cos(angle), np.sin(angle)
-        relative = self.polygon - self.pivot
+        pivot = np.asarray(self.pivot)
+        relative = self.polygon - pivot
         rotated = np.stack([c * relative[:, 0] - s * relative[:, 1],
                             s * relative[:, 0] + c * relative[:, 1]], axis=1)
-        return self.pivot + offset + rotated
+        return pivot + offset + rotated
 
     def velocities_at(self, time: float) -> np.ndarray:
         """Vertex velocities [m/s] at time ``time`` [s], shape (k, 2)."""
         offset, _, velocity, angular_velocity = self._state(time)
-        relative = self.points_at(time) - self.pivot - offset
+        relative = self.points_at(time) - np.asarray(self.pivot) - offset
         return velocity + angular_velocity * np.stack([-relative[:, 1], relative[:, 0]], axis=1)
 
 

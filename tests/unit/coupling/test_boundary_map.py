@@ -2,7 +2,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from coupling_polygons import H, ORIGINS, polygon_edges, segments_intersect, star_polygon
+from coupling_polygons import ORIGINS, H, polygon_edges, segments_intersect, star_polygon
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 

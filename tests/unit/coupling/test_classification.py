@@ -2,8 +2,8 @@ from __future__ import annotations
 
 import numpy as np
 from coupling_polygons import (
-    H,
     ORIGINS,
+    H,
     distance_to_polygon,
     inside_even_odd,
     polygon_edges,

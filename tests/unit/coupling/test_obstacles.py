@@ -80,7 +80,7 @@ def test_pipe_walls_leave_the_channel_open():
 
 
 def test_concatenate_boundaries_of_nothing():
-    points, velocities, edges, edge_body, offsets = concatenate_boundaries([])
+    points, _, edges, edge_body, offsets = concatenate_boundaries([])
     assert points.shape == (0, 2) and edges.shape == (0, 2) and edge_body.shape == (0,)
     np.testing.assert_array_equal(offsets, [0])
 
