@@ -1,0 +1,181 @@
+"""Writers: atomic files, field snapshots that read back (npz, VTK, XDMF), closed extruded
+meshes, probes CSV/PNG, checkpoints."""
+
+from __future__ import annotations
+
+import xml.etree.ElementTree as ET
+from types import SimpleNamespace
+
+import meshio
+import numpy as np
+import pytest
+
+from elastoflow.grid import Grid2D
+from elastoflow.io import (
+    FieldWriter,
+    ProbeRecorder,
+    atomic_path,
+    extrude_surface,
+    latest_checkpoint,
+    load_checkpoint,
+    read_probes,
+    save_checkpoint,
+    snapshot_arrays,
+    write_extruded_meshes,
+    write_text_atomic,
+)
+from elastoflow.scenes import ProbeSpec
+
+
+def _square_mesh() -> tuple[np.ndarray, np.ndarray]:
+    points = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0], [0.5, 0.5]])
+    triangles = np.array([[0, 1, 4], [1, 2, 4], [2, 3, 4], [3, 0, 4]])
+    return points * 0.2 + 0.3, triangles
+
+
+def _fake_simulation(grid: Grid2D) -> SimpleNamespace:
+    rng = np.random.default_rng(1)
+    points, triangles = _square_mesh()
+    body = SimpleNamespace(
+        positions=points + 0.01, velocities=rng.normal(size=points.shape),
+        mesh=SimpleNamespace(points=points, triangles=triangles),
+        mass=np.full(len(points), 0.5),
+    )
+    state = SimpleNamespace(
+        velocity_x=rng.normal(size=grid.shape_faces_x), velocity_y=rng.normal(size=grid.shape_faces_y),
+        pressure=rng.normal(size=grid.shape_cells), dye=rng.random(grid.shape_cells),
+    )
+    obstacle = SimpleNamespace(points_at=lambda t: np.array([[0.1, 0.1], [0.2, 0.1], [0.2, 0.2]]))
+
+    def checkpoint() -> dict:
+        return {"time": np.array(sim.time), "step_index": np.array(sim.step_index),
+                "fluid_velocity_x": state.velocity_x.copy(),
+                "body0_positions": body.positions.copy()}
+
+    def restore(data: dict) -> None:
+        sim.time = float(data["time"])
+        sim.step_index = int(data["step_index"])
+        state.velocity_x[...] = data["fluid_velocity_x"]
+        body.positions[...] = data["body0_positions"]
+
+    sim = SimpleNamespace(grid=grid, state=state, bodies=[body], obstacles=[obstacle], time=0.25,
+                          step_index=7, body_forces=[np.ones((5, 2))], interior=None,
+                          fluid_solver=SimpleNamespace(density=2.0), checkpoint=checkpoint,
+                          restore=restore)
+    return sim
+
+
+def test_atomic_write_replaces_whole_file_and_leaves_no_temporary(tmp_path) -> None:
+    target = tmp_path / "a.txt"
+    write_text_atomic(target, "old")
+    with pytest.raises(RuntimeError):
+        with atomic_path(target) as temporary:
+            temporary.write_text("partial")
+            raise RuntimeError("crash while writing")
+    assert target.read_text() == "old"
+    write_text_atomic(target, "new")
+    assert target.read_text() == "new"
+    assert [p.name for p in tmp_path.iterdir()] == ["a.txt"]
+
+
+def test_fields_read_back_in_every_format(tmp_path) -> None:
+    grid = Grid2D(6, 4, 0.25)
+    sim = _fake_simulation(grid)
+    writer = FieldWriter(tmp_path, grid, formats=("npz", "vtk", "xdmf"))
+    for step in (0, 5):
+        sim.step_index, sim.time = step, 0.1 * step
+        writer.write(snapshot_arrays(grid, sim.state, sim.bodies, sim.obstacles, time=sim.time,
+                                     step=step))
+    writer.close()
+    assert not list(tmp_path.glob("*.tmp*")) and not list(tmp_path.glob(".*"))
+
+    with np.load(tmp_path / "step_000005.npz") as data:
+        assert {"velocity", "pressure", "dye", "solid", "vorticity", "time", "step",
+                "body0_points", "body0_triangles", "obstacle0_points"} <= set(data.files)
+        assert data["velocity"].shape == (6, 4, 2)
+        np.testing.assert_array_equal(data["pressure"], sim.state.pressure)
+
+    fluid = meshio.read(tmp_path / "fluid_000005.vtu")
+    assert len(fluid.points) == 7 * 5
+    pressure = fluid.cell_data["pressure"][0]
+    np.testing.assert_allclose(pressure, sim.state.pressure.ravel())
+    # Cell (i, j) of the VTK file has the centre of MAC cell (i, j).
+    quad = fluid.cells[0].data[1 * 4 + 2]
+    np.testing.assert_allclose(fluid.points[quad, :2].mean(axis=0), [1.5 * 0.25, 2.5 * 0.25])
+    body = meshio.read(tmp_path / "body0_000005.vtu")
+    np.testing.assert_allclose(body.points[:, :2], sim.bodies[0].positions)
+
+    collection = ET.parse(tmp_path / "fluid.pvd").getroot()
+    files = [d.get("file") for d in collection.iter("DataSet")]
+    assert files == ["fluid_000000.vtu", "fluid_000005.vtu"]
+
+    with meshio.xdmf.TimeSeriesReader(str(tmp_path / "fluid.xdmf")) as reader:
+        points, cells = reader.read_points_cells()
+        times = []
+        for k in range(reader.num_steps):
+            t, _, cell_data = reader.read_data(k)
+            times.append(t)
+        np.testing.assert_allclose(cell_data["pressure"][0], sim.state.pressure.ravel())
+    assert times == pytest.approx([0.0, 0.5])
+
+
+def test_extruded_surface_is_closed_with_the_prism_volume() -> None:
+    points, triangles = _square_mesh()
+    thickness = 0.07
+    vertices, faces = extrude_surface(points, triangles, thickness)
+    edges = np.sort(np.concatenate((faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]])), axis=1)
+    _, counts = np.unique(edges, axis=0, return_counts=True)
+    assert np.all(counts == 2)
+    a, b, c = vertices[faces[:, 0]], vertices[faces[:, 1]], vertices[faces[:, 2]]
+    volume = np.einsum("ij,ij->", a, np.cross(b, c)) / 6.0
+    assert volume == pytest.approx(0.2 * 0.2 * thickness, rel=1e-12)
+
+
+@pytest.mark.parametrize("file_format", ["obj", "ply"])
+def test_extruded_mesh_files_read_back(tmp_path, file_format: str) -> None:
+    points, triangles = _square_mesh()
+    (path,) = write_extruded_meshes(tmp_path, 12, [(points, triangles)], 0.1, file_format)
+    assert path.name == f"body0_000012.{file_format}"
+    mesh = meshio.read(path)
+    assert mesh.points.shape == (10, 3)
+    assert sum(len(block.data) for block in mesh.cells) == 2 * 4 + 2 * 4
+
+
+def test_probes_csv_and_plot(tmp_path) -> None:
+    grid = Grid2D(6, 4, 0.25)
+    sim = _fake_simulation(grid)
+    specs = [ProbeSpec(kind="node_displacement", body=0, point=(0.4, 0.4)),
+             ProbeSpec(kind="body_force", body=0), ProbeSpec(kind="kinetic_energy"),
+             ProbeSpec(kind="kinetic_energy", body=0), ProbeSpec(kind="pressure_iterations")]
+    recorder = ProbeRecorder(specs, sim, tmp_path / "probes.csv")
+    for step in (1, 2, 3):
+        sim.step_index = step
+        recorder.record(sim, SimpleNamespace(pressure_iterations=10 + step))
+    recorder.write_csv()
+    assert recorder.plot() == tmp_path / "probes.png"
+    columns, rows = read_probes(tmp_path / "probes.csv")
+    assert len(columns) == 2 + 2 + 2 + 1 + 1 + 1 and len(rows) == 3
+    row = dict(zip(columns, rows[-1]))
+    assert row["body0_node4_displacement_x [m]"] == pytest.approx(0.01)
+    assert row["body0_force_y [N/m]"] == pytest.approx(5.0)
+    expected = 0.5 * 2.0 * 0.25**2 * (np.sum(sim.state.velocity_x**2) + np.sum(sim.state.velocity_y**2))
+    assert row["fluid_kinetic_energy [J/m]"] == pytest.approx(expected, rel=1e-9)
+    assert row["pressure_iterations"] == 13
+    assert (tmp_path / "probes.png").read_bytes()[:4] == b"\x89PNG"
+    resumed = ProbeRecorder(specs, sim, tmp_path / "probes.csv", resume_step=2)
+    assert [r[0] for r in resumed.rows] == [1.0, 2.0]
+
+
+def test_checkpoint_round_trip_and_latest(tmp_path) -> None:
+    grid = Grid2D(6, 4, 0.25)
+    sim = _fake_simulation(grid)
+    saved_velocity = sim.state.velocity_x.copy()
+    save_checkpoint(tmp_path / "checkpoint_00000007.npz", sim)
+    sim.step_index = 12
+    save_checkpoint(tmp_path / "checkpoint_00000012.npz", sim)
+    sim.state.velocity_x[...] = 0.0
+    assert latest_checkpoint(tmp_path).name == "checkpoint_00000012.npz"
+    load_checkpoint(tmp_path / "checkpoint_00000007.npz", sim)
+    assert sim.step_index == 7
+    np.testing.assert_array_equal(sim.state.velocity_x, saved_velocity)
+    assert latest_checkpoint(tmp_path / "missing") is None
