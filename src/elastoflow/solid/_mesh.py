@@ -1,8 +1,8 @@
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Sequence
 
 import numpy as np
 
@@ -29,7 +29,7 @@ class TriangleMesh:
 
     points: np.ndarray
     triangles: np.ndarray
-    boundary_loops: tuple[np.ndarray, ...] = field(default=None)  # type: ignore[assignment]
+    boundary_loops: tuple[np.ndarray, ...] = None  # type: ignore[assignment]
 
     def __post_init__(self) -> None:
         points = np.ascontiguousarray(self.points, dtype=np.float64)
@@ -152,7 +152,7 @@ def _boundary_edges_from_triangles(triangles: np.ndarray, n: int) -> np.ndarray:
                          f"{counts[shared[0]]} triangles, at most 2 allowed")
     _, directed_counts = np.unique(directed[:, 0] * n + directed[:, 1], return_counts=True)
     if np.any(directed_counts > 1):
-        keys, first, directed_counts = np.unique(
+        _keys, first, directed_counts = np.unique(
             directed[:, 0] * n + directed[:, 1], return_index=True, return_counts=True
         )
         k = int(first[np.flatnonzero(directed_counts > 1)[0]])
@@ -354,12 +354,12 @@ def mesh_rectangle(
             raise ValueError(f"rectangle {name} = {value!r}: must be a finite positive length")
     if (element_size is None) == (counts is None):
         raise ValueError("mesh_rectangle: give exactly one of element_size and counts")
-    if counts is None:
-        if not (element_size > 0.0 and np.isfinite(element_size)):  # type: ignore[operator]
+    if element_size is not None:
+        if not (element_size > 0.0 and np.isfinite(element_size)):
             raise ValueError(f"element_size = {element_size!r}: must be a finite positive length")
-        cx = max(1, int(np.ceil(width / element_size - 1e-9)))  # type: ignore[operator]
-        cy = max(1, int(np.ceil(height / element_size - 1e-9)))  # type: ignore[operator]
-    else:
+        cx = max(1, int(np.ceil(width / element_size - 1e-9)))
+        cy = max(1, int(np.ceil(height / element_size - 1e-9)))
+    elif counts is not None:
         cx, cy = (int(c) for c in counts)
         if cx < 1 or cy < 1 or (cx, cy) != tuple(counts):
             raise ValueError(f"counts = {counts!r}: must be two integers >= 1")
@@ -371,8 +371,8 @@ def mesh_rectangle(
     ys = np.linspace(0.0, height, cy + 1)
     gx, gy = np.meshgrid(xs, ys, indexing="xy")
     points = np.stack([gx.ravel(), gy.ravel()], axis=1)
-    i, j = np.meshgrid(np.arange(cx), np.arange(cy), indexing="xy")
-    i, j = i.ravel(), j.ravel()
+    column, row = np.meshgrid(np.arange(cx), np.arange(cy), indexing="xy")
+    i, j = column.ravel(), row.ravel()
     a = i + j * (cx + 1)
     b, c, d = a + 1, a + cx + 2, a + cx + 1
     if pattern == "alternating":
