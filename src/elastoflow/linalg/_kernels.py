@@ -415,25 +415,62 @@ def prolong_serial(coarse_x, x, m, n, n_c):
 
 
 @njit(cache=True)
-def coarse_solve_kernel(pseudo_inverse, b, x, m, n):
+def semidefinite_cholesky_kernel(matrix, factor):
+    """Cholesky factor of a symmetric positive semi-definite matrix, in place in ``factor``.
+
+    A pivot that vanishes (relative to its diagonal entry) marks a point of a singular
+    component, or an inactive point; its column is zeroed, which pins that unknown to 0. The
+    resulting solve ``x = E (A_kept)^-1 E^T b`` is symmetric positive semi-definite.
+    """
+    size = matrix.shape[0]
+    factor[:, :] = matrix
+    for k in range(size):
+        pivot = factor[k, k]
+        if not (pivot > 1e-10 * matrix[k, k] and matrix[k, k] > 0.0):
+            for i in range(k, size):
+                factor[i, k] = 0.0
+            continue
+        root = np.sqrt(pivot)
+        factor[k, k] = root
+        for i in range(k + 1, size):
+            factor[i, k] /= root
+        for j in range(k + 1, size):
+            value = factor[j, k]
+            if value != 0.0:
+                for i in range(j, size):
+                    factor[i, j] -= factor[i, k] * value
+
+
+@njit(cache=True)
+def coarse_solve_kernel(factor, b, x, m, n):
+    """Solve the coarsest level with its semi-definite Cholesky factor (padded ``b``, ``x``)."""
     stride = n + 2
     size = m * n
-    gathered = np.empty(size)
+    values = np.empty(size)
     for i in range(m):
         for j in range(n):
-            gathered[i * n + j] = b[(i + 1) * stride + j + 1]
+            values[i * n + j] = b[(i + 1) * stride + j + 1]
+    for a in range(size):
+        value = values[a]
+        for p in range(a):
+            value -= factor[a, p] * values[p]
+        values[a] = value / factor[a, a] if factor[a, a] > 0.0 else 0.0
+    for a in range(size - 1, -1, -1):
+        if factor[a, a] > 0.0:
+            value = values[a]
+            for p in range(a + 1, size):
+                value -= factor[p, a] * values[p]
+            values[a] = value / factor[a, a]
+        else:
+            values[a] = 0.0
     for i in range(m):
         for j in range(n):
-            value = 0.0
-            row = i * n + j
-            for c in range(size):
-                value += pseudo_inverse[row, c] * gathered[c]
-            x[(i + 1) * stride + j + 1] = value
+            x[(i + 1) * stride + j + 1] = values[i * n + j]
 
 
 @njit(cache=True)
 def v_cycle(rows, cols, offsets, diagonal, weights_x, weights_y, total, inverse, level_x,
-            level_b, pseudo_inverse, r, z, sweeps):
+            level_b, coarse_factor, r, z, sweeps):
     """Symmetric V-cycle ``z = M r``: red-black Gauss-Seidel before, black-red after."""
     levels = rows.shape[0]
     for level in range(levels - 1):
@@ -465,9 +502,9 @@ def v_cycle(rows, cols, offsets, diagonal, weights_x, weights_y, total, inverse,
                             rows[level + 1], cols[level + 1])
     last = levels - 1
     if last == 0:
-        coarse_solve_kernel(pseudo_inverse, r, z, rows[0], cols[0])
+        coarse_solve_kernel(coarse_factor, r, z, rows[0], cols[0])
         return
-    coarse_solve_kernel(pseudo_inverse, level_b[offsets[last]:offsets[last + 1]],
+    coarse_solve_kernel(coarse_factor, level_b[offsets[last]:offsets[last + 1]],
                         level_x[offsets[last]:offsets[last + 1]], rows[last], cols[last])
     for level in range(levels - 2, -1, -1):
         m = rows[level]
@@ -557,7 +594,7 @@ def step_kernel(x, r, p, q, alpha, m, n):
 
 @njit(cache=True)
 def pcg_kernel(rows, cols, offsets, diagonal, weights_x, weights_y, total, inverse, level_x,
-               level_b, pseudo_inverse, b, x, r, p, q, z, threshold, max_iterations, sweeps):
+               level_b, coarse_factor, b, x, r, p, q, z, threshold, max_iterations, sweeps):
     """Preconditioned CG on level 0 until ``|b - A x|^2 <= threshold`` (checked on the true
     residual). Returns ``(iterations, |b - A x|^2)``."""
     m = rows[0]
@@ -580,7 +617,7 @@ def pcg_kernel(rows, cols, offsets, diagonal, weights_x, weights_y, total, inver
             squared = residual_norm_kernel(x, b, d_total, wx, wy, r, m, n)
             break
         v_cycle(rows, cols, offsets, diagonal, weights_x, weights_y, total, inverse, level_x,
-                level_b, pseudo_inverse, r, z, sweeps)
+                level_b, coarse_factor, r, z, sweeps)
         rz = dot_kernel(r, z, m, n)
         p[:] = 0.0
         q[:] = 0.0
@@ -596,7 +633,7 @@ def pcg_kernel(rows, cols, offsets, diagonal, weights_x, weights_y, total, inver
             if squared <= threshold:
                 break
             v_cycle(rows, cols, offsets, diagonal, weights_x, weights_y, total, inverse,
-                    level_x, level_b, pseudo_inverse, r, z, sweeps)
+                    level_x, level_b, coarse_factor, r, z, sweeps)
             rz_next = dot_kernel(r, z, m, n)
             beta = rz_next / rz
             rz = rz_next

@@ -14,6 +14,7 @@ from elastoflow.linalg._kernels import (
     pad_operator_kernel,
     pad_values_kernel,
     pcg_kernel,
+    semidefinite_cholesky_kernel,
     totals_parallel,
     totals_serial,
     unpad_values_kernel,
@@ -50,12 +51,13 @@ class _Hierarchy:
         self.b, self.x, self.r, self.p, self.q, self.z = (np.zeros(fine_size) for _ in range(6))
         coarse_size = rows[-1] * cols[-1]
         self.dense = np.zeros((coarse_size, coarse_size))
+        self.factor = np.zeros((coarse_size, coarse_size))
 
     def _level(self, array: NDArray[np.float64], level: int) -> NDArray[np.float64]:
         return array[self.offsets[level]:self.offsets[level + 1]]
 
     def build(self, operator: Operator5Point) -> NDArray[np.float64]:
-        """Fill every level from ``operator``; return the coarsest level's pseudo-inverse."""
+        """Fill every level from ``operator``; return the coarsest level's Cholesky factor."""
         pad_operator_kernel(
             operator.diagonal, operator.weights_x, operator.weights_y,
             self._level(self.diagonal, 0), self._level(self.weights_x, 0),
@@ -84,14 +86,8 @@ class _Hierarchy:
             self._level(self.weights_y, last), int(self.rows[last]), int(self.cols[last]),
             self.dense,
         )
-        # The coarsest problem may be singular (pure Neumann components, inactive points): its
-        # pseudo-inverse is symmetric positive semi-definite, which keeps the V-cycle symmetric.
-        eigenvalues, eigenvectors = np.linalg.eigh(self.dense)
-        largest = float(np.abs(eigenvalues).max()) if eigenvalues.size else 0.0
-        keep = eigenvalues > 1e-12 * largest
-        kept = eigenvectors[:, keep]
-        pseudo_inverse: NDArray[np.float64] = (kept / eigenvalues[keep]) @ kept.T
-        return np.ascontiguousarray(pseudo_inverse)
+        semidefinite_cholesky_kernel(self.dense, self.factor)
+        return self.factor
 
 
 @dataclass(frozen=True)
@@ -99,7 +95,8 @@ class PoissonSolverMGPCG:
     """Conjugate gradient preconditioned by one geometric multigrid V-cycle per iteration.
 
     The hierarchy halves each dimension (rounding up) down to at most 64 points, where the
-    problem is solved exactly by a pseudo-inverse. Coarse operators sum the diagonal terms and
+    problem is solved exactly by a
+    semi-definite Cholesky factorization (one unknown pinned per singular component). Coarse operators sum the diagonal terms and
     average the face weights; restriction is the transpose of piecewise-constant prolongation;
     smoothing is red-black Gauss-Seidel before and black-red after, so the preconditioner is
     symmetric positive definite on the active points and CG converges for every operator of the
@@ -157,7 +154,7 @@ class PoissonSolverMGPCG:
         if hierarchy is None:
             hierarchy = _Hierarchy(operator.shape)
             self._hierarchies[operator.shape] = hierarchy
-        pseudo_inverse = hierarchy.build(operator)
+        coarse_factor = hierarchy.build(operator)
         pad_values_kernel(b, hierarchy.b)
         if x0 is None:
             hierarchy.x[:] = 0.0
@@ -171,7 +168,7 @@ class PoissonSolverMGPCG:
         iterations, squared = pcg_kernel(
             hierarchy.rows, hierarchy.cols, hierarchy.offsets, hierarchy.diagonal,
             hierarchy.weights_x, hierarchy.weights_y, hierarchy.total, hierarchy.inverse,
-            hierarchy.level_x, hierarchy.level_b, pseudo_inverse, hierarchy.b, hierarchy.x,
+            hierarchy.level_x, hierarchy.level_b, coarse_factor, hierarchy.b, hierarchy.x,
             hierarchy.r, hierarchy.p, hierarchy.q, hierarchy.z, (self.rtol * norm_b) ** 2,
             self.max_iterations, self.smoothing_sweeps,
         )
