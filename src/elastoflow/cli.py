@@ -160,17 +160,19 @@ def run(
     session = OutputSession(chosen, simulation, out_dir, resumed=resumed)
     failure: BaseException | None = None
     stopped = False
+    mid_step = False
     try:
         with _StopRequest() as stop:
             _step_loop(simulation, session, total, stop, quiet)
             stopped = stop.requested
     except KeyboardInterrupt:
-        stopped = True
+        stopped = mid_step = True
     except Exception as error:  # noqa: BLE001 - reported with its step, then exit 1
         failure = error
     finally:
-        # A failed step may leave a half-updated state: keep the periodic checkpoints only.
-        written = session.close(final_checkpoint=failure is None)
+        # A failed or hard-interrupted step may leave a half-updated state: keep only the
+        # checkpoints taken between steps.
+        written = session.close(final_checkpoint=failure is None and not mid_step)
 
     if session.video_note:
         typer.echo(f"note: {session.video_note}", err=True)

@@ -83,10 +83,10 @@ class OutputSession:
     def _due(self, spec: Any, step: int, force: bool) -> bool:
         return spec is not None and (force or step % spec.every == 0)
 
-    def _write_frame_outputs(self, report: Any, force: bool = False) -> None:
+    def _write_frame_outputs(self, report: Any, force: bool = False, video: bool = True) -> None:
         sim, out = self.simulation, self.outputs
         step = sim.step_index
-        if self._video is not None and self._due(out.video, step, force):
+        if video and self._video is not None and self._due(out.video, step, force):
             self._video.append(self.frame(out.video.view))
         if self._fields is not None and self._due(out.fields, step, force):
             interior = getattr(sim, "interior", None)
@@ -135,6 +135,8 @@ class OutputSession:
         if self._closed:
             return self.written
         self._closed = True
+        # The last state is always saved, also when the run stops between two output steps.
+        self._write_frame_outputs(None, force=True, video=False)
         if self._video is not None:
             path = self._video.close()
             if path is not None:
