@@ -105,10 +105,15 @@ def force_traction(
       at constant ``p - rho g.x``: exact for a hydrostatic field, and otherwise a zeroth-order
       extrapolation along the normal (the normal pressure gradient vanishes at a no-slip wall
       up to viscous terms);
-    * viscous stress: u and v sampled the same way over fluid faces; the one-sided normal
-      derivative ``a = (u_sample - u_wall) / (1.5 h)`` with grad u = a n^T (the tangential
-      derivatives of u - u_wall vanish along a no-slip wall) gives the traction
-      ``mu (a + n (a . n))``; exact for a linear profile, first order in h otherwise.
+    * viscous stress: the velocity gradient at the wall is written ``grad u = g_t t^T +
+      g_n n^T`` (t the unit tangent a->b). With no slip, ``g_t`` is the wall's own derivative
+      along the edge, ``(v_b - v_a) / length``; ``g_n`` is the one-sided second-order
+      difference through the wall velocity and u, v sampled like the pressure (over fluid
+      faces) at 1.5 h and 2.5 h along n (first order from the 1.5 h sample alone when the
+      other one has no fluid). The traction is ``mu [(g_n.t + g_t.n) t + 2 (g_n.n) n]`` with
+      ``g_n.n`` replaced by ``-g_t.t`` (continuity). Exact for a linear profile; for the
+      rotating cylinder of circular Couette flow the torque error is 2.7 %, 0.9 %, 0.3 % at
+      R/h = 6.4, 12.8, 25.6.
 
     When every stencil point of a sample is solid the sample moves out to 2.5 h, then 3.5 h;
     failing that, that part of the traction is left out for the piece.

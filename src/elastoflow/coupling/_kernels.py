@@ -457,6 +457,28 @@ def _sample_fluid(
 
 
 @njit(cache=True)
+def _sample_velocity(
+    velocity_x: np.ndarray,
+    velocity_y: np.ndarray,
+    solid_faces_x: np.ndarray,
+    solid_faces_y: np.ndarray,
+    x: float,
+    y: float,
+    origin_x: float,
+    origin_y: float,
+    h: float,
+) -> tuple[float, float, bool]:
+    """Fluid velocity (u, v) [m/s] at (x, y) from fluid faces only; False if either fails."""
+    u, found_u = _sample_fluid(velocity_x, solid_faces_x, (x - origin_x) / h,
+                               (y - origin_y) / h - 0.5, origin_x, origin_y + 0.5 * h, h,
+                               0.0, 0.0, 0.0)
+    v, found_v = _sample_fluid(velocity_y, solid_faces_y, (x - origin_x) / h - 0.5,
+                               (y - origin_y) / h, origin_x + 0.5 * h, origin_y, h,
+                               0.0, 0.0, 0.0)
+    return u, v, found_u and found_v
+
+
+@njit(cache=True)
 def traction_edges(
     points: np.ndarray,
     velocities: np.ndarray,
@@ -490,6 +512,11 @@ def traction_edges(
         # Body on the left of a->b: the outward normal (into the fluid) is on the right.
         nx = dy / length
         ny = -dx / length
+        tx = dx / length
+        ty = dy / length
+        # Derivative of the wall velocity along the edge [1/s] (linear between the nodes).
+        tangential_x = (velocities[b, 0] - velocities[a, 0]) / length
+        tangential_y = (velocities[b, 1] - velocities[a, 1]) / length
         pieces = max(1, math.ceil(length / h))
         ds = length / pieces
         for q in range(pieces):
@@ -515,26 +542,35 @@ def traction_edges(
             if dynamic_viscosity > 0.0:
                 for m in range(distances.shape[0]):
                     delta = distances[m]
-                    xs = xq + delta * nx
-                    ys = yq + delta * ny
-                    u, found_u = _sample_fluid(
-                        velocity_x, solid_faces_x, (xs - origin_x) / h,
-                        (ys - origin_y) / h - 0.5, origin_x, origin_y + 0.5 * h, h,
-                        0.0, 0.0, 0.0)
-                    v, found_v = _sample_fluid(
-                        velocity_y, solid_faces_y, (xs - origin_x) / h - 0.5,
-                        (ys - origin_y) / h, origin_x + 0.5 * h, origin_y, h,
-                        0.0, 0.0, 0.0)
-                    if found_u and found_v:
-                        # One-sided normal derivative; with no slip the tangential derivatives
-                        # of u - u_wall vanish, so grad u = a n^T and the strain-rate
-                        # traction is a + n (a . n).
-                        ax = (u - wall_u) / delta
-                        ay = (v - wall_v) / delta
-                        normal_part = ax * nx + ay * ny
-                        traction_x += dynamic_viscosity * (ax + nx * normal_part)
-                        traction_y += dynamic_viscosity * (ay + ny * normal_part)
-                        break
+                    u1, v1, found = _sample_velocity(
+                        velocity_x, velocity_y, solid_faces_x, solid_faces_y,
+                        xq + delta * nx, yq + delta * ny, origin_x, origin_y, h)
+                    if not found:
+                        continue
+                    # One-sided normal derivative g_n: second order from two samples (delta
+                    # and delta + h), first order when the second is not in the fluid.
+                    far = delta + h
+                    u2, v2, found_far = _sample_velocity(
+                        velocity_x, velocity_y, solid_faces_x, solid_faces_y,
+                        xq + far * nx, yq + far * ny, origin_x, origin_y, h)
+                    if found_far:
+                        scale = 1.0 / (delta * far * (far - delta))
+                        normal_x = (far * far * (u1 - wall_u) - delta * delta * (u2 - wall_u)) \
+                            * scale
+                        normal_y = (far * far * (v1 - wall_v) - delta * delta * (v2 - wall_v)) \
+                            * scale
+                    else:
+                        normal_x = (u1 - wall_u) / delta
+                        normal_y = (v1 - wall_v) / delta
+                    # grad u = g_t t^T + g_n n^T: g_t, the derivative along the wall, is the
+                    # wall's own (no slip). The normal-normal strain comes from continuity,
+                    # du_n/dn = -du_t/dt.
+                    shear = (normal_x * tx + normal_y * ty
+                             + tangential_x * nx + tangential_y * ny)
+                    stretch = tangential_x * tx + tangential_y * ty
+                    traction_x += dynamic_viscosity * (shear * tx - 2.0 * stretch * nx)
+                    traction_y += dynamic_viscosity * (shear * ty - 2.0 * stretch * ny)
+                    break
 
             force_out[a, 0] += (1.0 - t) * traction_x * ds
             force_out[a, 1] += (1.0 - t) * traction_y * ds

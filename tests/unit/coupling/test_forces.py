@@ -165,3 +165,34 @@ def test_bad_input_raises():
         force_traction(grid, bmap, u, v, np.zeros((8, 8)), DENSITY, -1.0, interior)
     with pytest.raises(ValueError, match="grid"):
         force_traction(Grid2D(8, 8, 0.1), bmap, u, v, np.zeros((8, 8)), DENSITY, 0.0)
+
+
+def test_rotating_cylinder_in_couette_flow_gets_the_analytic_torque():
+    # Circular Couette flow between a cylinder of radius r1 rotating at omega and a fixed
+    # one of radius r2: u_theta = a r + b / r, torque on the inner one -4 pi mu b.
+    r1, r2, omega, viscosity = 0.2, 0.45, 2.0, 1e-3
+    center = np.array([0.5, 0.5])
+    b = omega * r1**2 * r2**2 / (r2**2 - r1**2)
+    a = -omega * r1**2 / (r2**2 - r1**2)
+    exact = -4.0 * np.pi * DENSITY * viscosity * b
+
+    def flow(x, y):
+        dx, dy = x - center[0], y - center[1]
+        r = np.hypot(dx, dy)
+        speed = np.where(r >= r1, a * r + b / r, omega * r)
+        return -speed * dy / r, speed * dx / r
+
+    errors = []
+    for n in (32, 64):
+        grid = Grid2D(n, n, 1.0 / n)
+        body = obstacle_circle(tuple(center), r1, 256, motion=RigidMotion(angular_velocity=omega))
+        bmap, interior = _setup(grid, body)
+        velocity_x, _ = flow(*grid.faces_x())
+        _, velocity_y = flow(*grid.faces_y())
+        force = force_traction(grid, bmap, velocity_x, velocity_y, np.zeros(grid.shape_cells),
+                               DENSITY, viscosity, interior)
+        arm = bmap.points - center
+        torque = np.sum(arm[:, 0] * force[:, 1] - arm[:, 1] * force[:, 0])
+        np.testing.assert_allclose(force.sum(axis=0), 0.0, atol=1e-9 * abs(exact))
+        errors.append(abs(torque / exact - 1.0))
+    assert errors[1] < 0.02 and errors[1] < 0.6 * errors[0], errors
