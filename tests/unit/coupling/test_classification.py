@@ -98,3 +98,20 @@ def test_touching_squares_fill_both():
     inside = (x > 0.2) & (x < 0.8) & (y > 0.2) & (y < 0.8)
     np.testing.assert_array_equal(result.solid_cells, inside)
     np.testing.assert_array_equal(result.body_cells[inside], np.where(x[inside] < 0.5, 0, 1))
+
+
+def test_body_with_a_hole_leaves_the_hole_fluid():
+    grid = Grid2D(32, 32, H)
+    outer = np.array([[0.2, 0.15], [0.85, 0.2], [0.8, 0.9], [0.15, 0.8]])
+    # The hole's loop runs clockwise so that the body stays on the left of its edges.
+    hole = np.array([[0.4, 0.35], [0.45, 0.6], [0.62, 0.63], [0.6, 0.4]])
+    points, velocities, edges, edge_body, _ = concatenate_boundaries(
+        [(outer, np.zeros((4, 2)), polygon_edges(4)), (hole, np.zeros((4, 2)), polygon_edges(4))])
+    edge_body[:] = 0
+    result = classify_points(grid, build_boundary_map(grid, points, velocities, edges, edge_body))
+    x, y = grid.cell_centers()
+    query = np.stack([x.ravel(), y.ravel()], axis=1)
+    expected = inside_even_odd(query, outer) & ~inside_even_odd(query, hole)
+    np.testing.assert_array_equal(result.solid_cells.ravel(), expected)
+    assert np.all(result.body_cells.ravel()[expected] == 0)
+    assert np.any(inside_even_odd(query, hole))
