@@ -10,7 +10,7 @@ import signal
 import sys
 import time as _time
 from pathlib import Path
-from typing import Annotated, Any, NoReturn
+from typing import Annotated, Any, NoReturn, Self
 
 import typer
 
@@ -74,7 +74,7 @@ class _StopRequest:
         self.requested = False
         self._previous: Any = None
 
-    def __enter__(self) -> _StopRequest:
+    def __enter__(self) -> Self:
         self._previous = signal.signal(signal.SIGINT, self._handle)
         return self
 

@@ -21,9 +21,8 @@ def checkpoint_path(folder: str | Path, step: int) -> Path:
 def save_checkpoint(path: str | Path, simulation: Any) -> Path:
     """Write ``simulation.checkpoint()`` to ``path`` (temporary file, then rename)."""
     data = simulation.checkpoint()
-    with atomic_path(path) as temporary:
-        with open(temporary, "wb") as handle:
-            np.savez(handle, **data)
+    with atomic_path(path) as temporary, open(temporary, "wb") as handle:
+        np.savez(handle, **data)
     return Path(path)
 
 

@@ -122,8 +122,7 @@ class FieldWriter:
         self._body_count = sum(1 for k in data if k.endswith("_triangles"))
         if "npz" in self.formats:
             with atomic_path(self.folder / f"step_{step:06d}.npz") as temporary:
-                with open(temporary, "wb") as handle:
-                    np.savez_compressed(handle, **data)
+                np.savez_compressed(temporary, **data)  # type: ignore[arg-type]
         if "vtk" in self.formats:
             self._write_vtk(step, data)
         if "xdmf" in self.formats:

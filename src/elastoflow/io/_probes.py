@@ -79,15 +79,14 @@ class ProbeRecorder:
         self.path = Path(path)
         self.columns: list[str] = ["step", "time [s]"]
         self._samplers: list[Sampler] = []
+        makers: dict[str, Callable[[Any], tuple[list[str], Sampler]]] = {
+            "node_displacement": lambda s: _node_displacement(s.body, _resolve_node(simulation, s)),
+            "body_force": lambda s: _body_force(s.body),
+            "kinetic_energy": lambda s: _kinetic_energy(s.body),
+            "pressure_iterations": lambda s: _pressure_iterations(),
+        }
         for spec in probes:
-            if spec.kind == "node_displacement":
-                names, sampler = _node_displacement(spec.body, _resolve_node(simulation, spec))
-            elif spec.kind == "body_force":
-                names, sampler = _body_force(spec.body)
-            elif spec.kind == "kinetic_energy":
-                names, sampler = _kinetic_energy(spec.body)
-            else:
-                names, sampler = _pressure_iterations()
+            names, sampler = makers[spec.kind](spec)
             self.columns.extend(names)
             self._samplers.append(sampler)
         self.rows: list[list[float]] = []

@@ -24,10 +24,10 @@ def fill_triangles(image: np.ndarray, points: np.ndarray, triangles: np.ndarray,
         area = (x1 - x0) * (y2 - y0) - (x2 - x0) * (y1 - y0)
         if area == 0.0 or not math.isfinite(area):
             continue
-        col_min = max(int(math.floor(min(x0, x1, x2))), 0)
-        col_max = min(int(math.ceil(max(x0, x1, x2))), width - 1)
-        row_min = max(int(math.floor(min(y0, y1, y2))), 0)
-        row_max = min(int(math.ceil(max(y0, y1, y2))), height - 1)
+        col_min = max(math.floor(min(x0, x1, x2)), 0)
+        col_max = min(math.ceil(max(x0, x1, x2)), width - 1)
+        row_min = max(math.floor(min(y0, y1, y2)), 0)
+        row_max = min(math.ceil(max(y0, y1, y2)), height - 1)
         for row in range(row_min, row_max + 1):
             sy = row + 0.5
             for col in range(col_min, col_max + 1):
@@ -45,8 +45,8 @@ def fill_polygon(image: np.ndarray, polygon: np.ndarray, color: np.ndarray) -> N
     """Paint the pixels whose centre is inside a closed polygon (even-odd scanlines)."""
     height, width = image.shape[0], image.shape[1]
     k = polygon.shape[0]
-    row_min = max(int(math.floor(polygon[:, 1].min())), 0)
-    row_max = min(int(math.ceil(polygon[:, 1].max())), height - 1)
+    row_min = max(math.floor(polygon[:, 1].min()), 0)
+    row_max = min(math.ceil(polygon[:, 1].max()), height - 1)
     crossings = np.empty(k)
     for row in range(row_min, row_max + 1):
         sy = row + 0.5
@@ -60,8 +60,8 @@ def fill_polygon(image: np.ndarray, polygon: np.ndarray, color: np.ndarray) -> N
                 count += 1
         xs = np.sort(crossings[:count])
         for pair in range(0, count - 1, 2):
-            col_start = max(int(math.ceil(xs[pair] - 0.5)), 0)
-            col_end = min(int(math.floor(xs[pair + 1] - 0.5)), width - 1)
+            col_start = max(math.ceil(xs[pair] - 0.5), 0)
+            col_end = min(math.floor(xs[pair + 1] - 0.5), width - 1)
             for col in range(col_start, col_end + 1):
                 for c in range(3):
                     image[row, col, c] = color[c]
@@ -80,8 +80,8 @@ def draw_segments(image: np.ndarray, starts: np.ndarray, ends: np.ndarray,
         samples = int(max(abs(dx), abs(dy))) + 1
         for s in range(samples + 1):
             f = s / samples
-            col = int(math.floor(xa + f * dx))
-            row = int(math.floor(ya + f * dy))
+            col = math.floor(xa + f * dx)
+            row = math.floor(ya + f * dy)
             if 0 <= row < height and 0 <= col < width:
                 for c in range(3):
                     image[row, col, c] = color[c]

@@ -2,10 +2,11 @@
 
 from __future__ import annotations
 
+import contextlib
 import os
 from pathlib import Path
 from types import TracebackType
-from typing import Any
+from typing import Any, Self
 
 import numpy as np
 
@@ -48,7 +49,7 @@ class VideoWriter:
         self._format = "gif" if self.path.suffix.lower() == ".gif" else "mp4"
         self._size: tuple[int, int] | None = None
 
-    def __enter__(self) -> VideoWriter:
+    def __enter__(self) -> Self:
         return self
 
     def __exit__(self, kind: type[BaseException] | None, value: BaseException | None,
@@ -69,10 +70,9 @@ class VideoWriter:
     def _fall_back(self, error: Exception) -> None:
         self.fallback_reason = f"ffmpeg failed ({error}); writing a GIF instead"
         if self._writer is not None:
-            try:
+            # The writer is broken already; closing it is only a courtesy.
+            with contextlib.suppress(Exception):
                 self._writer.close()
-            except Exception:  # noqa: BLE001 - the writer is broken already
-                pass
         self._writer = None
         self._discard_temporary()
         self._format = "gif"

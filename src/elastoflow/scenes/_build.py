@@ -50,11 +50,11 @@ def time_step(scene: Scene) -> float:
         return scene.time.dt
     speed = characteristic_speed(scene)
     if speed <= 0.0:
-        raise SceneError([
+        raise SceneError([(
             f"time.cfl = {scene.time.cfl}: needs a characteristic speed (inflow, moving wall or "
             "jet); this scene has none, give time.dt instead"
-        ])
-    return float(scene.time.cfl) * scene.domain.cell_size / speed  # type: ignore[operator]
+        )])
+    return float(scene.time.cfl) * scene.domain.cell_size / speed  # type: ignore[arg-type]
 
 
 def step_count(scene: Scene) -> int:
@@ -193,13 +193,13 @@ def build_bodies(scene: Scene) -> list[Any]:
             if spec.fixed.box is not None:
                 in_box = solid.nodes_in_box(mesh, spec.fixed.box)
                 if in_box.size == 0:
-                    raise SceneError([f"bodies.{index}.fixed.box = {list(spec.fixed.box)}: "
-                                      "contains no node of the body's mesh"])
+                    raise SceneError([(f"bodies.{index}.fixed.box = {list(spec.fixed.box)}: "
+                                       "contains no node of the body's mesh")])
                 parts.append(in_box)
             fixed = np.unique(np.concatenate(parts))
             if fixed.size and fixed.max() >= mesh.points.shape[0]:
-                raise SceneError([f"bodies.{index}.fixed.nodes = {spec.fixed.nodes}: the mesh "
-                                  f"has nodes 0..{mesh.points.shape[0] - 1}"])
+                raise SceneError([(f"bodies.{index}.fixed.nodes = {spec.fixed.nodes}: the mesh "
+                                   f"has nodes 0..{mesh.points.shape[0] - 1}")])
         pivot = None if spec.pivot is None else solid.nearest_node(mesh, spec.pivot)
         bodies.append(solid.ElasticBody(
             mesh, material, fixed_nodes=fixed, pivot_node=pivot, gravity=scene.fluid.gravity,

@@ -137,9 +137,12 @@ def check_scene(scene: Scene) -> list[str]:
         if obstacle.motion is None and not _inside(bounds, lx, ly):
             problems.append(f"obstacles.{index} = {obstacle.shape} with bounds {_fmt(bounds)}: {allowed}")
     for index, body in enumerate(scene.bodies):
-        bounds = body.shape.bounds()
-        if bounds is not None and not _inside(bounds, lx, ly):
-            problems.append(f"bodies.{index}.shape = {body.shape.type} with bounds {_fmt(bounds)}: {allowed}")
+        body_bounds = body.shape.bounds()
+        if body_bounds is not None and not _inside(body_bounds, lx, ly):
+            problems.append(
+                f"bodies.{index}.shape = {body.shape.type} with bounds {_fmt(body_bounds)}: "
+                f"{allowed}"
+            )
         if body.pivot is not None and not _inside((*body.pivot, *body.pivot), lx, ly):
             problems.append(f"bodies.{index}.pivot = {list(body.pivot)}: {allowed}")
     for index, jet in enumerate(scene.jets):

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 from elastoflow.scenes._errors import SceneError
 from elastoflow.scenes._schema import Scene
@@ -62,7 +63,7 @@ def get_scene(name: str) -> Scene:
 # count). Both use a 1 m x 1 m box of water-like fluid. The explicit FEM substep
 # (dt / substeps) must stay below element size / sqrt((lambda + 2 mu) / rho_s); the moduli are
 # soft rubber so that the published substep counts are stable on meshes of the published size.
-_PAPER_SCENE_CHOICES = {
+_PAPER_SCENE_CHOICES: dict[str, dict[str, Any]] = {
     "bar_in_jet": {
         # 5 cm x 40 cm bar hanging from y = 0.85 m; 2 x 48 divisions give 192 triangles
         # (paper: 194). Substep 0.013/35 = 3.7e-4 s; ElasticBody.stable_substep() is 4.0e-4 s

@@ -72,7 +72,7 @@ class DomainSpec(_Spec):
     def cells(self) -> tuple[int, int]:
         """``(nx, ny)``."""
         h = self.cell_size
-        return int(round(self.lx / h)), int(round(self.ly / h))
+        return round(self.lx / h), round(self.ly / h)
 
 
 class FluidSpec(_Spec):
@@ -368,9 +368,16 @@ class VideoSpec(_Spec):
     """Render a frame every this many fluid steps."""
 
 
+FieldFormat = Literal["npz", "vtk", "xdmf"]
+
+
+def _default_field_formats() -> list[FieldFormat]:
+    return ["npz"]
+
+
 class FieldsSpec(_Spec):
-    formats: Annotated[list[Literal["npz", "vtk", "xdmf"]], Field(min_length=1)] = Field(
-        default_factory=lambda: ["npz"]
+    formats: Annotated[list[FieldFormat], Field(min_length=1)] = Field(
+        default_factory=_default_field_formats
     )
     every: PositiveInt = 10
 

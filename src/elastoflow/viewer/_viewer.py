@@ -226,8 +226,10 @@ class Viewer:
         return path
 
 
-def run_viewer(scene: Any, *, scale: int | None = None, max_fps: int = 60) -> None:
-    """Open the window and run until closed (q, Esc or the window's close button)."""
+def run_viewer(scene: Any, *, scale: int | None = None, max_fps: int = 60,
+               max_frames: int | None = None) -> Viewer:
+    """Open the window and run until closed (q, Esc or the window's close button), or for
+    ``max_frames`` frames; returns the viewer."""
     os.environ.setdefault("PYGAME_HIDE_SUPPORT_PROMPT", "1")
     import pygame
 
@@ -238,7 +240,9 @@ def run_viewer(scene: Any, *, scale: int | None = None, max_fps: int = 60) -> No
         screen = pygame.display.set_mode(surface.get_size())
         pygame.display.set_caption(f"elastoflow: {scene.name}")
         clock = pygame.time.Clock()
-        while viewer.running:
+        frames = 0
+        while viewer.running and (max_frames is None or frames < max_frames):
+            frames += 1
             for event in pygame.event.get():
                 viewer.handle_event(event)
             viewer.update()
@@ -247,3 +251,4 @@ def run_viewer(scene: Any, *, scale: int | None = None, max_fps: int = 60) -> No
             clock.tick(max_fps)
     finally:
         pygame.quit()
+    return viewer

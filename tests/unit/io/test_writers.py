@@ -68,10 +68,9 @@ def _fake_simulation(grid: Grid2D) -> SimpleNamespace:
 def test_atomic_write_replaces_whole_file_and_leaves_no_temporary(tmp_path) -> None:
     target = tmp_path / "a.txt"
     write_text_atomic(target, "old")
-    with pytest.raises(RuntimeError):
-        with atomic_path(target) as temporary:
-            temporary.write_text("partial")
-            raise RuntimeError("crash while writing")
+    with pytest.raises(RuntimeError), atomic_path(target) as temporary:
+        temporary.write_text("partial")
+        raise RuntimeError("crash while writing")
     assert target.read_text() == "old"
     write_text_atomic(target, "new")
     assert target.read_text() == "new"
@@ -110,7 +109,7 @@ def test_fields_read_back_in_every_format(tmp_path) -> None:
     assert files == ["fluid_000000.vtu", "fluid_000005.vtu"]
 
     with meshio.xdmf.TimeSeriesReader(str(tmp_path / "fluid.xdmf")) as reader:
-        points, cells = reader.read_points_cells()
+        reader.read_points_cells()
         times = []
         for k in range(reader.num_steps):
             t, _, cell_data = reader.read_data(k)

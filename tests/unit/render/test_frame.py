@@ -86,8 +86,8 @@ def test_colour_bar_panel_holds_the_colour_map() -> None:
 def test_vorticity_of_solid_rotation_is_twice_the_rate() -> None:
     grid = Grid2D(8, 8, 0.125)
     omega = 1.5
-    xu, yu = grid.faces_x()
-    xv, yv = grid.faces_y()
+    _, yu = grid.faces_x()
+    xv, _ = grid.faces_y()
     state = SimpleNamespace(velocity_x=-omega * (yu - 0.5), velocity_y=omega * (xv - 0.5))
     vorticity = vorticity_at_cells(state, grid.h)
     np.testing.assert_allclose(vorticity[1:-1, 1:-1], 2 * omega, rtol=1e-12)

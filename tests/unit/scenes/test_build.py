@@ -7,7 +7,7 @@ import pytest
 
 pytest.importorskip("elastoflow.simulation")
 
-from elastoflow.scenes import (  # noqa: E402
+from elastoflow.scenes import (
     SceneError,
     build_simulation,
     get_scene,

@@ -12,8 +12,8 @@ os.environ.setdefault("SDL_AUDIODRIVER", "dummy")
 pygame = pytest.importorskip("pygame")
 pytest.importorskip("elastoflow.simulation")
 
-from elastoflow.scenes import parse_scene  # noqa: E402
-from elastoflow.viewer import Viewer  # noqa: E402
+from elastoflow.scenes import parse_scene
+from elastoflow.viewer import Viewer
 
 _SCENE = {
     "name": "viewer_test",
@@ -74,7 +74,7 @@ def test_left_drag_pushes_the_fluid_along_the_drag(viewer: Viewer) -> None:
     assert state.velocity_x.max() > 0.0 and state.velocity_x.min() >= 0.0
     assert np.abs(state.velocity_y).max() == 0.0
     near = viewer.to_world(end)
-    i, j = int(round(near[0] / viewer.simulation.grid.h)), int(near[1] / viewer.simulation.grid.h)
+    i, j = round(near[0] / viewer.simulation.grid.h), int(near[1] / viewer.simulation.grid.h)
     assert state.velocity_x[i, j] == state.velocity_x.max()
 
 
@@ -107,3 +107,10 @@ def test_draw_returns_the_frame_with_the_body(viewer: Viewer) -> None:
     y = (1.0 - centroid[1]) / viewer.simulation.grid.h * 8
     assert tuple(pixels[int(x), int(y)]) == tuple(BODY_FILL_COLOR)
     assert "step 0" in viewer.status()
+
+
+def test_run_viewer_opens_a_window_and_steps() -> None:
+    from elastoflow.viewer import run_viewer
+
+    viewer = run_viewer(parse_scene(_SCENE), scale=4, max_frames=3)
+    assert viewer.simulation.step_index == 3
