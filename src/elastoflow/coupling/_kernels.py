@@ -107,8 +107,23 @@ def build_axis_map(
             sign[slot] = 1 if entering else -1
 
     for line in range(line_count):
-        _sort_line(offsets[line], offsets[line + 1], coordinate, edge_index, parameter,
-                   velocity, sign)
+        # Lines of 0 or 2 crossings (most of them) are handled here: a call per line costs
+        # more than the sort itself.
+        count = offsets[line + 1] - offsets[line]
+        if count == 2:
+            i = offsets[line]
+            j = i + 1
+            if coordinate[j] < coordinate[i] or (coordinate[j] == coordinate[i]
+                                                 and sign[j] < sign[i]):
+                coordinate[i], coordinate[j] = coordinate[j], coordinate[i]
+                edge_index[i], edge_index[j] = edge_index[j], edge_index[i]
+                parameter[i], parameter[j] = parameter[j], parameter[i]
+                velocity[i, 0], velocity[j, 0] = velocity[j, 0], velocity[i, 0]
+                velocity[i, 1], velocity[j, 1] = velocity[j, 1], velocity[i, 1]
+                sign[i], sign[j] = sign[j], sign[i]
+        elif count > 2:
+            _sort_line(offsets[line], offsets[line + 1], coordinate, edge_index, parameter,
+                       velocity, sign)
     return offsets, coordinate, edge_index, parameter, velocity, sign
 
 
