@@ -7,7 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from elastoflow.linalg._kernels import jacobi_kernel
+from elastoflow.linalg._kernels import jacobi_kernel, sum_of_squares_kernel
 from elastoflow.linalg._operator import Operator5Point, SolveReport
 from elastoflow.linalg._problem import _compatible_rhs, _initial_guess
 
@@ -58,7 +58,7 @@ class PoissonSolverJacobi:
         """
         b, null_space = _compatible_rhs(operator, rhs)
         x = _initial_guess(operator, x0, null_space.active)
-        norm_b = float(np.sqrt(np.dot(b.ravel(), b.ravel())))
+        norm_b = float(np.sqrt(sum_of_squares_kernel(b)))
         if norm_b == 0.0:
             return np.zeros(operator.shape), SolveReport(0, 0.0, True)
         iterations, squared = jacobi_kernel(

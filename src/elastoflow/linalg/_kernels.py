@@ -269,40 +269,63 @@ def totals_serial(diagonal, weights_x, weights_y, total, inverse, m, n):
 
 
 @njit(cache=True, inline="always")
-def _coarsen_row(fine_diagonal, fine_weights_x, fine_weights_y, coarse_diagonal,
+def _coarse_diagonal(diagonal, total, k, coarse_sum, count, smallest):
+    if total[k] > 0.0:
+        coarse_sum += diagonal[k]
+        count += 1
+        smallest = min(smallest, diagonal[k])
+    return coarse_sum, count, smallest
+
+
+@njit(cache=True, inline="always")
+def _coarsen_row(fine_diagonal, fine_weights_x, fine_weights_y, fine_total, coarse_diagonal,
                  coarse_weights_x, coarse_weights_y, row_c, n_c, fine_row0, stride_f, stride_c):
-    # Diagonal terms add up (a sum over the children, like the restriction); face weights are
-    # averaged over the two fine faces of a coarse face, so that the coarse operator is the
-    # rediscretised one (4x the coarse unscaled Laplacian) rather than twice too stiff.
+    # Face weights are averaged over the two fine faces of a coarse face, so that the coarse
+    # operator is the rediscretised one rather than the twice too stiff piecewise-constant
+    # Galerkin operator. The diagonal mixes two kinds of terms: a volume term (Helmholtz
+    # identity) present in every child, which adds up over the children, and boundary terms
+    # (Dirichlet faces, cut faces), which like face weights are averaged. The part shared by
+    # all active children is taken as volume, the rest as boundary.
     fine_row1 = fine_row0 + stride_f
     kc = (row_c + 1) * stride_c + 1
     for jc in range(n_c):
         k0 = fine_row0 + 2 * jc
         k1 = fine_row1 + 2 * jc
-        coarse_diagonal[kc + jc] = (fine_diagonal[k0] + fine_diagonal[k0 + 1]
-                                    + fine_diagonal[k1] + fine_diagonal[k1 + 1])
+        coarse_sum = 0.0
+        count = 0
+        smallest = np.inf
+        coarse_sum, count, smallest = _coarse_diagonal(fine_diagonal, fine_total, k0,
+                                                       coarse_sum, count, smallest)
+        coarse_sum, count, smallest = _coarse_diagonal(fine_diagonal, fine_total, k0 + 1,
+                                                       coarse_sum, count, smallest)
+        coarse_sum, count, smallest = _coarse_diagonal(fine_diagonal, fine_total, k1,
+                                                       coarse_sum, count, smallest)
+        coarse_sum, count, smallest = _coarse_diagonal(fine_diagonal, fine_total, k1 + 1,
+                                                       coarse_sum, count, smallest)
+        volume = count * smallest if count > 0 else 0.0
+        coarse_diagonal[kc + jc] = volume + 0.5 * (coarse_sum - volume)
         coarse_weights_x[kc + jc] = 0.5 * (fine_weights_x[k1] + fine_weights_x[k1 + 1])
         coarse_weights_y[kc + jc] = 0.5 * (fine_weights_y[k0 + 1] + fine_weights_y[k1 + 1])
 
 
 @njit(cache=True, parallel=True)
-def coarsen_parallel(fine_diagonal, fine_weights_x, fine_weights_y, coarse_diagonal,
+def coarsen_parallel(fine_diagonal, fine_weights_x, fine_weights_y, fine_total, coarse_diagonal,
                      coarse_weights_x, coarse_weights_y, n_f, m_c, n_c):
     stride_f = n_f + 2
     stride_c = n_c + 2
     for ic in prange(m_c):
-        _coarsen_row(fine_diagonal, fine_weights_x, fine_weights_y, coarse_diagonal,
+        _coarsen_row(fine_diagonal, fine_weights_x, fine_weights_y, fine_total, coarse_diagonal,
                      coarse_weights_x, coarse_weights_y, ic, n_c,
                      (2 * ic + 1) * stride_f + 1, stride_f, stride_c)
 
 
 @njit(cache=True)
-def coarsen_serial(fine_diagonal, fine_weights_x, fine_weights_y, coarse_diagonal,
+def coarsen_serial(fine_diagonal, fine_weights_x, fine_weights_y, fine_total, coarse_diagonal,
                    coarse_weights_x, coarse_weights_y, n_f, m_c, n_c):
     stride_f = n_f + 2
     stride_c = n_c + 2
     for ic in range(m_c):
-        _coarsen_row(fine_diagonal, fine_weights_x, fine_weights_y, coarse_diagonal,
+        _coarsen_row(fine_diagonal, fine_weights_x, fine_weights_y, fine_total, coarse_diagonal,
                      coarse_weights_x, coarse_weights_y, ic, n_c,
                      (2 * ic + 1) * stride_f + 1, stride_f, stride_c)
 
@@ -665,3 +688,14 @@ def dense_matrix_kernel(diagonal, weights_x, weights_y, m, n, matrix):
                 matrix[a + 1, a + 1] += w
                 matrix[a, a + 1] -= w
                 matrix[a + 1, a] -= w
+
+
+@njit(cache=True, parallel=True)
+def sum_of_squares_kernel(values):
+    """``sum values^2`` over an ``(m, n)`` array (kept out of BLAS, whose threads spin)."""
+    m, n = values.shape
+    total = 0.0
+    for i in prange(m):
+        for j in range(n):
+            total += values[i, j] * values[i, j]
+    return total

@@ -8,6 +8,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from elastoflow.linalg._kernels import (
+    sum_of_squares_kernel,
     coarsen_parallel,
     coarsen_serial,
     dense_matrix_kernel,
@@ -22,7 +23,7 @@ from elastoflow.linalg._kernels import (
 from elastoflow.linalg._operator import Operator5Point, SolveReport
 from elastoflow.linalg._problem import _compatible_rhs
 
-_COARSEST_SIZE = 64
+_COARSEST_SIZE = 32
 _PARALLEL_MINIMUM = 64 * 64
 
 
@@ -70,7 +71,8 @@ class _Hierarchy:
                 coarsen = coarsen_parallel if m * n >= _PARALLEL_MINIMUM else coarsen_serial
                 coarsen(
                     self._level(self.diagonal, level - 1), self._level(self.weights_x, level - 1),
-                    self._level(self.weights_y, level - 1), self._level(self.diagonal, level),
+                    self._level(self.weights_y, level - 1), self._level(self.total, level - 1),
+                    self._level(self.diagonal, level),
                     self._level(self.weights_x, level), self._level(self.weights_y, level),
                     int(self.cols[level - 1]), m, n,
                 )
@@ -94,7 +96,7 @@ class _Hierarchy:
 class PoissonSolverMGPCG:
     """Conjugate gradient preconditioned by one geometric multigrid V-cycle per iteration.
 
-    The hierarchy halves each dimension (rounding up) down to at most 64 points, where the
+    The hierarchy halves each dimension (rounding up) down to at most 32 points, where the
     problem is solved exactly by a
     semi-definite Cholesky factorization (one unknown pinned per singular component). Coarse operators sum the diagonal terms and
     average the face weights; restriction is the transpose of piecewise-constant prolongation;
@@ -147,7 +149,7 @@ class PoissonSolverMGPCG:
             the report.
         """
         b, null_space = _compatible_rhs(operator, rhs)
-        norm_b = float(np.sqrt(np.vdot(b, b)))
+        norm_b = float(np.sqrt(sum_of_squares_kernel(b)))
         if norm_b == 0.0:
             return np.zeros(operator.shape), SolveReport(0, 0.0, True)
         hierarchy = self._hierarchies.get(operator.shape)
