@@ -143,10 +143,14 @@ def interior_boundary_from_map(
       nearest crossing at or behind the point counts if it lies in (x - h, x], towards plus
       the nearest one ahead if it lies in (x, x + h]. A point lying exactly on the boundary
       gets a fraction floored at ``1e-6`` instead of 0. Cut data are filled for every point,
-      solid ones included.
+      solid ones included. Guarantee: a point whose neighbour in direction d differs in solid
+      flag has a finite cut in d (where rounding makes the x-map flags and the y-map cuts
+      disagree for an edge nearly parallel to a column, the cut is set at the neighbour,
+      theta = 1).
 
     The work is proportional to the number of crossings and solid points, apart from
-    allocating (or, with ``out``, resetting) the dense arrays of the result.
+    allocating (or, with ``out``, resetting) the dense arrays of the result and one pass over
+    the face flags for the guarantee below.
 
     Args:
         grid: The MAC grid.
@@ -223,4 +227,6 @@ def interior_boundary_from_map(
                        theta_y[0], theta_y[1], cut_velocity_y[0], cut_velocity_y[1])
     _kernels.cut_lines(*y_map, 1, 1, nx, 0, ny + 1, oy, h, False,
                        theta_y[2], theta_y[3], cut_velocity_y[2], cut_velocity_y[3])
+    _kernels.reconcile_cuts_y(out.solid_faces_x, out.velocity_faces_x, theta_x, cut_velocity_x)
+    _kernels.reconcile_cuts_y(out.solid_faces_y, out.velocity_faces_y, theta_y, cut_velocity_y)
     return out

@@ -591,3 +591,32 @@ def traction_edges(
             force_out[a, 1] += (1.0 - t) * traction_y * ds
             force_out[b, 0] += t * traction_x * ds
             force_out[b, 1] += t * traction_y * ds
+
+
+@njit(cache=True)
+def reconcile_cuts_y(
+    solid: np.ndarray,
+    velocity_faces: np.ndarray,
+    theta: np.ndarray,
+    cut_velocity: np.ndarray,
+) -> None:
+    """Give every point whose ±y neighbour differs in solid flag a cut in that direction.
+
+    Flags come from the x-map and the ±y cuts from the y-map. For an edge nearly parallel to
+    a column and passing through its points, rounding can place the two maps' crossings on
+    different sides of a point (a 1e-16 disagreement); the fluid relies on a fluid point next
+    to a solid one having a finite cut, so such a pair gets theta = 1 (the boundary at the
+    neighbour) with the body velocity of whichever point is solid.
+    """
+    ni, nj = solid.shape
+    for i in range(ni):
+        for j in range(nj - 1):
+            if solid[i, j] == solid[i, j + 1]:
+                continue
+            value = velocity_faces[i, j] if solid[i, j] else velocity_faces[i, j + 1]
+            if theta[3, i, j] == np.inf:
+                theta[3, i, j] = 1.0
+                cut_velocity[3, i, j] = value
+            if theta[2, i, j + 1] == np.inf:
+                theta[2, i, j + 1] = 1.0
+                cut_velocity[2, i, j + 1] = value

@@ -2,7 +2,7 @@ from __future__ import annotations
 
 import numpy as np
 from coupling_polygons import H, polygon_edges, segments_intersect, star_polygon
-from hypothesis import assume, given, settings
+from hypothesis import assume, given, note, settings
 from hypothesis import strategies as st
 
 from elastoflow.coupling import (
@@ -219,3 +219,29 @@ def test_out_is_reset_and_refilled_like_a_fresh_result():
         np.testing.assert_array_equal(getattr(reused, name), getattr(fresh, name))
     with_classification = interior_boundary_from_map(grid, bmap, fresh_classification)
     np.testing.assert_array_equal(with_classification.velocity_faces_y, fresh.velocity_faces_y)
+
+
+@settings(max_examples=40, deadline=None)
+@given(data=st.data())
+def test_fluid_point_next_to_a_solid_one_always_sees_a_cut(data):
+    # Vertices snapped onto half-grid lines put grid points exactly on edges: the x-map
+    # (classification) and the y-map (cuts along y) must still agree.
+    grid = Grid2D(32, 32, H)
+    polygon = data.draw(star_polygon((0.2, 0.8), (0.2, 0.8), 0.05, 0.4, grid.origin))
+    assume(not segments_intersect(polygon))
+    note(repr(polygon.tolist()))
+    interior = _interior(grid, Obstacle(polygon))
+    for solid, theta in ((interior.solid_faces_x, interior.cut_theta_x),
+                         (interior.solid_faces_y, interior.cut_theta_y)):
+        neighbours = (
+            (0, solid[:-1, :], solid[1:, :]),  # towards -x: the point is [1:], neighbour [:-1]
+            (1, solid[1:, :], solid[:-1, :]),
+            (2, solid[:, :-1], solid[:, 1:]),
+            (3, solid[:, 1:], solid[:, :-1]),
+        )
+        for d, neighbour, point in neighbours:
+            cut = theta[d][1:, :] if d == 0 else theta[d][:-1, :] if d == 1 else \
+                theta[d][:, 1:] if d == 2 else theta[d][:, :-1]
+            changes = neighbour != point
+            assert np.all(np.isfinite(cut[changes]))
+            assert np.all((cut[changes] > 0.0) & (cut[changes] <= 1.0))
