@@ -348,29 +348,59 @@ def _first_smooth_row(x, b, inverse, row, start, n):
         x[k] = 0.0
 
 
-@njit(cache=True, parallel=True)
-def smooth_parallel(x, b, inverse, weights_x, weights_y, m, n, colour, from_zero):
-    """Gauss-Seidel half sweep over the points with ``(i + j) % 2 == colour``."""
+@njit(cache=True, inline="always")
+def _sweep_rows(x, b, inverse, weights_x, weights_y, n, first_colour, from_zero, row_start,
+                row_stop):
+    # One Gauss-Seidel sweep (first colour, then the other) over rows [row_start, row_stop) in a
+    # single pass: the second colour of row i - 1 only needs the first colour of rows i - 2 ..
+    # i, so it is updated right after row i. The second colour of the block's first and last
+    # rows depends on rows of the neighbouring blocks and is left to _sweep_block_edges.
     stride = n + 2
-    for i in prange(m):
+    for i in range(row_start, row_stop):
         row = (i + 1) * stride + 1
-        start = (i + colour) & 1
+        start = (i + first_colour) & 1
         if from_zero:
             _first_smooth_row(x, b, inverse, row, start, n)
         else:
             _smooth_row(x, b, inverse, weights_x, weights_y, row, start, n, stride)
+        if i - 1 > row_start:
+            # Row i - 1's second colour starts where row i's first colour does.
+            _smooth_row(x, b, inverse, weights_x, weights_y, row - stride, start, n, stride)
+
+
+@njit(cache=True, inline="always")
+def _sweep_block_edges(x, b, inverse, weights_x, weights_y, n, first_colour, row_start,
+                       row_stop):
+    # Second-colour points of different rows are never neighbours, so the edge rows of all
+    # blocks can be updated at once.
+    stride = n + 2
+    row = (row_start + 1) * stride + 1
+    _smooth_row(x, b, inverse, weights_x, weights_y, row, (row_start + first_colour + 1) & 1, n,
+                stride)
+    last = row_stop - 1
+    if last > row_start:
+        row = (last + 1) * stride + 1
+        _smooth_row(x, b, inverse, weights_x, weights_y, row, (last + first_colour + 1) & 1, n,
+                    stride)
+
+
+@njit(cache=True, parallel=True)
+def smooth_parallel(x, b, inverse, weights_x, weights_y, m, n, first_colour, from_zero):
+    """Red-black Gauss-Seidel sweep, ``first_colour`` (points with ``(i + j) % 2 ==
+    first_colour``) first; ``from_zero`` starts from ``x = 0``."""
+    blocks = min(max(m // 32, 1), 16)
+    for block in prange(blocks):
+        _sweep_rows(x, b, inverse, weights_x, weights_y, n, first_colour, from_zero,
+                    block * m // blocks, (block + 1) * m // blocks)
+    for block in prange(blocks):
+        _sweep_block_edges(x, b, inverse, weights_x, weights_y, n, first_colour,
+                           block * m // blocks, (block + 1) * m // blocks)
 
 
 @njit(cache=True)
-def smooth_serial(x, b, inverse, weights_x, weights_y, m, n, colour, from_zero):
-    stride = n + 2
-    for i in range(m):
-        row = (i + 1) * stride + 1
-        start = (i + colour) & 1
-        if from_zero:
-            _first_smooth_row(x, b, inverse, row, start, n)
-        else:
-            _smooth_row(x, b, inverse, weights_x, weights_y, row, start, n, stride)
+def smooth_serial(x, b, inverse, weights_x, weights_y, m, n, first_colour, from_zero):
+    _sweep_rows(x, b, inverse, weights_x, weights_y, n, first_colour, from_zero, 0, m)
+    _sweep_block_edges(x, b, inverse, weights_x, weights_y, n, first_colour, 0, m)
 
 
 @njit(cache=True, inline="always")
@@ -381,9 +411,11 @@ def _residual_at(x, b, total, weights_x, weights_y, k, stride):
 
 
 @njit(cache=True, inline="always")
-def _restrict_row(x, b, total, weights_x, weights_y, coarse_b, m, n, ic, n_c):
+def _restrict_row(x, b, total, inverse, weights_x, weights_y, coarse_b, m, n, ic, n_c):
     # Restriction is the transpose of piecewise-constant prolongation: the coarse right-hand
-    # side is the sum of the fine residuals of the (up to four) children.
+    # side is the sum of the fine residuals of the (up to four) children. After a sweep ending
+    # on colour 1 the residual there is zero except at inactive points (where it is b), so only
+    # colour 0 needs the stencil. Ghost children contribute exact zeros.
     stride = n + 2
     stride_c = n_c + 2
     kc = (ic + 1) * stride_c + 1
@@ -391,25 +423,26 @@ def _restrict_row(x, b, total, weights_x, weights_y, coarse_b, m, n, ic, n_c):
         coarse_b[kc + jc] = 0.0
     for i in range(2 * ic, min(2 * ic + 2, m)):
         row = (i + 1) * stride + 1
-        for jc in range(n // 2):
-            k = row + 2 * jc
-            coarse_b[kc + jc] += (_residual_at(x, b, total, weights_x, weights_y, k, stride)
-                                  + _residual_at(x, b, total, weights_x, weights_y, k + 1, stride))
-        if n % 2 == 1:
-            k = row + n - 1
-            coarse_b[kc + n_c - 1] += _residual_at(x, b, total, weights_x, weights_y, k, stride)
+        odd = i & 1
+        for jc in range(n_c):
+            k = row + 2 * jc + odd
+            other = row + 2 * jc + 1 - odd
+            value = _residual_at(x, b, total, weights_x, weights_y, k, stride)
+            if inverse[other] == 0.0:
+                value += b[other]
+            coarse_b[kc + jc] += value
 
 
 @njit(cache=True, parallel=True)
-def restrict_parallel(x, b, total, weights_x, weights_y, coarse_b, m, n, m_c, n_c):
+def restrict_parallel(x, b, total, inverse, weights_x, weights_y, coarse_b, m, n, m_c, n_c):
     for ic in prange(m_c):
-        _restrict_row(x, b, total, weights_x, weights_y, coarse_b, m, n, ic, n_c)
+        _restrict_row(x, b, total, inverse, weights_x, weights_y, coarse_b, m, n, ic, n_c)
 
 
 @njit(cache=True)
-def restrict_serial(x, b, total, weights_x, weights_y, coarse_b, m, n, m_c, n_c):
+def restrict_serial(x, b, total, inverse, weights_x, weights_y, coarse_b, m, n, m_c, n_c):
     for ic in range(m_c):
-        _restrict_row(x, b, total, weights_x, weights_y, coarse_b, m, n, ic, n_c)
+        _restrict_row(x, b, total, inverse, weights_x, weights_y, coarse_b, m, n, ic, n_c)
 
 
 @njit(cache=True, inline="always")
@@ -514,14 +547,12 @@ def v_cycle(rows, cols, offsets, diagonal, weights_x, weights_y, total, inverse,
         if m * n >= _PARALLEL_MINIMUM:
             for sweep in range(sweeps):
                 smooth_parallel(x, b, inv, wx, wy, m, n, 0, sweep == 0)
-                smooth_parallel(x, b, inv, wx, wy, m, n, 1, False)
-            restrict_parallel(x, b, total[start:stop], wx, wy, coarse_b, m, n,
+            restrict_parallel(x, b, total[start:stop], inv, wx, wy, coarse_b, m, n,
                               rows[level + 1], cols[level + 1])
         else:
             for sweep in range(sweeps):
                 smooth_serial(x, b, inv, wx, wy, m, n, 0, sweep == 0)
-                smooth_serial(x, b, inv, wx, wy, m, n, 1, False)
-            restrict_serial(x, b, total[start:stop], wx, wy, coarse_b, m, n,
+            restrict_serial(x, b, total[start:stop], inv, wx, wy, coarse_b, m, n,
                             rows[level + 1], cols[level + 1])
     last = levels - 1
     if last == 0:
@@ -548,12 +579,10 @@ def v_cycle(rows, cols, offsets, diagonal, weights_x, weights_y, total, inverse,
             prolong_parallel(coarse_x, x, m, n, cols[level + 1])
             for sweep in range(sweeps):
                 smooth_parallel(x, b, inv, wx, wy, m, n, 1, False)
-                smooth_parallel(x, b, inv, wx, wy, m, n, 0, False)
         else:
             prolong_serial(coarse_x, x, m, n, cols[level + 1])
             for sweep in range(sweeps):
                 smooth_serial(x, b, inv, wx, wy, m, n, 1, False)
-                smooth_serial(x, b, inv, wx, wy, m, n, 0, False)
 
 
 @njit(cache=True, parallel=True)

@@ -116,7 +116,7 @@ class PoissonSolverMGPCG:
 
     rtol: float = 1e-6
     max_iterations: int = 200
-    smoothing_sweeps: int = 1
+    smoothing_sweeps: int = 2
     _hierarchies: dict[tuple[int, int], _Hierarchy] = field(
         default_factory=dict, init=False, repr=False, compare=False
     )
