@@ -86,13 +86,45 @@ def test_csm1_point_a_converges_to_reference() -> None:
     assert order > 1.5
 
 
-if __name__ == "__main__":
+def _main(argv: list[str]) -> None:
+    """Print the convergence table; ``--layers 2,4,8``; ``--plot PATH`` draws error vs h."""
+    layers_list = [2, 4, 8]
+    if "--layers" in argv:
+        layers_list = [int(v) for v in argv[argv.index("--layers") + 1].split(",")]
     print("| layers | elements | u_x(A) [mm] | u_y(A) [mm] | error x | error y | wall [s] |")
     print("|---|---|---|---|---|---|---|")
-    for layers in (1, 2, 4, 8):
+    errors = []
+    for layers in layers_list:
         start = time.perf_counter()
         displacement, elements, _ = static_displacement(layers)
         error = displacement / REFERENCE_DISPLACEMENT - 1.0
+        errors.append(np.abs(error))
         print(f"| {layers} | {elements} | {displacement[0] * 1e3:.4f} | "
               f"{displacement[1] * 1e3:.3f} | {error[0] * 100:+.2f}% | {error[1] * 100:+.2f}% | "
               f"{time.perf_counter() - start:.1f} |", flush=True)
+    if "--plot" in argv:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+
+        h = THICKNESS / np.array(layers_list)
+        e = np.array(errors)
+        figure, axes = plt.subplots(figsize=(5, 4))
+        axes.loglog(h * 1e3, e[:, 0], "o-", label="$u_x(A)$")
+        axes.loglog(h * 1e3, e[:, 1], "s-", label="$u_y(A)$")
+        axes.loglog(h * 1e3, e[-1, 1] * (h / h[-1]) ** 2, "k--", label="slope 2")
+        axes.set_xticks(h * 1e3, [f"{v:g}" for v in h * 1e3])
+        axes.minorticks_off()
+        axes.set_xlabel("cell side h [mm]")
+        axes.set_ylabel("relative error vs Turek-Hron")
+        axes.set_title("CSM1, crossed linear triangles")
+        axes.legend()
+        figure.tight_layout()
+        figure.savefig(argv[argv.index("--plot") + 1], dpi=120)
+
+
+if __name__ == "__main__":
+    import sys
+
+    _main(sys.argv[1:])

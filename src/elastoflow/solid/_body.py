@@ -216,11 +216,12 @@ class ElasticBody:
         external_forces: np.ndarray | None = None,
         *,
         step: int | None = None,
+        added_mass: np.ndarray | None = None,
     ) -> SolidStepReport:
         """Advance by ``dt`` [s] in ``n_sub`` symplectic Euler substeps.
 
-        Each substep: ``v += dt_s (f_internal + f_external) / m + dt_s g``; fixed nodes get
-        ``v = 0``; ``x += dt_s v``.
+        Each substep: ``v += dt_s (f_internal + f_external + m g) / (m + m_added)``; fixed
+        nodes get ``v = 0``; ``x += dt_s v``. Gravity pulls on the body's own mass ``m`` only.
 
         Args:
             dt: Outer (fluid) step [s].
@@ -229,6 +230,9 @@ class ElasticBody:
             external_forces: Nodal forces [N/m], shape (n, 2), held constant over the
                 substeps (the fluid's force); default none.
             step: Outer step index, only used to name the step in errors.
+            added_mass: Extra nodal inertia ``m_added`` [kg/m], shape (n,), >= 0, for this call
+                only (an added-mass estimate of the surrounding fluid, whose matching force
+                the caller puts in ``external_forces``); gravity still acts on ``m`` alone.
 
         Returns:
             What was done.
@@ -258,6 +262,15 @@ class ElasticBody:
                 node = int(np.flatnonzero(~np.isfinite(forces).all(axis=1))[0])
                 raise ValueError(f"external_forces at node {node} is not finite"
                                  + ("" if step is None else f" (step {step})"))
+        # Gravity enters as a nodal force so that it pulls on m alone when m_added > 0.
+        forces = forces + self.mass[:, None] * self.gravity
+        inverse_mass = self._inverse_mass
+        if added_mass is not None:
+            extra = np.asarray(added_mass, dtype=np.float64)
+            if extra.shape != (n,) or not np.all(np.isfinite(extra)) or np.any(extra < 0.0):
+                raise ValueError(f"added_mass: must be finite, >= 0, shape ({n},), got shape "
+                                 f"{extra.shape}")
+            inverse_mass = 1.0 / (self.mass + extra)
         positions = self.positions.copy()
         velocities = self.velocities.copy()
         status = np.zeros(3, dtype=np.int64)
@@ -266,8 +279,7 @@ class ElasticBody:
         material = self.material
         arguments = (
             positions, velocities, self.mesh.triangles, self._dm_inverse, self._rest_area,
-            self._inverse_mass, self.fixed_mask, forces, float(self.gravity[0]),
-            float(self.gravity[1]), material.lame_lambda, material.lame_mu,
+            inverse_mass, self.fixed_mask, forces, material.lame_lambda, material.lame_mu,
             material.damping_lambda, material.damping_mu, self.velocity_damping, sub_dt,
             substeps, status, determinant,
         )

@@ -235,8 +235,8 @@ def elastic_energy(
 @njit(cache=True)
 def _update_nodes(
     positions: np.ndarray, velocities: np.ndarray, forces: np.ndarray,
-    external_forces: np.ndarray, inverse_mass: np.ndarray, gravity_x: float,
-    gravity_y: float, fixed: np.ndarray, dt: float, drag_factor: float,
+    external_forces: np.ndarray, inverse_mass: np.ndarray, fixed: np.ndarray, dt: float,
+    drag_factor: float,
 ) -> None:
     """Symplectic Euler for every node: ``v += dt f/m`` (with drag), ``x += dt v``."""
     for node in range(positions.shape[0]):
@@ -245,10 +245,8 @@ def _update_nodes(
             velocities[node, 1] = 0.0
             continue
         w = inverse_mass[node]
-        vx = velocities[node, 0] + dt * ((forces[node, 0] + external_forces[node, 0]) * w
-                                         + gravity_x)
-        vy = velocities[node, 1] + dt * ((forces[node, 1] + external_forces[node, 1]) * w
-                                         + gravity_y)
+        vx = velocities[node, 0] + dt * (forces[node, 0] + external_forces[node, 0]) * w
+        vy = velocities[node, 1] + dt * (forces[node, 1] + external_forces[node, 1]) * w
         vx *= drag_factor
         vy *= drag_factor
         velocities[node, 0] = vx
@@ -287,12 +285,15 @@ def element_determinants(
 def advance_serial(
     positions: np.ndarray, velocities: np.ndarray, triangles: np.ndarray,
     dm_inverse: np.ndarray, rest_area: np.ndarray, inverse_mass: np.ndarray,
-    fixed: np.ndarray, external_forces: np.ndarray, gravity_x: float, gravity_y: float,
-    lame_lambda: float, lame_mu: float, damping_lambda: float, damping_mu: float,
+    fixed: np.ndarray, external_forces: np.ndarray, lame_lambda: float, lame_mu: float,
+    damping_lambda: float, damping_mu: float,
     velocity_damping: float, dt: float, substeps: int, status: np.ndarray,
     determinant: np.ndarray,
 ) -> None:
     """``substeps`` symplectic Euler substeps of size ``dt`` [s], in place; serial scatter.
+
+    ``external_forces`` (n, 2) [N/m] holds every force but the internal ones (gravity included);
+    ``inverse_mass`` (n,) is 1 / (the inertia of each node).
 
     A substep whose result holds an element with det F <= 0 or not finite stops the loop and
     sets ``status = (1, substeps completed, element)``; the positions are then those after that
@@ -315,8 +316,7 @@ def advance_serial(
             determinant[0] = determinants[bad]
             return
         _update_nodes(
-            positions, velocities, forces, external_forces, inverse_mass, gravity_x, gravity_y,
-            fixed, dt, drag_factor,
+            positions, velocities, forces, external_forces, inverse_mass, fixed, dt, drag_factor,
         )
     element_determinants(positions, triangles, dm_inverse, determinants)
     bad = _first_bad_element(determinants)
@@ -331,8 +331,8 @@ def advance_serial(
 def advance_parallel(
     positions: np.ndarray, velocities: np.ndarray, triangles: np.ndarray,
     dm_inverse: np.ndarray, rest_area: np.ndarray, inverse_mass: np.ndarray,
-    fixed: np.ndarray, external_forces: np.ndarray, gravity_x: float, gravity_y: float,
-    lame_lambda: float, lame_mu: float, damping_lambda: float, damping_mu: float,
+    fixed: np.ndarray, external_forces: np.ndarray, lame_lambda: float, lame_mu: float,
+    damping_lambda: float, damping_mu: float,
     velocity_damping: float, dt: float, substeps: int, status: np.ndarray,
     determinant: np.ndarray, node_offsets: np.ndarray, node_elements: np.ndarray,
     node_corners: np.ndarray,
@@ -373,8 +373,8 @@ def advance_parallel(
                 fx += element_forces[node_elements[k], node_corners[k], 0]
                 fy += element_forces[node_elements[k], node_corners[k], 1]
             w = inverse_mass[node]
-            vx = (velocities[node, 0] + dt * (fx * w + gravity_x)) * drag_factor
-            vy = (velocities[node, 1] + dt * (fy * w + gravity_y)) * drag_factor
+            vx = (velocities[node, 0] + dt * fx * w) * drag_factor
+            vy = (velocities[node, 1] + dt * fy * w) * drag_factor
             velocities[node, 0] = vx
             velocities[node, 1] = vy
             positions[node, 0] += dt * vx

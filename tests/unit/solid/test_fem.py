@@ -106,6 +106,20 @@ def test_external_force_changes_momentum_exactly() -> None:
     np.testing.assert_allclose(momentum, forces.sum(axis=0) * 1e-3, rtol=1e-10)
 
 
+def test_added_mass_slows_response_but_not_gravity_pull() -> None:
+    mesh = mesh_rectangle(0.2, 0.1, counts=(4, 2))
+    body = ElasticBody(mesh, MATERIAL, gravity=(0.0, -9.81))
+    added = 3.0 * body.mass
+    forces = np.zeros((mesh.point_count, 2))
+    forces[:, 0] = 0.4 * body.mass
+    body.advance(0.01, 10, forces, added_mass=added)
+    # (m + 3m) a = F + m g: a quarter of both accelerations.
+    np.testing.assert_allclose(body.velocities[:, 0], 0.25 * 0.4 * 0.01, rtol=1e-9)
+    np.testing.assert_allclose(body.velocities[:, 1], -0.25 * 9.81 * 0.01, rtol=1e-9)
+    with pytest.raises(ValueError, match="added_mass"):
+        body.advance(0.01, 1, added_mass=-added)
+
+
 def stretched_body(material: MaterialStVK) -> ElasticBody:
     mesh = mesh_rectangle(1.0, 0.2, counts=(10, 2))
     x = mesh.points
