@@ -2,7 +2,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Union
 
 import numpy as np
 
@@ -86,7 +85,7 @@ class Outflow:
     """An open side: pressure 0 at the side, zero normal gradient of the velocity."""
 
 
-Side = Union[WallNoSlip, WallFreeSlip, WallMoving, Inflow, Outflow]
+Side = WallNoSlip | WallFreeSlip | WallMoving | Inflow | Outflow
 _SIDE_TYPES = (WallNoSlip, WallFreeSlip, WallMoving, Inflow, Outflow)
 
 

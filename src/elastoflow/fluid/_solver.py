@@ -13,7 +13,6 @@ from elastoflow.fluid._boundaries import (
     Inflow,
     Jet,
     Outflow,
-    WallFreeSlip,
     WallMoving,
     WallNoSlip,
 )
@@ -207,8 +206,8 @@ class FluidSolver:
             x0, y0, x1, y1 = (float(c) for c in jet.region)
 
             def index_range(low: float, high: float, offset: float, count: int) -> slice:
-                start = max(int(math.ceil(low / h - offset - 1e-12)), 0)
-                stop = min(int(math.floor(high / h - offset + 1e-12)) + 1, count)
+                start = max(math.ceil(low / h - offset - 1e-12), 0)
+                stop = min(math.floor(high / h - offset + 1e-12) + 1, count)
                 return slice(start, max(start, stop))
 
             u_slice = (index_range(x0 - ox, x1 - ox, 0.0, grid.nx + 1),
@@ -239,8 +238,13 @@ class FluidSolver:
         self._no_cut = np.zeros((4, 1, 1))
         ones_x, ones_y = np.ones(fx), np.ones(fy)
         self._pressure_operator_open = self._assemble_pressure_operator(ones_x, ones_y)
-        self._viscosity_operators: dict[float, tuple[Operator5Point, Operator5Point,
-                                                      np.ndarray, np.ndarray]] = {}
+        self._viscosity_operators: dict[tuple[int, float], Operator5Point] = {}
+        self._viscosity_scratch = []
+        for shape in (fx, fy):
+            m, n = shape
+            self._viscosity_scratch.append(
+                (np.zeros(shape), np.zeros((m - 1, n)), np.zeros((m, n - 1)), np.zeros(shape))
+            )
 
     def _assemble_pressure_operator(
         self, open_x: np.ndarray, open_y: np.ndarray
@@ -341,11 +345,7 @@ class FluidSolver:
         self, f: np.ndarray, axis: int, dt: float, interior: InteriorBoundary | None
     ) -> tuple[Operator5Point, np.ndarray]:
         c = self.viscosity * dt / self.grid.h**2
-        m, n = f.shape
-        diagonal = np.empty((m, n))
-        weights_x = np.empty((m - 1, n))
-        weights_y = np.empty((m, n - 1))
-        rhs = np.empty((m, n))
+        diagonal, weights_x, weights_y, rhs = self._viscosity_scratch[axis]
         has, solid, theta, cut, _ = self._interior_arrays(interior, axis)
         if axis == 0:
             fixed_low, fixed_high = not self._outflow[0], not self._outflow[1]
@@ -357,6 +357,15 @@ class FluidSolver:
             f, c, axis, fixed_low, fixed_high, modes, values, has, solid, theta, cut,
             diagonal, weights_x, weights_y, rhs,
         )
+        if interior is None:
+            # Without bodies the operator depends on dt only: keep it between steps.
+            cached = self._viscosity_operators.get((axis, dt))
+            if cached is None:
+                if len(self._viscosity_operators) > 8:
+                    self._viscosity_operators.clear()
+                cached = Operator5Point(diagonal.copy(), weights_x.copy(), weights_y.copy())
+                self._viscosity_operators[(axis, dt)] = cached
+            return cached, rhs
         return Operator5Point(diagonal, weights_x, weights_y), rhs
 
     def diffuse(
