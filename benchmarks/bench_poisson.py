@@ -10,7 +10,8 @@ Cases (unit square, ``n x n`` cells, smooth right-hand side):
 Time is the whole ``solve`` call (setup of the hierarchy, null-space handling and the CG
 iterations), the minimum over repeats after one warm-up solve.
 
-Usage: ``python -m benchmarks poisson [--quick]`` or ``python benchmarks/bench_poisson.py``.
+Usage: ``python -m benchmarks poisson [--quick] [--threads=N]`` or
+``python benchmarks/bench_poisson.py [--quick] [--threads=N]``.
 """
 
 from __future__ import annotations
@@ -20,13 +21,14 @@ import time
 from pathlib import Path
 from typing import Any
 
+import numba
 import numpy as np
 
 if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from benchmarks._common import markdown_table, write_results  # noqa: E402
-from elastoflow.linalg import Operator5Point, PoissonSolverMGPCG  # noqa: E402
+from benchmarks._common import markdown_table, write_results
+from elastoflow.linalg import Operator5Point, PoissonSolverMGPCG
 
 
 def _problem(case: str, size: int) -> tuple[Operator5Point, np.ndarray]:
@@ -59,13 +61,17 @@ def main(argv: list[str] | None = None) -> list[dict[str, Any]]:
     """Run the benchmark, print a Markdown table, write ``results/poisson.json``.
 
     Args:
-        argv: Options; ``--quick`` limits sizes to 128 and 256.
+        argv: Options; ``--quick`` limits sizes to 128 and 256; ``--threads=N`` sets the Numba
+            thread count (default: Numba's).
 
     Returns:
         One row per (case, size): iterations, residual, time [ms], time per iteration [ms].
     """
     args = list(sys.argv[1:] if argv is None else argv)
     sizes = (128, 256) if "--quick" in args else (128, 256, 512, 1024)
+    for arg in args:
+        if arg.startswith("--threads="):
+            numba.set_num_threads(int(arg.split("=", 1)[1]))
     rows: list[dict[str, Any]] = []
     solver = PoissonSolverMGPCG(rtol=1e-6)
     for case in ("outflow", "body", "closed", "viscosity"):
@@ -81,12 +87,13 @@ def main(argv: list[str] | None = None) -> list[dict[str, Any]]:
             rows.append({
                 "case": case,
                 "size": f"{size}x{size}",
+                "threads": numba.get_num_threads(),
                 "iterations": report.iterations,
                 "residual": report.residual,
                 "time_ms": best * 1e3,
                 "ms_per_iteration": best * 1e3 / max(report.iterations, 1),
             })
-    print(markdown_table(rows, ["case", "size", "iterations", "residual", "time_ms",
+    print(markdown_table(rows, ["case", "size", "threads", "iterations", "residual", "time_ms",
                                 "ms_per_iteration"]))
     write_results("poisson", rows)
     return rows

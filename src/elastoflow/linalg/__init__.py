@@ -1,18 +1,29 @@
 """Poisson solvers behind one interface.
 
-``Operator5Point`` describes a symmetric positive semi-definite 5-point operator
-``(A x)[i, j] = diagonal[i, j] x[i, j] + sum_nb w (x[i, j] - x[nb])``. Every solver has
-``solve(operator, rhs, x0=None) -> (x, SolveReport)`` and guarantees:
+``Operator5Point(diagonal, weights_x, weights_y)`` describes a symmetric positive
+semi-definite 5-point operator on an ``(m, n)`` array,
+``(A x)[i, j] = diagonal[i, j] x[i, j] + sum_nb w (x[i, j] - x[nb])``; ``apply_operator``
+computes ``A x``. Every solver has ``solve(operator, rhs, x0=None) -> (x, SolveReport)`` and
+guarantees:
 
-* inactive points (zero diagonal and zero weights) get ``x = 0``;
+* inactive points (zero diagonal and zero weights) get ``x = 0``; ``rhs`` there is ignored;
 * on every singular (pure Neumann) connected component the right-hand side is made compatible
   by subtracting its mean there, and the returned ``x`` has zero mean there;
-* ``SolveReport.residual`` is the true relative residual ``|b - A x| / |b|`` of the returned
-  ``x`` for that compatible ``b``, and ``converged`` means it is ``<= rtol``.
+* ``SolveReport.residual`` is the true relative residual ``|b - A x| / |b|`` (2-norm) of the
+  returned ``x`` for that compatible ``b`` (not a recursively updated estimate), and
+  ``converged`` means it is ``<= rtol``; ``x0`` is a warm start (0 iterations when it already
+  meets ``rtol``).
 
-``PoissonSolverJacobi`` (the paper's solver) converges for every such operator, slowly: O(n^2)
-sweeps on an ``n x n`` grid. ``PoissonSolverMGPCG`` (the default) is conjugate gradient
-preconditioned by a geometric multigrid V-cycle.
+``PoissonSolverJacobi(rtol, max_iterations, omega)`` is the paper's solver: weighted Jacobi,
+convergent for every such operator (``0 < omega < 1``), but it needs O(n^2) sweeps on an
+``n x n`` grid, so in practice it stops at ``max_iterations`` on large grids.
+
+``PoissonSolverMGPCG(rtol, max_iterations, smoothing_sweeps)`` (the default) is conjugate
+gradient preconditioned by one geometric multigrid V-cycle (McAdams, Sifakis & Teran 2010
+style): its preconditioner is symmetric positive definite on the active points, so CG
+converges for every such operator, and its iteration count barely grows with the grid
+(6-7 iterations to 1e-6 from 128^2 to 1024^2 on pressure problems with outflow, bodies with
+fractional faces, or closed boxes).
 """
 
 from elastoflow.linalg._jacobi import PoissonSolverJacobi

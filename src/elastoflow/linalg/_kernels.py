@@ -651,7 +651,6 @@ def pcg_kernel(rows, cols, offsets, diagonal, weights_x, weights_y, total, inver
     residual). Returns ``(iterations, |b - A x|^2)``."""
     m = rows[0]
     n = cols[0]
-    stride = n + 2
     size = offsets[1]
     d_total = total[:size]
     wx = weights_x[:size]

@@ -8,7 +8,6 @@ import numpy as np
 from numpy.typing import NDArray
 
 from elastoflow.linalg._kernels import (
-    sum_of_squares_kernel,
     coarsen_parallel,
     coarsen_serial,
     dense_matrix_kernel,
@@ -16,6 +15,7 @@ from elastoflow.linalg._kernels import (
     pad_values_kernel,
     pcg_kernel,
     semidefinite_cholesky_kernel,
+    sum_of_squares_kernel,
     totals_parallel,
     totals_serial,
     unpad_values_kernel,
