@@ -185,19 +185,40 @@ def _clamp(value, low, high):
 
 
 @njit(cache=True)
-def _velocity_at(u, v, x, y, inv_h, modes_u, values_u, modes_v, values_v):
+def _sample_x(u, fx, fy, modes, values, has_interior, bodies):
+    if has_interior:
+        return _sample_with_bodies(u, fx, fy, modes, values, bodies[0], bodies[1], bodies[2])
+    return _sample(u, fx, fy, modes, values)
+
+
+@njit(cache=True)
+def _sample_y(v, fx, fy, modes, values, has_interior, bodies):
+    if has_interior:
+        return _sample_with_bodies(v, fx, fy, modes, values, bodies[3], bodies[4], bodies[5])
+    return _sample(v, fx, fy, modes, values)
+
+
+@njit(cache=True)
+def _velocity_at(u, v, x, y, inv_h, modes_u, values_u, modes_v, values_v, has_interior, bodies):
     return (
-        _sample(u, x * inv_h, y * inv_h - 0.5, modes_u, values_u),
-        _sample(v, x * inv_h - 0.5, y * inv_h, modes_v, values_v),
+        _sample_x(u, x * inv_h, y * inv_h - 0.5, modes_u, values_u, has_interior, bodies),
+        _sample_y(v, x * inv_h - 0.5, y * inv_h, modes_v, values_v, has_interior, bodies),
     )
 
 
 @njit(cache=True)
-def _trace_back(u, v, x, y, ux, uy, dt, inv_h, lx, ly, modes_u, values_u, modes_v, values_v):
-    # Midpoint (RK2) back-trace; departure points are clamped into the domain.
+def _trace_back(
+    u, v, x, y, ux, uy, dt, inv_h, lx, ly, modes_u, values_u, modes_v, values_v,
+    has_interior, bodies,
+):
+    # Midpoint (RK2) back-trace; departure points are clamped into the domain. With bodies the
+    # trace velocity is sampled with the cut-distance ghosts too, so that it does not leak
+    # through thin bodies either.
     xm = _clamp(x - 0.5 * dt * ux, 0.0, lx)
     ym = _clamp(y - 0.5 * dt * uy, 0.0, ly)
-    um, vm = _velocity_at(u, v, xm, ym, inv_h, modes_u, values_u, modes_v, values_v)
+    um, vm = _velocity_at(
+        u, v, xm, ym, inv_h, modes_u, values_u, modes_v, values_v, has_interior, bodies
+    )
     return _clamp(x - dt * um, 0.0, lx), _clamp(y - dt * vm, 0.0, ly)
 
 
@@ -227,17 +248,20 @@ def _finish(source, fx, fy, modes, values, sampled, correct, forward, backward, 
 @njit(cache=True, parallel=True)
 def advect_field_x(
     u, v, source, out, dt, h, modes_u, values_u, modes_v, values_v,
-    has_interior, solid, theta, cut_velocity, body_velocity, correct, forward, backward,
+    has_interior, bodies, body_velocity, correct, forward, backward,
 ):
     """Transport the x-face field ``source`` by (u, v) over ``dt`` into ``out`` (nx+1, ny).
 
-    With ``correct`` the result is the MacCormack correction of ``forward`` (this step's
-    semi-Lagrangian result) and ``backward`` (``forward`` advected back over ``-dt``).
+    ``bodies`` is ``(solid, theta, cut_velocity)`` of the x-faces followed by those of the
+    y-faces (read only with ``has_interior``). With ``correct`` the result is the MacCormack
+    correction of ``forward`` (this step's semi-Lagrangian result) and ``backward``
+    (``forward`` advected back over ``-dt``).
     """
     nx1, ny = u.shape
     inv_h = 1.0 / h
     lx = (nx1 - 1) * h
     ly = ny * h
+    solid = bodies[0]
     for i in prange(nx1):
         for j in range(ny):
             if has_interior and solid[i, j]:
@@ -245,20 +269,16 @@ def advect_field_x(
                 continue
             x = i * h
             y = (j + 0.5) * h
-            uy = _sample(v, x * inv_h - 0.5, y * inv_h, modes_v, values_v)
+            uy = _sample_y(v, x * inv_h - 0.5, y * inv_h, modes_v, values_v, has_interior, bodies)
             xb, yb = _trace_back(
-                u, v, x, y, u[i, j], uy, dt, inv_h, lx, ly, modes_u, values_u, modes_v, values_v
+                u, v, x, y, u[i, j], uy, dt, inv_h, lx, ly, modes_u, values_u, modes_v,
+                values_v, has_interior, bodies,
             )
             fx = xb * inv_h
             fy = yb * inv_h - 0.5
-            if correct:
-                sampled = 0.0
-            elif has_interior:
-                sampled = _sample_with_bodies(
-                    source, fx, fy, modes_u, values_u, solid, theta, cut_velocity
-                )
-            else:
-                sampled = _sample(source, fx, fy, modes_u, values_u)
+            sampled = 0.0
+            if not correct:
+                sampled = _sample_x(source, fx, fy, modes_u, values_u, has_interior, bodies)
             out[i, j] = _finish(
                 source, fx, fy, modes_u, values_u, sampled, correct, forward, backward, i, j
             )
@@ -267,13 +287,14 @@ def advect_field_x(
 @njit(cache=True, parallel=True)
 def advect_field_y(
     u, v, source, out, dt, h, modes_u, values_u, modes_v, values_v,
-    has_interior, solid, theta, cut_velocity, body_velocity, correct, forward, backward,
+    has_interior, bodies, body_velocity, correct, forward, backward,
 ):
     """Transport the y-face field ``source`` by (u, v) over ``dt`` into ``out`` (nx, ny+1)."""
     nx, ny1 = v.shape
     inv_h = 1.0 / h
     lx = nx * h
     ly = (ny1 - 1) * h
+    solid = bodies[3]
     for i in prange(nx):
         for j in range(ny1):
             if has_interior and solid[i, j]:
@@ -281,20 +302,16 @@ def advect_field_y(
                 continue
             x = (i + 0.5) * h
             y = j * h
-            ux = _sample(u, x * inv_h, y * inv_h - 0.5, modes_u, values_u)
+            ux = _sample_x(u, x * inv_h, y * inv_h - 0.5, modes_u, values_u, has_interior, bodies)
             xb, yb = _trace_back(
-                u, v, x, y, ux, v[i, j], dt, inv_h, lx, ly, modes_u, values_u, modes_v, values_v
+                u, v, x, y, ux, v[i, j], dt, inv_h, lx, ly, modes_u, values_u, modes_v,
+                values_v, has_interior, bodies,
             )
             fx = xb * inv_h - 0.5
             fy = yb * inv_h
-            if correct:
-                sampled = 0.0
-            elif has_interior:
-                sampled = _sample_with_bodies(
-                    source, fx, fy, modes_v, values_v, solid, theta, cut_velocity
-                )
-            else:
-                sampled = _sample(source, fx, fy, modes_v, values_v)
+            sampled = 0.0
+            if not correct:
+                sampled = _sample_y(source, fx, fy, modes_v, values_v, has_interior, bodies)
             out[i, j] = _finish(
                 source, fx, fy, modes_v, values_v, sampled, correct, forward, backward, i, j
             )
@@ -303,7 +320,7 @@ def advect_field_y(
 @njit(cache=True, parallel=True)
 def advect_cells(
     u, v, source, out, dt, h, modes_u, values_u, modes_v, values_v, modes_c, values_c,
-    has_interior, solid_cells, correct, forward, backward,
+    has_interior, bodies, solid_cells, correct, forward, backward,
 ):
     """Transport a cell-centred scalar by (u, v) over ``dt`` into ``out`` (nx, ny)."""
     nx, ny = source.shape
@@ -317,9 +334,12 @@ def advect_cells(
                 continue
             x = (i + 0.5) * h
             y = (j + 0.5) * h
-            ux, uy = _velocity_at(u, v, x, y, inv_h, modes_u, values_u, modes_v, values_v)
+            ux, uy = _velocity_at(
+                u, v, x, y, inv_h, modes_u, values_u, modes_v, values_v, has_interior, bodies
+            )
             xb, yb = _trace_back(
-                u, v, x, y, ux, uy, dt, inv_h, lx, ly, modes_u, values_u, modes_v, values_v
+                u, v, x, y, ux, uy, dt, inv_h, lx, ly, modes_u, values_u, modes_v, values_v,
+                has_interior, bodies,
             )
             fx = xb * inv_h - 0.5
             fy = yb * inv_h - 0.5

@@ -20,20 +20,19 @@ def block_interior(grid: Grid2D, x0: float, y0: float, x1: float, y1: float,
         return (x >= x0) & (x <= x1) & (y >= y0) & (y <= y1)
 
     def cuts(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+        # First crossing of the rectangle's boundary within one spacing, from points outside.
         theta = np.full((4, *x.shape), np.inf)
-        p_in = inside(x, y)
-        steps = ((-h, 0.0), (h, 0.0), (0.0, -h), (0.0, h))
-        for d, (dx, dy) in enumerate(steps):
-            n_in = inside(x + dx, y + dy)
-            hit = ~p_in & n_in
-            if dx > 0:
-                t = (x0 - x) / h
-            elif dx < 0:
-                t = (x - x1) / h
-            elif dy > 0:
-                t = (y0 - y) / h
-            else:
-                t = (y - y1) / h
+        outside = ~inside(x, y)
+        in_rows = (y >= y0) & (y <= y1)
+        in_columns = (x >= x0) & (x <= x1)
+        candidates = (
+            (in_rows & (x > x1) & (x - h <= x1), (x - x1) / h),   # -x
+            (in_rows & (x < x0) & (x + h >= x0), (x0 - x) / h),   # +x
+            (in_columns & (y > y1) & (y - h <= y1), (y - y1) / h),  # -y
+            (in_columns & (y < y0) & (y + h >= y0), (y0 - y) / h),  # +y
+        )
+        for d, (hit, t) in enumerate(candidates):
+            hit = hit & outside
             theta[d][hit] = t[hit]
         return theta
 

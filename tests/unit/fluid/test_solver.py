@@ -288,3 +288,20 @@ def test_inflow_profile_and_ramp():
     solver.apply_side_values(state, 2.0)
     np.testing.assert_allclose(state.velocity_x[0], 2.0 * expected, rtol=1e-14)
     np.testing.assert_array_equal(state.velocity_y[:, 0], 0.0)
+
+
+def test_velocity_does_not_leak_through_a_thin_plate(make_block):
+    # A fixed plate thinner than a cell between the u points x = 0.9 and x = 1.0: what is
+    # advected to the right of it must not depend on the velocity on its left.
+    grid = Grid2D(20, 10, 0.1)
+    interior = make_block(grid, 0.93, -1.0, 0.97, 2.0)
+    solver = FluidSolver(grid, density=1.0, viscosity=0.0,
+                         boundaries=DomainBoundaries(*(WallFreeSlip(),) * 4))
+    results = []
+    for left_speed in (1.0, 5.0):
+        state = FluidState.zeros(grid)
+        state.velocity_x[:10] = left_speed
+        state.velocity_x[10:] = 0.5
+        solver.advect(state, 0.05, interior)
+        results.append(state.velocity_x[10:].copy())
+    np.testing.assert_array_equal(results[0], results[1])
