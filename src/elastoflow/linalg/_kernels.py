@@ -202,7 +202,7 @@ def jacobi_kernel(diagonal, weights_x, weights_y, rhs, x, x_next, omega, thresho
 # +x neighbour), ``weights_y[k]`` couples ``k`` with ``k + 1``; ``total[k]`` is the diagonal
 # plus the four weights and ``inverse[k]`` its inverse (0 at inactive points).
 
-_PARALLEL_MINIMUM = 64 * 64
+_PARALLEL_MINIMUM = 128 * 128
 
 
 @njit(cache=True, parallel=True)

@@ -24,7 +24,7 @@ from elastoflow.linalg._operator import Operator5Point, SolveReport
 from elastoflow.linalg._problem import _compatible_rhs
 
 _COARSEST_SIZE = 32
-_PARALLEL_MINIMUM = 64 * 64
+_PARALLEL_MINIMUM = 128 * 128
 
 
 class _Hierarchy:
