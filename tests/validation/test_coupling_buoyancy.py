@@ -1,0 +1,87 @@
+"""Fluid forces under gravity (METHOD.md §7): a body as dense as the fluid stays put, a body
+twice as dense starts to sink at ``(1 - rho_f / rho_s) g``.
+
+A stiff elastic disc (E = 1e7 Pa, so that its shape changes by far less than a cell) in still
+water in a closed box, under gravity. Over the first step the fluid is at rest and the body too,
+so the projection gives exactly the hydrostatic pressure: the traction integral returns the
+buoyancy ``rho_f A g`` and the body accelerates at ``(1 - rho_f / rho_s) g``. After that the
+fluid answers the body's acceleration with its added mass; explicit coupling applies that
+answer one step late (see `sinking_history` and docs/validation_coupling.md).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from elastoflow import coupling, fluid, solid
+from elastoflow.grid import Grid2D
+from elastoflow.simulation import Simulation
+
+GRAVITY = 9.81
+FLUID_DENSITY = 1000.0
+RADIUS = 0.1
+DT = 0.005
+
+
+def _disc_in_box(body_density: float, force_model: str, cells: int = 64
+                 ) -> tuple[Simulation, solid.ElasticBody]:
+    grid = Grid2D(nx=cells, ny=cells, h=1.0 / cells)
+    boundaries = fluid.DomainBoundaries(
+        left=fluid.WallNoSlip(), right=fluid.WallNoSlip(), bottom=fluid.WallNoSlip(),
+        top=fluid.WallNoSlip(),
+    )
+    solver = fluid.FluidSolver(grid, density=FLUID_DENSITY, viscosity=1e-3,
+                               boundaries=boundaries, gravity=(0.0, -GRAVITY))
+    outline = coupling.obstacle_circle((0.5, 0.5), RADIUS, segments=48).polygon
+    mesh = solid.mesh_from_polygon(outline, element_size=0.03)
+    body = solid.ElasticBody(mesh, solid.MaterialStVK(body_density, 1e7, 0.3),
+                             gravity=(0.0, -GRAVITY))
+    simulation = Simulation(grid, solver, bodies=[body], dt=DT, force_model=force_model)
+    return simulation, body
+
+
+def sinking_history(body_density: float, force_model: str, steps: int
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """Centre-of-mass vertical velocity after each step [m/s] and displacement [m], (steps,)."""
+    simulation, body = _disc_in_box(body_density, force_model)
+    mass = body.mass
+    start = (mass @ body.positions) / mass.sum()
+    velocity, displacement = np.zeros(steps), np.zeros(steps)
+    for k in range(steps):
+        simulation.step()
+        velocity[k] = (mass @ body.velocities)[1] / mass.sum()
+        displacement[k] = ((mass @ body.positions) / mass.sum() - start)[1]
+    return velocity, displacement
+
+
+@pytest.mark.slow
+def test_neutrally_buoyant_disc_stays_put_with_traction() -> None:
+    """Bound: over 10 steps the centre moves by less than 1% of the free-fall distance, i.e.
+    the mean unbalanced acceleration is below 0.01 g."""
+    steps = 10
+    _, displacement = sinking_history(FLUID_DENSITY, "traction", steps)
+    free_fall = 0.5 * GRAVITY * (steps * DT) ** 2
+    assert abs(displacement[-1]) < 0.01 * free_fall, (
+        f"moved {displacement[-1]:.3g} m, {abs(displacement[-1]) / free_fall:.3g} of free fall")
+
+
+@pytest.mark.slow
+def test_heavy_disc_starts_sinking_at_reduced_gravity_with_traction() -> None:
+    velocity, _ = sinking_history(2.0 * FLUID_DENSITY, "traction", 1)
+    expected = -(1.0 - 0.5) * GRAVITY
+    acceleration = velocity[0] / DT
+    assert abs(acceleration - expected) < 0.1 * abs(expected), f"a = {acceleration:.4g} m/s^2"
+
+
+@pytest.mark.slow
+def test_momentum_exchange_misses_buoyancy() -> None:
+    """The paper's eq. (8) sees no hydrostatic pressure (METHOD.md §7): a neutrally buoyant
+    body sinks, and a heavy one starts to sink faster than (1 - rho_f/rho_s) g."""
+    steps = 10
+    _, displacement = sinking_history(FLUID_DENSITY, "momentum_exchange", steps)
+    free_fall = 0.5 * GRAVITY * (steps * DT) ** 2
+    assert displacement[-1] < -0.5 * free_fall
+    velocity, _ = sinking_history(2.0 * FLUID_DENSITY, "momentum_exchange", 1)
+    expected = -0.5 * GRAVITY
+    assert abs(velocity[0] / DT - expected) > 0.5 * abs(expected)
