@@ -101,7 +101,10 @@ class Simulation:
             raise ValueError(f"dt = {dt!r}: must be a finite positive time step [s]")
         if force_model not in FORCE_MODELS:
             raise ValueError(f"force_model = {force_model!r}: must be one of {FORCE_MODELS}")
-        if substeps != "auto" and (int(substeps) != substeps or substeps < 1):
+        if substeps != "auto" and not (
+            isinstance(substeps, (int, float)) and np.isfinite(substeps)
+            and int(substeps) == substeps and substeps >= 1
+        ):
             raise ValueError(f"substeps = {substeps!r}: must be a positive integer or 'auto'")
         if not 0.0 < alpha <= 1.0:
             raise ValueError(f"alpha = {alpha!r}: must lie in (0, 1]")
