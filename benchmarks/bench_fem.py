@@ -24,8 +24,8 @@ import numpy as np
 if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from benchmarks._common import markdown_table, write_results  # noqa: E402
-from elastoflow.solid import (  # noqa: E402
+from benchmarks._common import markdown_table, write_results
+from elastoflow.solid import (
     ElasticBody,
     MaterialStVK,
     mesh_rectangle,

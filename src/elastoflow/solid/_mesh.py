@@ -9,7 +9,7 @@ import numpy as np
 from elastoflow.solid import _kernels
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class TriangleMesh:
     """A 2D linear-triangle mesh in its rest (material) configuration.
 
@@ -17,7 +17,8 @@ class TriangleMesh:
     one-line ``ValueError`` naming the bad element, edge or vertex: degenerate (zero-area) or
     inverted (clockwise) triangles, edges shared by more than two triangles or by two triangles
     with the same orientation, vertices used by no triangle, and boundary loops that are not
-    closed. When ``boundary_loops`` is not given it is derived from the triangles.
+    closed. When ``boundary_loops`` is not given it is derived from the triangles. The arrays
+    are made read-only; meshes compare by identity.
 
     Attributes:
         points: Rest positions [m], float64, shape (n, 2).
