@@ -202,7 +202,9 @@ def jacobi_kernel(diagonal, weights_x, weights_y, rhs, x, x_next, omega, thresho
 # +x neighbour), ``weights_y[k]`` couples ``k`` with ``k + 1``; ``total[k]`` is the diagonal
 # plus the four weights and ``inverse[k]`` its inverse (0 at inactive points).
 
-_PARALLEL_MINIMUM = 128 * 128
+# Levels and vectors with more points than this run in parallel; below, waking the threads
+# costs more than it saves.
+PARALLEL_MINIMUM = 128 * 128
 
 
 @njit(cache=True, parallel=True)
@@ -544,7 +546,7 @@ def v_cycle(rows, cols, offsets, diagonal, weights_x, weights_y, total, inverse,
         wx = weights_x[start:stop]
         wy = weights_y[start:stop]
         coarse_b = level_b[stop:offsets[level + 2]]
-        if m * n >= _PARALLEL_MINIMUM:
+        if m * n > PARALLEL_MINIMUM:
             for sweep in range(sweeps):
                 smooth_parallel(x, b, inv, wx, wy, m, n, 0, sweep == 0)
             restrict_parallel(x, b, total[start:stop], inv, wx, wy, coarse_b, m, n,
@@ -575,7 +577,7 @@ def v_cycle(rows, cols, offsets, diagonal, weights_x, weights_y, total, inverse,
         wx = weights_x[start:stop]
         wy = weights_y[start:stop]
         coarse_x = level_x[stop:offsets[level + 2]]
-        if m * n >= _PARALLEL_MINIMUM:
+        if m * n > PARALLEL_MINIMUM:
             prolong_parallel(coarse_x, x, m, n, cols[level + 1])
             for sweep in range(sweeps):
                 smooth_parallel(x, b, inv, wx, wy, m, n, 1, False)
@@ -585,63 +587,149 @@ def v_cycle(rows, cols, offsets, diagonal, weights_x, weights_y, total, inverse,
                 smooth_serial(x, b, inv, wx, wy, m, n, 1, False)
 
 
-@njit(cache=True, parallel=True)
-def residual_norm_kernel(x, b, total, weights_x, weights_y, r, m, n):
-    """``r = b - A x``; return ``|r|^2``."""
+@njit(cache=True, inline="always")
+def _residual_norm_row(x, b, total, weights_x, weights_y, r, i, n):
     stride = n + 2
+    row = (i + 1) * stride + 1
     squared = 0.0
-    for i in prange(m):
-        row = (i + 1) * stride + 1
-        for k in range(row, row + n):
-            value = _residual_at(x, b, total, weights_x, weights_y, k, stride)
-            r[k] = value
-            squared += value * value
+    for k in range(row, row + n):
+        value = _residual_at(x, b, total, weights_x, weights_y, k, stride)
+        r[k] = value
+        squared += value * value
+    return squared
+
+
+@njit(cache=True, inline="always")
+def _dot_row(a, b, i, n):
+    row = (i + 1) * (n + 2) + 1
+    total = 0.0
+    for k in range(row, row + n):
+        total += a[k] * b[k]
+    return total
+
+
+@njit(cache=True, inline="always")
+def _search_direction_row(z, p, q, total, weights_x, weights_y, beta, i, n):
+    stride = n + 2
+    row = (i + 1) * stride + 1
+    product = 0.0
+    for k in range(row, row + n):
+        applied = (total[k] * z[k] - weights_x[k] * z[k + stride]
+                   - weights_x[k - stride] * z[k - stride] - weights_y[k] * z[k + 1]
+                   - weights_y[k - 1] * z[k - 1])
+        direction = z[k] + beta * p[k]
+        image = applied + beta * q[k]
+        p[k] = direction
+        q[k] = image
+        product += direction * image
+    return product
+
+
+@njit(cache=True, inline="always")
+def _step_row(x, r, p, q, alpha, i, n):
+    row = (i + 1) * (n + 2) + 1
+    squared = 0.0
+    for k in range(row, row + n):
+        x[k] += alpha * p[k]
+        value = r[k] - alpha * q[k]
+        r[k] = value
+        squared += value * value
     return squared
 
 
 @njit(cache=True, parallel=True)
-def dot_kernel(a, b, m, n):
-    stride = n + 2
+def residual_norm_parallel(x, b, total, weights_x, weights_y, r, m, n):
+    """``r = b - A x``; return ``|r|^2``."""
+    squared = 0.0
+    for i in prange(m):
+        squared += _residual_norm_row(x, b, total, weights_x, weights_y, r, i, n)
+    return squared
+
+
+@njit(cache=True)
+def residual_norm_serial(x, b, total, weights_x, weights_y, r, m, n):
+    squared = 0.0
+    for i in range(m):
+        squared += _residual_norm_row(x, b, total, weights_x, weights_y, r, i, n)
+    return squared
+
+
+@njit(cache=True, parallel=True)
+def dot_parallel(a, b, m, n):
     total = 0.0
     for i in prange(m):
-        row = (i + 1) * stride + 1
-        for k in range(row, row + n):
-            total += a[k] * b[k]
+        total += _dot_row(a, b, i, n)
+    return total
+
+
+@njit(cache=True)
+def dot_serial(a, b, m, n):
+    total = 0.0
+    for i in range(m):
+        total += _dot_row(a, b, i, n)
     return total
 
 
 @njit(cache=True, parallel=True)
-def search_direction_kernel(z, p, q, total, weights_x, weights_y, beta, m, n):
+def search_direction_parallel(z, p, q, total, weights_x, weights_y, beta, m, n):
     """``p = z + beta p`` and ``q = A z + beta q`` (= ``A p``) in one pass; return ``p . q``."""
-    stride = n + 2
     product = 0.0
     for i in prange(m):
-        row = (i + 1) * stride + 1
-        for k in range(row, row + n):
-            applied = (total[k] * z[k] - weights_x[k] * z[k + stride]
-                       - weights_x[k - stride] * z[k - stride] - weights_y[k] * z[k + 1]
-                       - weights_y[k - 1] * z[k - 1])
-            direction = z[k] + beta * p[k]
-            image = applied + beta * q[k]
-            p[k] = direction
-            q[k] = image
-            product += direction * image
+        product += _search_direction_row(z, p, q, total, weights_x, weights_y, beta, i, n)
+    return product
+
+
+@njit(cache=True)
+def search_direction_serial(z, p, q, total, weights_x, weights_y, beta, m, n):
+    product = 0.0
+    for i in range(m):
+        product += _search_direction_row(z, p, q, total, weights_x, weights_y, beta, i, n)
     return product
 
 
 @njit(cache=True, parallel=True)
-def step_kernel(x, r, p, q, alpha, m, n):
+def step_parallel(x, r, p, q, alpha, m, n):
     """``x += alpha p``, ``r -= alpha q``; return ``|r|^2``."""
-    stride = n + 2
     squared = 0.0
     for i in prange(m):
-        row = (i + 1) * stride + 1
-        for k in range(row, row + n):
-            x[k] += alpha * p[k]
-            value = r[k] - alpha * q[k]
-            r[k] = value
-            squared += value * value
+        squared += _step_row(x, r, p, q, alpha, i, n)
     return squared
+
+
+@njit(cache=True)
+def step_serial(x, r, p, q, alpha, m, n):
+    squared = 0.0
+    for i in range(m):
+        squared += _step_row(x, r, p, q, alpha, i, n)
+    return squared
+
+
+@njit(cache=True)
+def _residual_norm(x, b, total, weights_x, weights_y, r, m, n):
+    if m * n > PARALLEL_MINIMUM:
+        return residual_norm_parallel(x, b, total, weights_x, weights_y, r, m, n)
+    return residual_norm_serial(x, b, total, weights_x, weights_y, r, m, n)
+
+
+@njit(cache=True)
+def _dot(a, b, m, n):
+    if m * n > PARALLEL_MINIMUM:
+        return dot_parallel(a, b, m, n)
+    return dot_serial(a, b, m, n)
+
+
+@njit(cache=True)
+def _search_direction(z, p, q, total, weights_x, weights_y, beta, m, n):
+    if m * n > PARALLEL_MINIMUM:
+        return search_direction_parallel(z, p, q, total, weights_x, weights_y, beta, m, n)
+    return search_direction_serial(z, p, q, total, weights_x, weights_y, beta, m, n)
+
+
+@njit(cache=True)
+def _step(x, r, p, q, alpha, m, n):
+    if m * n > PARALLEL_MINIMUM:
+        return step_parallel(x, r, p, q, alpha, m, n)
+    return step_serial(x, r, p, q, alpha, m, n)
 
 
 @njit(cache=True)
@@ -655,41 +743,41 @@ def pcg_kernel(rows, cols, offsets, diagonal, weights_x, weights_y, total, inver
     d_total = total[:size]
     wx = weights_x[:size]
     wy = weights_y[:size]
-    squared = residual_norm_kernel(x, b, d_total, wx, wy, r, m, n)
+    squared = _residual_norm(x, b, d_total, wx, wy, r, m, n)
     iterations = 0
     while True:
         # The recursive residual drifts from b - A x; confirm convergence on the true one and
         # restart CG from it when they disagree.
         if squared <= threshold:
-            squared = residual_norm_kernel(x, b, d_total, wx, wy, r, m, n)
+            squared = _residual_norm(x, b, d_total, wx, wy, r, m, n)
             if squared <= threshold:
                 break
         if iterations >= max_iterations:
-            squared = residual_norm_kernel(x, b, d_total, wx, wy, r, m, n)
+            squared = _residual_norm(x, b, d_total, wx, wy, r, m, n)
             break
         v_cycle(rows, cols, offsets, diagonal, weights_x, weights_y, total, inverse, level_x,
                 level_b, coarse_factor, r, z, sweeps)
-        rz = dot_kernel(r, z, m, n)
+        rz = _dot(r, z, m, n)
         p[:] = 0.0
         q[:] = 0.0
         beta = 0.0
         pq = 1.0
         while iterations < max_iterations:
-            pq = search_direction_kernel(z, p, q, d_total, wx, wy, beta, m, n)
+            pq = _search_direction(z, p, q, d_total, wx, wy, beta, m, n)
             if pq <= 0.0:
                 break
             alpha = rz / pq
-            squared = step_kernel(x, r, p, q, alpha, m, n)
+            squared = _step(x, r, p, q, alpha, m, n)
             iterations += 1
             if squared <= threshold:
                 break
             v_cycle(rows, cols, offsets, diagonal, weights_x, weights_y, total, inverse,
                     level_x, level_b, coarse_factor, r, z, sweeps)
-            rz_next = dot_kernel(r, z, m, n)
+            rz_next = _dot(r, z, m, n)
             beta = rz_next / rz
             rz = rz_next
         if pq <= 0.0:
-            squared = residual_norm_kernel(x, b, d_total, wx, wy, r, m, n)
+            squared = _residual_norm(x, b, d_total, wx, wy, r, m, n)
             break
     return iterations, squared
 

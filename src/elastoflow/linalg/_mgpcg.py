@@ -8,6 +8,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from elastoflow.linalg._kernels import (
+    PARALLEL_MINIMUM,
     coarsen_parallel,
     coarsen_serial,
     dense_matrix_kernel,
@@ -24,7 +25,6 @@ from elastoflow.linalg._operator import Operator5Point, SolveReport
 from elastoflow.linalg._problem import _compatible_rhs
 
 _COARSEST_SIZE = 32
-_PARALLEL_MINIMUM = 128 * 128
 
 
 class _Hierarchy:
@@ -68,7 +68,7 @@ class _Hierarchy:
         for level in range(levels):
             m, n = int(self.rows[level]), int(self.cols[level])
             if level > 0:
-                coarsen = coarsen_parallel if m * n >= _PARALLEL_MINIMUM else coarsen_serial
+                coarsen = coarsen_parallel if m * n > PARALLEL_MINIMUM else coarsen_serial
                 coarsen(
                     self._level(self.diagonal, level - 1), self._level(self.weights_x, level - 1),
                     self._level(self.weights_y, level - 1), self._level(self.total, level - 1),
@@ -76,7 +76,7 @@ class _Hierarchy:
                     self._level(self.weights_x, level), self._level(self.weights_y, level),
                     int(self.cols[level - 1]), m, n,
                 )
-            totals = totals_parallel if m * n >= _PARALLEL_MINIMUM else totals_serial
+            totals = totals_parallel if m * n > PARALLEL_MINIMUM else totals_serial
             totals(
                 self._level(self.diagonal, level), self._level(self.weights_x, level),
                 self._level(self.weights_y, level), self._level(self.total, level),
