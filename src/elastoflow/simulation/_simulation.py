@@ -198,7 +198,11 @@ class Simulation:
         fluid.advect(state, dt, interior)
         seconds["advection"] = clock() - t0
         t0 = clock()
-        fluid.diffuse(state, dt, interior)
+        try:
+            fluid.diffuse(state, dt, interior)
+        except ValueError:
+            self._check_fluid(next_step)
+            raise
         seconds["viscosity"] = clock() - t0
         t0 = clock()
         fluid.apply_forces(state, dt, self.time)
@@ -214,7 +218,13 @@ class Simulation:
             seconds["coupling_force"] = clock() - t0
 
         t0 = clock()
-        solve = fluid.project(state, dt, interior)
+        try:
+            solve = fluid.project(state, dt, interior)
+        except ValueError:
+            # A non-finite velocity stops the linear solvers first: report it as a blow-up
+            # naming the step (re-raised unchanged when the fields are finite).
+            self._check_fluid(next_step)
+            raise
         seconds["pressure"] = clock() - t0
 
         if self.bodies and self.force_model == "traction":
