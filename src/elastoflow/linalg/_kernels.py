@@ -72,46 +72,54 @@ def _find(parent, k):
 
 @njit(cache=True)
 def label_components_kernel(diagonal, weights_x, weights_y, active, labels):
-    """Label connected components of active points (raster scan with union-find).
+    """Label connected components of active points.
 
-    Writes ``labels`` (-1 at inactive points, else 0..count-1) and returns
-    ``(count, singular)`` where ``singular[c]`` says component ``c`` has no positive diagonal.
+    Runs of points joined along y are the union-find nodes, so a find is only needed where the
+    pair of runs joined along x changes. Writes ``labels`` (-1 at inactive points, else
+    0..count-1) and returns ``(count, singular)`` where ``singular[c]`` says component ``c`` has
+    no positive diagonal.
     """
     m, n = diagonal.shape
-    parent = np.arange(m * n)
-    for i in range(m):
-        for j in range(n):
-            if not active[i, j]:
-                continue
-            k = i * n + j
-            if i > 0 and weights_x[i - 1, j] > 0.0:
-                a = _find(parent, k)
-                b = _find(parent, k - n)
-                if a != b:
-                    parent[max(a, b)] = min(a, b)
-            if j > 0 and weights_y[i, j - 1] > 0.0:
-                a = _find(parent, k)
-                b = _find(parent, k - 1)
-                if a != b:
-                    parent[max(a, b)] = min(a, b)
-    root_label = np.full(m * n, -1, dtype=np.int64)
-    count = 0
+    parent = np.empty(m * n, dtype=np.int64)
+    runs = 0
     for i in range(m):
         for j in range(n):
             if not active[i, j]:
                 labels[i, j] = -1
                 continue
-            root = _find(parent, i * n + j)
-            if root_label[root] < 0:
-                root_label[root] = count
-                count += 1
-            labels[i, j] = root_label[root]
+            if j > 0 and weights_y[i, j - 1] > 0.0:
+                run = labels[i, j - 1]
+            else:
+                run = runs
+                parent[run] = run
+                runs += 1
+            labels[i, j] = run
+            if i > 0 and weights_x[i - 1, j] > 0.0:
+                below = labels[i - 1, j]
+                if (j > 0 and weights_x[i - 1, j - 1] > 0.0 and labels[i, j - 1] == run
+                        and labels[i - 1, j - 1] == below):
+                    continue
+                a = _find(parent, run)
+                b = _find(parent, below)
+                if a != b:
+                    parent[max(a, b)] = min(a, b)
+    run_label = np.full(runs, -1, dtype=np.int64)
+    count = 0
+    for run in range(runs):
+        root = _find(parent, run)
+        if run_label[root] < 0:
+            run_label[root] = count
+            count += 1
+        run_label[run] = run_label[root]
     singular = np.ones(count, dtype=np.bool_)
     for i in range(m):
         for j in range(n):
-            c = labels[i, j]
-            if c >= 0 and diagonal[i, j] > 0.0:
-                singular[c] = False
+            run = labels[i, j]
+            if run >= 0:
+                component = run_label[run]
+                labels[i, j] = component
+                if diagonal[i, j] > 0.0:
+                    singular[component] = False
     return count, singular
 
 

@@ -275,3 +275,29 @@ def test_mgpcg_iterations_nearly_independent_of_grid_size(body: bool) -> None:
         assert report.converged
         counts.append(report.iterations)
     assert counts[1] <= 1.5 * counts[0], counts
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_singular_components_match_scipy_graph_components(seed: int) -> None:
+    from elastoflow.linalg._problem import _analyse
+
+    rng = np.random.default_rng(seed)
+    shape = (23, 17)
+    weights_x = np.where(rng.random((22, 17)) < 0.45, 0.0, 1.0)
+    weights_y = np.where(rng.random((23, 16)) < 0.45, 0.0, 1.0)
+    diagonal = np.where(rng.random(shape) < 0.03, 1.0, 0.0)
+    operator = Operator5Point(diagonal, weights_x, weights_y)
+    null_space = _analyse(operator)
+    coupling = sparse_matrix(Operator5Point(np.zeros(shape), weights_x, weights_y))
+    coupling.setdiag(0.0)
+    coupling.eliminate_zeros()
+    active = (diagonal.ravel() > 0) | (np.diff(coupling.indptr) > 0)
+    _, expected = connected_components(coupling, directed=False)
+    labels = null_space.labels.ravel()
+    assert np.array_equal(labels >= 0, active)
+    # Same partition: the map between label sets is one-to-one on active points.
+    pairs = set(zip(labels[active].tolist(), expected[active].tolist(), strict=True))
+    assert len(pairs) == null_space.count == len(set(expected[active].tolist()))
+    for label, component in pairs:
+        members = expected == component
+        assert null_space.singular[label] == (not np.any(diagonal.ravel()[members] > 0))
