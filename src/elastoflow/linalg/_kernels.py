@@ -492,7 +492,7 @@ def semidefinite_cholesky_kernel(matrix, factor):
     factor[:, :] = matrix
     for k in range(size):
         pivot = factor[k, k]
-        if not (pivot > 1e-10 * matrix[k, k] and matrix[k, k] > 0.0):
+        if not (pivot > 1e-6 * matrix[k, k] and matrix[k, k] > 0.0):
             for i in range(k, size):
                 factor[i, k] = 0.0
             continue
