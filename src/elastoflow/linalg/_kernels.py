@@ -4,7 +4,7 @@ components, null-space projection and the fused Jacobi sweep."""
 from __future__ import annotations
 
 import numpy as np
-from numba import njit, prange
+from numba import njit, prange, uint64
 
 
 @njit(cache=True, inline="always")
@@ -342,20 +342,33 @@ def coarsen_serial(fine_diagonal, fine_weights_x, fine_weights_y, fine_total, co
 
 @njit(cache=True, inline="always")
 def _smooth_row(x, b, inverse, weights_x, weights_y, row, start, n, stride):
-    for k in range(row + start, row + n, 2):
-        x[k] = inverse[k] * (b[k] + weights_x[k] * x[k + stride]
-                             + weights_x[k - stride] * x[k - stride]
-                             + weights_y[k] * x[k + 1] + weights_y[k - 1] * x[k - 1])
+    # Unsigned indices spare Numba's negative-index wraparound test on every access (about
+    # twice as fast here).
+    one = uint64(1)
+    step = uint64(2)
+    up = uint64(stride)
+    k = uint64(row + start)
+    end = uint64(row + n)
+    while k < end:
+        x[k] = inverse[k] * (b[k] + weights_x[k] * x[k + up] + weights_x[k - up] * x[k - up]
+                             + weights_y[k] * x[k + one] + weights_y[k - one] * x[k - one])
+        k += step
 
 
 @njit(cache=True, inline="always")
 def _first_smooth_row(x, b, inverse, row, start, n):
     # First half sweep from x = 0: points of this colour get D^-1 b, the others are set to 0
     # so that the level needs no separate clearing pass.
-    for k in range(row + start, row + n, 2):
+    step = uint64(2)
+    end = uint64(row + n)
+    k = uint64(row + start)
+    while k < end:
         x[k] = inverse[k] * b[k]
-    for k in range(row + 1 - start, row + n, 2):
+        k += step
+    k = uint64(row + 1 - start)
+    while k < end:
         x[k] = 0.0
+        k += step
 
 
 @njit(cache=True, inline="always")
@@ -414,10 +427,11 @@ def smooth_serial(x, b, inverse, weights_x, weights_y, m, n, first_colour, from_
 
 
 @njit(cache=True, inline="always")
-def _residual_at(x, b, total, weights_x, weights_y, k, stride):
-    return (b[k] - total[k] * x[k] + weights_x[k] * x[k + stride]
-            + weights_x[k - stride] * x[k - stride] + weights_y[k] * x[k + 1]
-            + weights_y[k - 1] * x[k - 1])
+def _residual_at(x, b, total, weights_x, weights_y, k, up):
+    """``(b - A x)[k]`` for unsigned ``k`` and row stride ``up``."""
+    one = uint64(1)
+    return (b[k] - total[k] * x[k] + weights_x[k] * x[k + up] + weights_x[k - up] * x[k - up]
+            + weights_y[k] * x[k + one] + weights_y[k - one] * x[k - one])
 
 
 @njit(cache=True, inline="always")
@@ -434,10 +448,11 @@ def _restrict_row(x, b, total, inverse, weights_x, weights_y, coarse_b, m, n, ic
     for i in range(2 * ic, min(2 * ic + 2, m)):
         row = (i + 1) * stride + 1
         odd = i & 1
+        up = uint64(stride)
         for jc in range(n_c):
-            k = row + 2 * jc + odd
-            other = row + 2 * jc + 1 - odd
-            value = _residual_at(x, b, total, weights_x, weights_y, k, stride)
+            k = uint64(row + 2 * jc + odd)
+            other = uint64(row + 2 * jc + 1 - odd)
+            value = _residual_at(x, b, total, weights_x, weights_y, k, up)
             if inverse[other] == 0.0:
                 value += b[other]
             coarse_b[kc + jc] += value
@@ -457,15 +472,17 @@ def restrict_serial(x, b, total, inverse, weights_x, weights_y, coarse_b, m, n, 
 
 @njit(cache=True, inline="always")
 def _prolong_row(coarse_x, x, i, n, n_c):
-    stride = n + 2
-    row = (i + 1) * stride + 1
-    kc = (i // 2 + 1) * (n_c + 2) + 1
+    one = uint64(1)
+    row = uint64((i + 1) * (n + 2) + 1)
+    kc = uint64((i // 2 + 1) * (n_c + 2) + 1)
     for jc in range(n // 2):
-        value = coarse_x[kc + jc]
-        x[row + 2 * jc] += value
-        x[row + 2 * jc + 1] += value
+        value = coarse_x[kc]
+        x[row] += value
+        x[row + one] += value
+        row += uint64(2)
+        kc += one
     if n % 2 == 1:
-        x[row + n - 1] += coarse_x[kc + n_c - 1]
+        x[row] += coarse_x[kc]
 
 
 @njit(cache=True, parallel=True)
@@ -597,51 +614,59 @@ def v_cycle(rows, cols, offsets, diagonal, weights_x, weights_y, total, inverse,
 
 @njit(cache=True, inline="always")
 def _residual_norm_row(x, b, total, weights_x, weights_y, r, i, n):
-    stride = n + 2
-    row = (i + 1) * stride + 1
+    up = uint64(n + 2)
+    k = uint64((i + 1) * (n + 2) + 1)
+    end = k + uint64(n)
     squared = 0.0
-    for k in range(row, row + n):
-        value = _residual_at(x, b, total, weights_x, weights_y, k, stride)
+    while k < end:
+        value = _residual_at(x, b, total, weights_x, weights_y, k, up)
         r[k] = value
         squared += value * value
+        k += uint64(1)
     return squared
 
 
 @njit(cache=True, inline="always")
 def _dot_row(a, b, i, n):
-    row = (i + 1) * (n + 2) + 1
+    k = uint64((i + 1) * (n + 2) + 1)
+    end = k + uint64(n)
     total = 0.0
-    for k in range(row, row + n):
+    while k < end:
         total += a[k] * b[k]
+        k += uint64(1)
     return total
 
 
 @njit(cache=True, inline="always")
 def _search_direction_row(z, p, q, total, weights_x, weights_y, beta, i, n):
-    stride = n + 2
-    row = (i + 1) * stride + 1
+    one = uint64(1)
+    up = uint64(n + 2)
+    k = uint64((i + 1) * (n + 2) + 1)
+    end = k + uint64(n)
     product = 0.0
-    for k in range(row, row + n):
-        applied = (total[k] * z[k] - weights_x[k] * z[k + stride]
-                   - weights_x[k - stride] * z[k - stride] - weights_y[k] * z[k + 1]
-                   - weights_y[k - 1] * z[k - 1])
+    while k < end:
+        applied = (total[k] * z[k] - weights_x[k] * z[k + up] - weights_x[k - up] * z[k - up]
+                   - weights_y[k] * z[k + one] - weights_y[k - one] * z[k - one])
         direction = z[k] + beta * p[k]
         image = applied + beta * q[k]
         p[k] = direction
         q[k] = image
         product += direction * image
+        k += one
     return product
 
 
 @njit(cache=True, inline="always")
 def _step_row(x, r, p, q, alpha, i, n):
-    row = (i + 1) * (n + 2) + 1
+    k = uint64((i + 1) * (n + 2) + 1)
+    end = k + uint64(n)
     squared = 0.0
-    for k in range(row, row + n):
+    while k < end:
         x[k] += alpha * p[k]
         value = r[k] - alpha * q[k]
         r[k] = value
         squared += value * value
+        k += uint64(1)
     return squared
 
 
