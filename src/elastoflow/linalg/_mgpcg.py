@@ -97,16 +97,19 @@ class PoissonSolverMGPCG:
     """Conjugate gradient preconditioned by one geometric multigrid V-cycle per iteration.
 
     The hierarchy halves each dimension (rounding up) down to at most 32 points, where the
-    problem is solved exactly by a
-    semi-definite Cholesky factorization (one unknown pinned per singular component). Coarse operators sum the diagonal terms and
-    average the face weights; restriction is the transpose of piecewise-constant prolongation;
-    smoothing is red-black Gauss-Seidel before and black-red after, so the preconditioner is
-    symmetric positive definite on the active points and CG converges for every operator of the
-    contract.
+    problem is solved by a semi-definite Cholesky factorization (one unknown pinned per
+    singular component). Coarse face weights are the average of the two fine faces; the
+    coarse diagonal sums the part of the children's diagonal that all active children share
+    (a volume term such as the Helmholtz identity) and averages the rest (boundary terms such
+    as Dirichlet outflow or cut faces). Restriction is the transpose of piecewise-constant
+    prolongation; smoothing is red-black Gauss-Seidel before and black-red after. The
+    preconditioner is therefore symmetric positive definite on the active points, and CG
+    converges for every operator of the contract.
 
     Guarantee: returns when the true relative residual is ``<= rtol`` or after
     ``max_iterations`` CG iterations; the iteration count is nearly independent of the grid
-    size. Storage is allocated once per grid shape and reused.
+    size (6-7 to 1e-6 from 128^2 to 1024^2 on pressure problems). Storage is allocated once
+    per grid shape and reused, so one instance must not solve from several threads at once.
 
     Attributes:
         rtol: Relative residual tolerance ``|b - A x| / |b|``.
