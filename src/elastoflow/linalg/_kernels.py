@@ -217,22 +217,33 @@ PARALLEL_MINIMUM = 128 * 128
 
 @njit(cache=True, parallel=True)
 def pad_operator_kernel(diagonal, weights_x, weights_y, diagonal_flat, weights_x_flat,
-                        weights_y_flat):
+                        weights_y_flat, total_flat, inverse_flat):
+    """Copy the operator into the padded level-0 arrays and fill its totals and inverses."""
     m, n = diagonal.shape
     stride = n + 2
     for i in prange(m):
         row = (i + 1) * stride + 1
         for j in range(n):
-            diagonal_flat[row + j] = diagonal[i, j]
-        if i < m - 1:
-            for j in range(n):
-                weights_x_flat[row + j] = weights_x[i, j]
-        else:
-            for j in range(n):
+            value = diagonal[i, j]
+            diagonal_flat[row + j] = value
+            if i < m - 1:
+                weight = weights_x[i, j]
+                weights_x_flat[row + j] = weight
+                value += weight
+            else:
                 weights_x_flat[row + j] = 0.0
-        for j in range(n - 1):
-            weights_y_flat[row + j] = weights_y[i, j]
-        weights_y_flat[row + n - 1] = 0.0
+            if i > 0:
+                value += weights_x[i - 1, j]
+            if j < n - 1:
+                weight = weights_y[i, j]
+                weights_y_flat[row + j] = weight
+                value += weight
+            else:
+                weights_y_flat[row + j] = 0.0
+            if j > 0:
+                value += weights_y[i, j - 1]
+            total_flat[row + j] = value
+            inverse_flat[row + j] = 1.0 / value if value > 0.0 else 0.0
 
 
 @njit(cache=True, parallel=True)
@@ -256,29 +267,6 @@ def unpad_values_kernel(flat, values):
 
 
 @njit(cache=True, inline="always")
-def _total_row(diagonal, weights_x, weights_y, total, inverse, row, n, stride):
-    for k in range(row, row + n):
-        value = (diagonal[k] + weights_x[k] + weights_x[k - stride] + weights_y[k]
-                 + weights_y[k - 1])
-        total[k] = value
-        inverse[k] = 1.0 / value if value > 0.0 else 0.0
-
-
-@njit(cache=True, parallel=True)
-def totals_parallel(diagonal, weights_x, weights_y, total, inverse, m, n):
-    stride = n + 2
-    for i in prange(m):
-        _total_row(diagonal, weights_x, weights_y, total, inverse, (i + 1) * stride + 1, n, stride)
-
-
-@njit(cache=True)
-def totals_serial(diagonal, weights_x, weights_y, total, inverse, m, n):
-    stride = n + 2
-    for i in range(m):
-        _total_row(diagonal, weights_x, weights_y, total, inverse, (i + 1) * stride + 1, n, stride)
-
-
-@njit(cache=True, inline="always")
 def _coarse_diagonal(diagonal, total, k, coarse_sum, count, smallest):
     if total[k] > 0.0:
         coarse_sum += diagonal[k]
@@ -289,7 +277,8 @@ def _coarse_diagonal(diagonal, total, k, coarse_sum, count, smallest):
 
 @njit(cache=True, inline="always")
 def _coarsen_row(fine_diagonal, fine_weights_x, fine_weights_y, fine_total, coarse_diagonal,
-                 coarse_weights_x, coarse_weights_y, row_c, n_c, fine_row0, stride_f, stride_c):
+                 coarse_weights_x, coarse_weights_y, coarse_total, coarse_inverse, row_c, n_c,
+                 fine_row0, stride_f, stride_c):
     # Face weights are averaged over the two fine faces of a coarse face, so that the coarse
     # operator is the rediscretised one rather than the twice too stiff piecewise-constant
     # Galerkin operator. The diagonal mixes two kinds of terms: a volume term (Helmholtz
@@ -313,30 +302,44 @@ def _coarsen_row(fine_diagonal, fine_weights_x, fine_weights_y, fine_total, coar
         coarse_sum, count, smallest = _coarse_diagonal(fine_diagonal, fine_total, k1 + 1,
                                                        coarse_sum, count, smallest)
         volume = count * smallest if count > 0 else 0.0
-        coarse_diagonal[kc + jc] = volume + 0.5 * (coarse_sum - volume)
-        coarse_weights_x[kc + jc] = 0.5 * (fine_weights_x[k1] + fine_weights_x[k1 + 1])
-        coarse_weights_y[kc + jc] = 0.5 * (fine_weights_y[k0 + 1] + fine_weights_y[k1 + 1])
+        diagonal = volume + 0.5 * (coarse_sum - volume)
+        weight_x = 0.5 * (fine_weights_x[k1] + fine_weights_x[k1 + 1])
+        weight_y = 0.5 * (fine_weights_y[k0 + 1] + fine_weights_y[k1 + 1])
+        # The -x and -y coarse weights belong to other rows (other threads): recompute them.
+        below = k1 - 2 * stride_f
+        weight_minus_x = 0.5 * (fine_weights_x[below] + fine_weights_x[below + 1])
+        weight_minus_y = 0.5 * (fine_weights_y[k0 - 1] + fine_weights_y[k1 - 1])
+        coarse_diagonal[kc + jc] = diagonal
+        coarse_weights_x[kc + jc] = weight_x
+        coarse_weights_y[kc + jc] = weight_y
+        value = diagonal + weight_x + weight_y + weight_minus_x + weight_minus_y
+        coarse_total[kc + jc] = value
+        coarse_inverse[kc + jc] = 1.0 / value if value > 0.0 else 0.0
 
 
 @njit(cache=True, parallel=True)
-def coarsen_parallel(fine_diagonal, fine_weights_x, fine_weights_y, fine_total, coarse_diagonal,
-                     coarse_weights_x, coarse_weights_y, n_f, m_c, n_c):
+def coarsen_parallel(fine_diagonal, fine_weights_x, fine_weights_y, fine_total,
+                     coarse_diagonal, coarse_weights_x, coarse_weights_y, coarse_total,
+                     coarse_inverse, n_f, m_c, n_c):
+    """Coarse level (diagonal, weights, totals, inverses) from the fine one."""
     stride_f = n_f + 2
     stride_c = n_c + 2
     for ic in prange(m_c):
         _coarsen_row(fine_diagonal, fine_weights_x, fine_weights_y, fine_total, coarse_diagonal,
-                     coarse_weights_x, coarse_weights_y, ic, n_c,
+                     coarse_weights_x, coarse_weights_y, coarse_total, coarse_inverse, ic, n_c,
                      (2 * ic + 1) * stride_f + 1, stride_f, stride_c)
 
 
 @njit(cache=True)
-def coarsen_serial(fine_diagonal, fine_weights_x, fine_weights_y, fine_total, coarse_diagonal,
-                   coarse_weights_x, coarse_weights_y, n_f, m_c, n_c):
+def coarsen_serial(fine_diagonal, fine_weights_x, fine_weights_y, fine_total,
+                   coarse_diagonal, coarse_weights_x, coarse_weights_y, coarse_total,
+                   coarse_inverse, n_f, m_c, n_c):
+    """Coarse level (diagonal, weights, totals, inverses) from the fine one."""
     stride_f = n_f + 2
     stride_c = n_c + 2
     for ic in range(m_c):
         _coarsen_row(fine_diagonal, fine_weights_x, fine_weights_y, fine_total, coarse_diagonal,
-                     coarse_weights_x, coarse_weights_y, ic, n_c,
+                     coarse_weights_x, coarse_weights_y, coarse_total, coarse_inverse, ic, n_c,
                      (2 * ic + 1) * stride_f + 1, stride_f, stride_c)
 
 

@@ -17,8 +17,6 @@ from elastoflow.linalg._kernels import (
     pcg_kernel,
     semidefinite_cholesky_kernel,
     sum_of_squares_kernel,
-    totals_parallel,
-    totals_serial,
     unpad_values_kernel,
 )
 from elastoflow.linalg._operator import Operator5Point, SolveReport
@@ -62,25 +60,19 @@ class _Hierarchy:
         pad_operator_kernel(
             operator.diagonal, operator.weights_x, operator.weights_y,
             self._level(self.diagonal, 0), self._level(self.weights_x, 0),
-            self._level(self.weights_y, 0),
+            self._level(self.weights_y, 0), self._level(self.total, 0),
+            self._level(self.inverse, 0),
         )
         levels = len(self.rows)
-        for level in range(levels):
+        for level in range(1, levels):
             m, n = int(self.rows[level]), int(self.cols[level])
-            if level > 0:
-                coarsen = coarsen_parallel if m * n > PARALLEL_MINIMUM else coarsen_serial
-                coarsen(
-                    self._level(self.diagonal, level - 1), self._level(self.weights_x, level - 1),
-                    self._level(self.weights_y, level - 1), self._level(self.total, level - 1),
-                    self._level(self.diagonal, level),
-                    self._level(self.weights_x, level), self._level(self.weights_y, level),
-                    int(self.cols[level - 1]), m, n,
-                )
-            totals = totals_parallel if m * n > PARALLEL_MINIMUM else totals_serial
-            totals(
+            coarsen = coarsen_parallel if m * n > PARALLEL_MINIMUM else coarsen_serial
+            coarsen(
+                self._level(self.diagonal, level - 1), self._level(self.weights_x, level - 1),
+                self._level(self.weights_y, level - 1), self._level(self.total, level - 1),
                 self._level(self.diagonal, level), self._level(self.weights_x, level),
                 self._level(self.weights_y, level), self._level(self.total, level),
-                self._level(self.inverse, level), m, n,
+                self._level(self.inverse, level), int(self.cols[level - 1]), m, n,
             )
         last = levels - 1
         dense_matrix_kernel(
