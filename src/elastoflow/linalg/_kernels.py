@@ -851,3 +851,24 @@ def sum_of_squares_kernel(values):
         for j in range(n):
             total += values[i, j] * values[i, j]
     return total
+
+
+@njit(cache=True, parallel=True)
+def finite_minimum_kernel(values):
+    """Return ``(number of non-finite entries, minimum of the finite ones)`` of an ``(m, n)``
+    array, in one pass."""
+    m, n = values.shape
+    bad_rows = np.zeros(m, dtype=np.int64)
+    smallest_rows = np.full(m, np.inf)
+    for i in prange(m):
+        bad = 0
+        smallest = np.inf
+        for j in range(n):
+            value = values[i, j]
+            if not np.isfinite(value):
+                bad += 1
+            elif value < smallest:
+                smallest = value
+        bad_rows[i] = bad
+        smallest_rows[i] = smallest
+    return bad_rows.sum(), smallest_rows.min()

@@ -12,6 +12,7 @@ from elastoflow.linalg._kernels import (
     coarsen_parallel,
     coarsen_serial,
     dense_matrix_kernel,
+    finite_minimum_kernel,
     pad_operator_kernel,
     pad_values_kernel,
     pcg_kernel,
@@ -159,7 +160,7 @@ class PoissonSolverMGPCG:
             x0 = np.asarray(x0, dtype=np.float64)
             if x0.shape != operator.shape:
                 raise ValueError(f"x0: shape {x0.shape} is not allowed; expected {operator.shape}")
-            if not np.all(np.isfinite(x0)):
+            if x0.size and finite_minimum_kernel(np.ascontiguousarray(x0))[0]:
                 raise ValueError("x0: values must be finite; got NaN or inf")
             pad_values_kernel(np.where(null_space.active, x0, 0.0), hierarchy.x)
         iterations, squared = pcg_kernel(

@@ -9,6 +9,7 @@ from numpy.typing import NDArray
 
 from elastoflow.linalg._kernels import (
     active_mask_kernel,
+    finite_minimum_kernel,
     label_components_kernel,
     remove_component_means_kernel,
 )
@@ -56,7 +57,7 @@ def _compatible_rhs(
     rhs = np.asarray(rhs, dtype=np.float64)
     if rhs.shape != operator.shape:
         raise ValueError(f"rhs: shape {rhs.shape} is not allowed; expected {operator.shape}")
-    if not np.all(np.isfinite(rhs)):
+    if rhs.size and finite_minimum_kernel(np.ascontiguousarray(rhs))[0]:
         raise ValueError("rhs: values must be finite; got NaN or inf")
     null_space = _analyse(operator)
     b = np.where(null_space.active, rhs, 0.0)
@@ -72,6 +73,6 @@ def _initial_guess(
     x0 = np.asarray(x0, dtype=np.float64)
     if x0.shape != operator.shape:
         raise ValueError(f"x0: shape {x0.shape} is not allowed; expected {operator.shape}")
-    if not np.all(np.isfinite(x0)):
+    if x0.size and finite_minimum_kernel(np.ascontiguousarray(x0))[0]:
         raise ValueError("x0: values must be finite; got NaN or inf")
     return np.where(active, x0, 0.0)

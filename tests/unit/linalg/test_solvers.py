@@ -319,3 +319,18 @@ def test_mgpcg_with_nearly_closed_faces() -> None:
     _, b = reference_solve(nearly_closed, rhs)
     assert report.converged and report.iterations <= 30
     assert true_relative_residual(nearly_closed, x, b) <= 1e-8
+
+
+def test_non_finite_input_raises() -> None:
+    weights_x = np.ones((3, 3))
+    weights_x[1, 2] = np.nan
+    with pytest.raises(ValueError, match="weights_x"):
+        Operator5Point(np.zeros((4, 3)), weights_x, np.ones((4, 2)))
+    operator = Operator5Point(np.ones((4, 3)), np.ones((3, 3)), np.ones((4, 2)))
+    rhs = np.ones((4, 3))
+    rhs[0, 0] = np.inf
+    for solver in (PoissonSolverJacobi(), PoissonSolverMGPCG()):
+        with pytest.raises(ValueError, match="rhs"):
+            solver.solve(operator, rhs)
+        with pytest.raises(ValueError, match="x0"):
+            solver.solve(operator, np.ones((4, 3)), x0=rhs)
