@@ -34,7 +34,7 @@ def _ghost(mode: int, value: float, inside: float) -> float:
     return value
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _field_value(f, i, j, modes, values):
     m, n = f.shape
     ic = min(max(i, 0), m - 1)
@@ -184,40 +184,48 @@ def _clamp(value, low, high):
     return min(max(value, low), high)
 
 
-@njit(cache=True)
-def _sample_x(u, fx, fy, modes, values, has_interior, bodies):
-    if has_interior:
-        return _sample_with_bodies(u, fx, fy, modes, values, bodies[0], bodies[1], bodies[2])
-    return _sample(u, fx, fy, modes, values)
-
-
-@njit(cache=True)
-def _sample_y(v, fx, fy, modes, values, has_interior, bodies):
-    if has_interior:
-        return _sample_with_bodies(v, fx, fy, modes, values, bodies[3], bodies[4], bodies[5])
-    return _sample(v, fx, fy, modes, values)
-
-
-@njit(cache=True)
-def _velocity_at(u, v, x, y, inv_h, modes_u, values_u, modes_v, values_v, has_interior, bodies):
+@njit(cache=True, inline="always")
+def _velocity_at(u, v, x, y, inv_h, modes_u, values_u, modes_v, values_v):
     return (
-        _sample_x(u, x * inv_h, y * inv_h - 0.5, modes_u, values_u, has_interior, bodies),
-        _sample_y(v, x * inv_h - 0.5, y * inv_h, modes_v, values_v, has_interior, bodies),
+        _sample(u, x * inv_h, y * inv_h - 0.5, modes_u, values_u),
+        _sample(v, x * inv_h - 0.5, y * inv_h, modes_v, values_v),
+    )
+
+
+@njit(cache=True, inline="always")
+def _trace_back(u, v, x, y, ux, uy, dt, inv_h, lx, ly, modes_u, values_u, modes_v, values_v):
+    # Midpoint (RK2) back-trace; departure points are clamped into the domain.
+    xm = _clamp(x - 0.5 * dt * ux, 0.0, lx)
+    ym = _clamp(y - 0.5 * dt * uy, 0.0, ly)
+    um, vm = _velocity_at(u, v, xm, ym, inv_h, modes_u, values_u, modes_v, values_v)
+    return _clamp(x - dt * um, 0.0, lx), _clamp(y - dt * vm, 0.0, ly)
+
+
+@njit(cache=True)
+def _velocity_at_bodies(
+    u, v, x, y, inv_h, modes_u, values_u, modes_v, values_v,
+    solid_x, theta_x, cut_x, solid_y, theta_y, cut_y,
+):
+    return (
+        _sample_with_bodies(u, x * inv_h, y * inv_h - 0.5, modes_u, values_u, solid_x, theta_x,
+                            cut_x),
+        _sample_with_bodies(v, x * inv_h - 0.5, y * inv_h, modes_v, values_v, solid_y, theta_y,
+                            cut_y),
     )
 
 
 @njit(cache=True)
-def _trace_back(
+def _trace_back_bodies(
     u, v, x, y, ux, uy, dt, inv_h, lx, ly, modes_u, values_u, modes_v, values_v,
-    has_interior, bodies,
+    solid_x, theta_x, cut_x, solid_y, theta_y, cut_y,
 ):
-    # Midpoint (RK2) back-trace; departure points are clamped into the domain. With bodies the
-    # trace velocity is sampled with the cut-distance ghosts too, so that it does not leak
-    # through thin bodies either.
+    # The trace velocity is sampled with the cut-distance ghosts too, so that it does not
+    # leak through thin bodies either.
     xm = _clamp(x - 0.5 * dt * ux, 0.0, lx)
     ym = _clamp(y - 0.5 * dt * uy, 0.0, ly)
-    um, vm = _velocity_at(
-        u, v, xm, ym, inv_h, modes_u, values_u, modes_v, values_v, has_interior, bodies
+    um, vm = _velocity_at_bodies(
+        u, v, xm, ym, inv_h, modes_u, values_u, modes_v, values_v,
+        solid_x, theta_x, cut_x, solid_y, theta_y, cut_y,
     )
     return _clamp(x - dt * um, 0.0, lx), _clamp(y - dt * vm, 0.0, ly)
 
@@ -247,13 +255,13 @@ def _finish(source, fx, fy, modes, values, sampled, correct, forward, backward, 
 
 @njit(cache=True, parallel=True)
 def advect_field_x(
-    u, v, source, out, dt, h, modes_u, values_u, modes_v, values_v,
-    has_interior, bodies, body_velocity, correct, forward, backward,
+    u, v, source, out, dt, h, modes_u, values_u, modes_v, values_v, has_interior,
+    solid_x, theta_x, cut_x, solid_y, theta_y, cut_y, body_velocity, correct, forward, backward,
 ):
     """Transport the x-face field ``source`` by (u, v) over ``dt`` into ``out`` (nx+1, ny).
 
-    ``bodies`` is ``(solid, theta, cut_velocity)`` of the x-faces followed by those of the
-    y-faces (read only with ``has_interior``). With ``correct`` the result is the MacCormack
+    The body arrays (solid flags, cut fractions and cut velocities of the x- and y-faces) are
+    read only with ``has_interior``. With ``correct`` the result is the MacCormack
     correction of ``forward`` (this step's semi-Lagrangian result) and ``backward``
     (``forward`` advected back over ``-dt``).
     """
@@ -261,24 +269,36 @@ def advect_field_x(
     inv_h = 1.0 / h
     lx = (nx1 - 1) * h
     ly = ny * h
-    solid = bodies[0]
     for i in prange(nx1):
         for j in range(ny):
-            if has_interior and solid[i, j]:
-                out[i, j] = body_velocity[i, j]
-                continue
             x = i * h
             y = (j + 0.5) * h
-            uy = _sample_y(v, x * inv_h - 0.5, y * inv_h, modes_v, values_v, has_interior, bodies)
-            xb, yb = _trace_back(
-                u, v, x, y, u[i, j], uy, dt, inv_h, lx, ly, modes_u, values_u, modes_v,
-                values_v, has_interior, bodies,
-            )
+            if has_interior:
+                if solid_x[i, j]:
+                    out[i, j] = body_velocity[i, j]
+                    continue
+                uy = _sample_with_bodies(v, x * inv_h - 0.5, y * inv_h, modes_v, values_v,
+                                         solid_y, theta_y, cut_y)
+                xb, yb = _trace_back_bodies(
+                    u, v, x, y, u[i, j], uy, dt, inv_h, lx, ly, modes_u, values_u, modes_v,
+                    values_v, solid_x, theta_x, cut_x, solid_y, theta_y, cut_y,
+                )
+            else:
+                uy = _sample(v, x * inv_h - 0.5, y * inv_h, modes_v, values_v)
+                xb, yb = _trace_back(
+                    u, v, x, y, u[i, j], uy, dt, inv_h, lx, ly, modes_u, values_u, modes_v,
+                    values_v,
+                )
             fx = xb * inv_h
             fy = yb * inv_h - 0.5
             sampled = 0.0
-            if not correct:
-                sampled = _sample_x(source, fx, fy, modes_u, values_u, has_interior, bodies)
+            if correct:
+                sampled = 0.0
+            elif has_interior:
+                sampled = _sample_with_bodies(source, fx, fy, modes_u, values_u, solid_x, theta_x,
+                                              cut_x)
+            else:
+                sampled = _sample(source, fx, fy, modes_u, values_u)
             out[i, j] = _finish(
                 source, fx, fy, modes_u, values_u, sampled, correct, forward, backward, i, j
             )
@@ -286,32 +306,44 @@ def advect_field_x(
 
 @njit(cache=True, parallel=True)
 def advect_field_y(
-    u, v, source, out, dt, h, modes_u, values_u, modes_v, values_v,
-    has_interior, bodies, body_velocity, correct, forward, backward,
+    u, v, source, out, dt, h, modes_u, values_u, modes_v, values_v, has_interior,
+    solid_x, theta_x, cut_x, solid_y, theta_y, cut_y, body_velocity, correct, forward, backward,
 ):
     """Transport the y-face field ``source`` by (u, v) over ``dt`` into ``out`` (nx, ny+1)."""
     nx, ny1 = v.shape
     inv_h = 1.0 / h
     lx = nx * h
     ly = (ny1 - 1) * h
-    solid = bodies[3]
     for i in prange(nx):
         for j in range(ny1):
-            if has_interior and solid[i, j]:
-                out[i, j] = body_velocity[i, j]
-                continue
             x = (i + 0.5) * h
             y = j * h
-            ux = _sample_x(u, x * inv_h, y * inv_h - 0.5, modes_u, values_u, has_interior, bodies)
-            xb, yb = _trace_back(
-                u, v, x, y, ux, v[i, j], dt, inv_h, lx, ly, modes_u, values_u, modes_v,
-                values_v, has_interior, bodies,
-            )
+            if has_interior:
+                if solid_y[i, j]:
+                    out[i, j] = body_velocity[i, j]
+                    continue
+                ux = _sample_with_bodies(u, x * inv_h, y * inv_h - 0.5, modes_u, values_u,
+                                         solid_x, theta_x, cut_x)
+                xb, yb = _trace_back_bodies(
+                    u, v, x, y, ux, v[i, j], dt, inv_h, lx, ly, modes_u, values_u, modes_v,
+                    values_v, solid_x, theta_x, cut_x, solid_y, theta_y, cut_y,
+                )
+            else:
+                ux = _sample(u, x * inv_h, y * inv_h - 0.5, modes_u, values_u)
+                xb, yb = _trace_back(
+                    u, v, x, y, ux, v[i, j], dt, inv_h, lx, ly, modes_u, values_u, modes_v,
+                    values_v,
+                )
             fx = xb * inv_h - 0.5
             fy = yb * inv_h
             sampled = 0.0
-            if not correct:
-                sampled = _sample_y(source, fx, fy, modes_v, values_v, has_interior, bodies)
+            if correct:
+                sampled = 0.0
+            elif has_interior:
+                sampled = _sample_with_bodies(source, fx, fy, modes_v, values_v, solid_y, theta_y,
+                                              cut_y)
+            else:
+                sampled = _sample(source, fx, fy, modes_v, values_v)
             out[i, j] = _finish(
                 source, fx, fy, modes_v, values_v, sampled, correct, forward, backward, i, j
             )
@@ -320,7 +352,8 @@ def advect_field_y(
 @njit(cache=True, parallel=True)
 def advect_cells(
     u, v, source, out, dt, h, modes_u, values_u, modes_v, values_v, modes_c, values_c,
-    has_interior, bodies, solid_cells, correct, forward, backward,
+    has_interior, solid_x, theta_x, cut_x, solid_y, theta_y, cut_y, solid_cells, correct,
+    forward, backward,
 ):
     """Transport a cell-centred scalar by (u, v) over ``dt`` into ``out`` (nx, ny)."""
     nx, ny = source.shape
@@ -334,13 +367,20 @@ def advect_cells(
                 continue
             x = (i + 0.5) * h
             y = (j + 0.5) * h
-            ux, uy = _velocity_at(
-                u, v, x, y, inv_h, modes_u, values_u, modes_v, values_v, has_interior, bodies
-            )
-            xb, yb = _trace_back(
-                u, v, x, y, ux, uy, dt, inv_h, lx, ly, modes_u, values_u, modes_v, values_v,
-                has_interior, bodies,
-            )
+            if has_interior:
+                ux, uy = _velocity_at_bodies(
+                    u, v, x, y, inv_h, modes_u, values_u, modes_v, values_v,
+                    solid_x, theta_x, cut_x, solid_y, theta_y, cut_y,
+                )
+                xb, yb = _trace_back_bodies(
+                    u, v, x, y, ux, uy, dt, inv_h, lx, ly, modes_u, values_u, modes_v, values_v,
+                    solid_x, theta_x, cut_x, solid_y, theta_y, cut_y,
+                )
+            else:
+                ux, uy = _velocity_at(u, v, x, y, inv_h, modes_u, values_u, modes_v, values_v)
+                xb, yb = _trace_back(
+                    u, v, x, y, ux, uy, dt, inv_h, lx, ly, modes_u, values_u, modes_v, values_v
+                )
             fx = xb * inv_h - 0.5
             fy = yb * inv_h - 0.5
             if correct:

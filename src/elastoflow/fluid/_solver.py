@@ -297,21 +297,23 @@ class FluidSolver:
         u, v = state.velocity_x, state.velocity_y
         has, solid_x, theta_x, cut_x, body_x = self._interior_arrays(interior, 0)
         _, solid_y, theta_y, cut_y, body_y = self._interior_arrays(interior, 1)
-        bodies = (solid_x, theta_x, cut_x, solid_y, theta_y, cut_y)
         forwards = forwards if forwards is not None else sources
         backwards = backwards if backwards is not None else sources
         kernels.advect_field_x(
             u, v, sources[0], outs[0], dt, h, self._modes_u, self._values_u, self._modes_v,
-            self._values_v, has, bodies, body_x, correct, forwards[0], backwards[0],
+            self._values_v, has, solid_x, theta_x, cut_x, solid_y, theta_y, cut_y, body_x, correct,
+            forwards[0], backwards[0],
         )
         kernels.advect_field_y(
             u, v, sources[1], outs[1], dt, h, self._modes_u, self._values_u, self._modes_v,
-            self._values_v, has, bodies, body_y, correct, forwards[1], backwards[1],
+            self._values_v, has, solid_x, theta_x, cut_x, solid_y, theta_y, cut_y, body_y, correct,
+            forwards[1], backwards[1],
         )
         solid_cells = interior.solid_cells if interior is not None else self._no_solid
         kernels.advect_cells(
             u, v, sources[2], outs[2], dt, h, self._modes_u, self._values_u, self._modes_v,
-            self._values_v, self._modes_dye, self._values_dye, has, bodies, solid_cells,
+            self._values_v, self._modes_dye, self._values_dye, has, solid_x, theta_x, cut_x,
+            solid_y, theta_y, cut_y, solid_cells,
             correct, forwards[2], backwards[2],
         )
 
