@@ -14,7 +14,9 @@ moving outline, is
 whole outline) and ``max_c |Q_c|`` (leakage through any one piece) with the flux ``U D`` that an
 open gap of the body's diameter D would carry. ``U`` here is the body's exact velocity, not the
 one the solver derives from the map, so a wrong solid velocity on cut faces, open fractions that
-do not match the geometry or an unconverged projection all show up as leakage.
+do not match the geometry or an unconverged projection all show up as leakage. What it cannot
+see is a body thinner than a cell that splits a cell in two fluid parts; that case is checked
+by the fluid's velocity next to a moving plate (`test_moving_plate_pushes_the_fluid_next_to_it`).
 """
 
 from __future__ import annotations
@@ -78,43 +80,75 @@ def test_fluid_at_rest_stays_at_rest_around_obstacle_and_body(force_model: str) 
     assert np.abs(body.positions - rest).max() < 1e-10
 
 
+def leakage_run(obstacle: coupling.Obstacle, velocity: tuple[float, float], gap: float,
+                cells: int, steps: int = 25) -> tuple[float, float]:
+    """Worst net and worst single-cell outline flux over ``steps`` steps, in units of U D."""
+    grid, solver = _closed_box(cells, viscosity=1e-3)
+    simulation = Simulation(grid, solver, obstacles=[obstacle], dt=0.01)
+    gap_flux = float(np.hypot(*velocity)) * gap
+    worst_net, worst_local = 0.0, 0.0
+    for _ in range(steps):
+        simulation.step()
+        q = relative_outline_flux(grid, simulation.interior, simulation.state, velocity)
+        worst_net = max(worst_net, abs(q.sum()) / gap_flux)
+        worst_local = max(worst_local, np.abs(q).max() / gap_flux)
+    return worst_net, worst_local
+
+
+def _moving_circle(velocity: tuple[float, float]) -> coupling.Obstacle:
+    return coupling.obstacle_circle(
+        (0.4, 0.55), 0.1, segments=64, motion=coupling.RigidMotion(velocity=velocity)
+    )
+
+
+def _moving_thin_plate(velocity: tuple[float, float], h: float,
+                       thickness_cells: float = 0.4) -> coupling.Obstacle:
+    return coupling.obstacle_rectangle(
+        (0.3, 0.3), (0.3 + thickness_cells * h, 0.7),
+        motion=coupling.RigidMotion(velocity=velocity),
+    )
+
+
 @pytest.mark.parametrize("velocity", [(0.2, 0.0), (0.12, -0.09)])
 def test_no_leakage_through_translating_obstacle(velocity: tuple[float, float]) -> None:
-    grid, solver = _closed_box(96, viscosity=1e-3)
-    radius = 0.1
-    motion = coupling.RigidMotion(velocity=velocity)
-    obstacle = coupling.obstacle_circle((0.4, 0.55), radius, segments=64, motion=motion)
-    simulation = Simulation(grid, solver, obstacles=[obstacle], dt=0.01)
-    speed = float(np.hypot(*velocity))
-    gap_flux = speed * 2.0 * radius
-    worst_net, worst_local = 0.0, 0.0
-    for _ in range(25):
-        simulation.step()
-        q = relative_outline_flux(grid, simulation.interior, simulation.state, velocity)
-        worst_net = max(worst_net, abs(q.sum()) / gap_flux)
-        worst_local = max(worst_local, np.abs(q).max() / gap_flux)
-    assert worst_net < 1e-6, f"net flux through the outline {worst_net:.3g} of U D"
-    assert worst_local < 1e-6, f"flux through one outline piece {worst_local:.3g} of U D"
+    net, local = leakage_run(_moving_circle(velocity), velocity, gap=0.2, cells=96)
+    assert net < 1e-6, f"net flux through the outline {net:.3g} of U D"
+    assert local < 1e-6, f"flux through one outline piece {local:.3g} of U D"
 
 
-def test_no_leakage_through_thin_moving_plate() -> None:
-    """A plate thinner than a cell moving across the flow: the case that leaks with a
-    staircase boundary, where no face centre lies inside it."""
-    grid, solver = _closed_box(64, viscosity=1e-3)
-    thickness = 0.4 * grid.h
+def plate_normal_velocity(thickness_cells: float, cells: int = 64, steps: int = 5) -> float:
+    """Mean x-velocity [m/s] of the fluid at the u points within one spacing of either long
+    side of a 0.4 m plate moving broadside at 0.15 m/s, over the middle half of its length."""
     velocity = (0.15, 0.0)
-    motion = coupling.RigidMotion(velocity=velocity)
-    plate = coupling.obstacle_rectangle((0.3, 0.3), (0.3 + thickness, 0.7), motion=motion)
+    grid, solver = _closed_box(cells, viscosity=1e-3)
+    h = grid.h
+    plate = _moving_thin_plate(velocity, h, thickness_cells)
     simulation = Simulation(grid, solver, obstacles=[plate], dt=0.01)
-    gap_flux = velocity[0] * 0.4
-    worst_net, worst_local = 0.0, 0.0
-    for _ in range(25):
-        simulation.step()
-        q = relative_outline_flux(grid, simulation.interior, simulation.state, velocity)
-        worst_net = max(worst_net, abs(q.sum()) / gap_flux)
-        worst_local = max(worst_local, np.abs(q).max() / gap_flux)
-    assert worst_net < 1e-6, f"net flux through the plate {worst_net:.3g} of U D"
-    assert worst_local < 1e-6, f"flux through one outline piece {worst_local:.3g} of U D"
+    simulation.run(steps)
+    left = 0.3 + (steps - 1) * 0.01 * velocity[0]
+    right = left + thickness_cells * h
+    xu, yu = grid.faces_x()
+    middle = np.abs(yu - 0.5) < 0.1
+    near = middle & (((xu < left) & (xu > left - h)) | ((xu > right) & (xu < right + h)))
+    return float(simulation.state.velocity_x[near].mean())
+
+
+@pytest.mark.parametrize("thickness_cells", [
+    1.4,
+    pytest.param(0.4, marks=pytest.mark.xfail(strict=True, reason=(
+        "a plate thinner than a cell between two u-face lines cuts no u face: the projection "
+        "(one pressure per cell, open fractions of faces) does not see it block the flow, and "
+        "the fluid passes through it (0.0066 m/s next to a plate moving at 0.15 m/s)"))),
+])
+def test_moving_plate_pushes_the_fluid_next_to_it(thickness_cells: float) -> None:
+    """No penetration of a plate moving broadside at U: the fluid's normal velocity at the
+    u points within one spacing of its faces (middle half of its length) is within 10% of U
+    (potential flow gives U on the plate and U (1 - O(d/L)) at d <= h = L/26 from it).
+    ``Q_c`` above cannot see this case: a plate inside one cell splits it into two fluid parts,
+    and what enters one part and leaves the other balances in the cell."""
+    speed = 0.15
+    normal_velocity = plate_normal_velocity(thickness_cells)
+    assert abs(normal_velocity - speed) < 0.1 * speed, f"u next to the plate {normal_velocity:.4f}"
 
 
 def test_translating_body_divergence_under_solver_tolerance() -> None:
@@ -151,15 +185,13 @@ def test_translating_body_divergence_under_solver_tolerance() -> None:
         time_now += dt
 
 
-@pytest.mark.parametrize("cells_per_radius", [10, 20])
-def test_impulsively_started_cylinder_gives_potential_flow(cells_per_radius: int) -> None:
-    """From rest, one inviscid step of a cylinder started at U is the projection alone: the
-    potential flow ``phi = -U R^2 cos(theta) / r``, whose normal velocity on the outline is the
-    body's. Bounds: on the faces next to the body (partly open, or with a cut within one
-    spacing) the RMS difference stays below the variation of the exact velocity over one cell
-    at the wall, ``2 U h / R`` (the boundary is first order there); between 1.5 R and 3 R it
-    stays below twice the effect of the box walls, ``2 (R / (L/2))^2 U``."""
-    speed, radius, length = 0.2, 0.1, 2.0
+POTENTIAL_SPEED, POTENTIAL_RADIUS, POTENTIAL_BOX = 0.2, 0.1, 2.0
+
+
+def potential_flow_errors(cells_per_radius: int) -> tuple[float, float]:
+    """RMS difference [m/s] between one inviscid step of an impulsively started cylinder and
+    the potential flow, on the faces next to the body and between 1.5 R and 3 R."""
+    speed, radius, length = POTENTIAL_SPEED, POTENTIAL_RADIUS, POTENTIAL_BOX
     h = radius / cells_per_radius
     n = int(round(length / h))
     grid = Grid2D(nx=n, ny=n, h=h)
@@ -200,7 +232,45 @@ def test_impulsively_started_cylinder_gives_potential_flow(cells_per_radius: int
         state.velocity_x[far_u] - potential(xu[far_u], yu[far_u])[0],
         state.velocity_y[far_v] - potential(xv[far_v], yv[far_v])[1],
     ])
-    near_rms = float(np.sqrt(np.mean(near_error**2)))
-    far_rms = float(np.sqrt(np.mean(far_error**2)))
+    return float(np.sqrt(np.mean(near_error**2))), float(np.sqrt(np.mean(far_error**2)))
+
+
+@pytest.mark.parametrize("cells_per_radius", [10, 20])
+def test_impulsively_started_cylinder_gives_potential_flow(cells_per_radius: int) -> None:
+    """From rest, one inviscid step of a cylinder started at U is the projection alone: the
+    potential flow ``phi = -U R^2 cos(theta) / r``, whose normal velocity on the outline is the
+    body's. Bounds: on the faces next to the body (partly open, or with a cut within one
+    spacing) the RMS difference stays below the variation of the exact velocity over one cell
+    at the wall, ``2 U h / R`` (the boundary is first order there); between 1.5 R and 3 R it
+    stays below twice the effect of the box walls, ``2 (R / (L/2))^2 U``."""
+    speed, radius = POTENTIAL_SPEED, POTENTIAL_RADIUS
+    h = radius / cells_per_radius
+    near_rms, far_rms = potential_flow_errors(cells_per_radius)
     assert near_rms < 2.0 * speed * h / radius, f"next to the body: RMS {near_rms / speed:.3f} U"
-    assert far_rms < 2.0 * (radius / (0.5 * length)) ** 2 * speed, f"far: {far_rms / speed:.4f} U"
+    assert far_rms < 2.0 * (radius / (0.5 * POTENTIAL_BOX)) ** 2 * speed, (
+        f"far: {far_rms / speed:.4f} U")
+
+
+def _report() -> None:
+    """Measured values quoted in docs/validation_coupling.md:
+    ``python tests/validation/test_coupling_leakage.py``."""
+    for velocity in ((0.2, 0.0), (0.12, -0.09)):
+        net, local = leakage_run(_moving_circle(velocity), velocity, gap=0.2, cells=96)
+        print(f"circle R = 0.1 at U = {velocity}, 96^2, 25 steps: net {net:.2e} U D, "
+              f"one cell {local:.2e} U D")
+    net, local = leakage_run(_moving_thin_plate((0.15, 0.0), 1.0 / 64), (0.15, 0.0), gap=0.4,
+                             cells=64)
+    print(f"plate 0.4 h x 0.4 m at U = 0.15, 64^2, 25 steps: net {net:.2e} U D, "
+          f"one cell {local:.2e} U D (blind to a plate inside one cell)")
+    for thickness in (0.4, 1.4, 3.0):
+        print(f"plate {thickness} h thick at U = 0.15: fluid next to it "
+              f"{plate_normal_velocity(thickness):.4f} m/s")
+    for cells in (5, 10, 20):
+        near, far = potential_flow_errors(cells)
+        print(f"potential flow, R/h = {cells}: near RMS {near / POTENTIAL_SPEED:.4f} U "
+              f"(bound {2.0 / cells:.3f}), 1.5-3 R RMS {far / POTENTIAL_SPEED:.4f} U "
+              f"(bound {2.0 * (POTENTIAL_RADIUS / (0.5 * POTENTIAL_BOX)) ** 2:.3f})")
+
+
+if __name__ == "__main__":
+    _report()
