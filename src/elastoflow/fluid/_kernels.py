@@ -234,10 +234,15 @@ def _trace_back_bodies(
     return _clamp(x - dt * um, 0.0, lx), _clamp(y - dt * vm, 0.0, ly)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _corner_range(f, fx, fy, modes, values):
     i0 = int(math.floor(fx))
     j0 = int(math.floor(fy))
+    m, n = f.shape
+    if 0 <= i0 < m - 1 and 0 <= j0 < n - 1:
+        a, b = f[i0, j0], f[i0 + 1, j0]
+        c, d = f[i0, j0 + 1], f[i0 + 1, j0 + 1]
+        return min(min(a, b), min(c, d)), max(max(a, b), max(c, d))
     low = np.inf
     high = -np.inf
     for k in range(4):
@@ -247,7 +252,7 @@ def _corner_range(f, fx, fy, modes, values):
     return low, high
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _finish(source, fx, fy, modes, values, sampled, correct, forward, backward, i, j):
     # MacCormack: forward + (original - backward) / 2, clamped to the range of the original
     # at the departure point (Selle et al. 2008) so that no new extrema appear.
