@@ -26,14 +26,6 @@ converges for every such operator, and its iteration count barely grows with the
 fractional faces, or closed boxes).
 """
 
-import os
-
-# With the OpenMP threading layer, idle Numba threads spin between parallel regions. When the
-# cores are shared (other processes, pytest-xdist workers) the spinning threads starve the
-# working ones and every region waits for a time slice: a 512^2 solve took 2.4 s instead of
-# 55 ms on 2 busy cores. Sleeping idle threads cost a few microseconds per region instead. It
-# must be set before the first parallel kernel runs; an explicit user setting wins.
-os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
 from elastoflow.linalg._jacobi import PoissonSolverJacobi
 from elastoflow.linalg._mgpcg import PoissonSolverMGPCG

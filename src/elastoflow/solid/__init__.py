@@ -10,11 +10,6 @@ Linear triangles in 2D (METHOD §4). A :class:`TriangleMesh` is the rest shape; 
     report = body.advance(dt=0.013, n_sub="auto", external_forces=fluid_force)
 """
 
-import os
-
-# Same reason as in elastoflow.linalg: spinning idle OpenMP threads made the threaded substep
-# kernel 5x slower than the serial one on shared cores; sleeping ones cost microseconds.
-os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
 from elastoflow.solid._body import (
     DEFAULT_SAFETY,
