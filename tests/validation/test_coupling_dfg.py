@@ -88,7 +88,7 @@ def _pressure_on_axis(grid: Grid2D, pressure: np.ndarray, solid: np.ndarray, x: 
 
 
 def run_dfg(cells_per_height: int, *, end_time: float = 3.0, cfl: float = 0.5,
-            segments_per_cell: float = 4.0) -> DfgResult:
+            segments_per_cell: float = 4.0, incremental_pressure: bool = False) -> DfgResult:
     """Run DFG 2D-1 to ``end_time`` [s] from the inflow profile and return its coefficients.
 
     Args:
@@ -97,6 +97,7 @@ def run_dfg(cells_per_height: int, *, end_time: float = 3.0, cfl: float = 0.5,
             whole channel, which is steady to 1e-4 in c_D by about 3 s.
         cfl: Time step as a fraction of h / U_m.
         segments_per_cell: Polygon edges of the cylinder per grid cell of its perimeter.
+        incremental_pressure: The fluid's pressure-correction form (see `FluidSolver`).
     """
     h = CHANNEL_HEIGHT / cells_per_height
     grid = Grid2D(nx=int(round(CHANNEL_LENGTH / h)), ny=cells_per_height, h=h)
@@ -106,7 +107,8 @@ def run_dfg(cells_per_height: int, *, end_time: float = 3.0, cfl: float = 0.5,
         left=fluid.Inflow(speed=PEAK_SPEED, profile="parabolic"), right=fluid.Outflow(),
         bottom=fluid.WallNoSlip(), top=fluid.WallNoSlip(),
     )
-    solver = fluid.FluidSolver(grid, density=DENSITY, viscosity=VISCOSITY, boundaries=boundaries)
+    solver = fluid.FluidSolver(grid, density=DENSITY, viscosity=VISCOSITY, boundaries=boundaries,
+                               incremental_pressure=incremental_pressure)
     segments = max(64, int(np.ceil(segments_per_cell * 2.0 * np.pi * RADIUS / h)))
     cylinder = coupling.obstacle_circle(CENTER, RADIUS, segments=segments)
     bmap = coupling.build_boundary_map(
