@@ -226,6 +226,8 @@ def build_simulation(scene: Scene) -> Simulation:
         substeps=scene.time.substeps,
         force_model=scene.coupling.force_model,
         alpha=scene.coupling.alpha,
+        force_relaxation=scene.coupling.force_relaxation,
+        added_mass=scene.coupling.added_mass,
     )
 
 

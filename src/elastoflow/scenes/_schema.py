@@ -353,6 +353,10 @@ class CouplingSpec(_Spec):
     force_model: Literal["traction", "momentum_exchange"] = "traction"
     alpha: Annotated[float, Field(gt=0.0, le=1.0)] = 0.5
     """Volume fraction in eq. 8 of the momentum-exchange model."""
+    force_relaxation: Annotated[float, Field(gt=0.0, le=1.0)] = 1.0
+    """Under-relaxation of the force on the bodies (1: none); stabilises light bodies."""
+    added_mass: Annotated[float, Field(ge=0.0)] = 0.0
+    """Coefficient of the added-mass stabilisation (0: off)."""
 
 
 # --------------------------------------------------------------------------------------------

@@ -68,6 +68,14 @@ class Simulation:
         alpha: Volume fraction α of the momentum-exchange model.
         cfl_limit: Stop when max |u| dt / h exceeds this (semi-Lagrangian advection is stable
             beyond 1, but a jump this large means the run has diverged).
+        force_relaxation: Under-relaxation ``omega`` in (0, 1] of the force handed to the
+            bodies: ``F_applied^n = F_applied^(n-1) + omega (F^n - F_applied^(n-1))``. 1 (the
+            default) applies each step's force as computed. Explicit coupling feeds the
+            pressure's answer to the body's last acceleration back as ``-m_a a^(n-1)``, which
+            diverges when the added mass ``m_a`` exceeds the body's mass (slender or light
+            bodies); relaxation damps that feedback (stable for roughly
+            ``omega (1 + m_a / m_s) < 2``) at the price of a lag of about ``dt / omega`` in
+            the force, and leaves steady forces unchanged.
         added_mass: Coefficient ``c`` of the added-mass stabilisation for bodies lighter than
             the fluid they displace (0, the default, is plain explicit coupling). Each
             boundary node gets the extra inertia ``c rho_f l_i R`` (``l_i`` its share of the
@@ -93,6 +101,7 @@ class Simulation:
         force_model: ForceModel = "traction",
         alpha: float = 0.5,
         cfl_limit: float = 20.0,
+        force_relaxation: float = 1.0,
         added_mass: float = 0.0,
     ) -> None:
         from elastoflow.fluid import FluidState
@@ -108,6 +117,10 @@ class Simulation:
             raise ValueError(f"substeps = {substeps!r}: must be a positive integer or 'auto'")
         if not 0.0 < alpha <= 1.0:
             raise ValueError(f"alpha = {alpha!r}: must lie in (0, 1]")
+        if not 0.0 < force_relaxation <= 1.0:
+            raise ValueError(
+                f"force_relaxation = {force_relaxation!r}: must lie in (0, 1] (1: no relaxation)"
+            )
         if not (0.0 <= added_mass < np.inf):
             raise ValueError(f"added_mass = {added_mass!r}: must be a finite number >= 0")
         self.grid = grid
@@ -126,6 +139,7 @@ class Simulation:
         self.boundary_map: Any = None
         self.body_forces: list[np.ndarray] = [np.zeros_like(b.positions) for b in self.bodies]
         self.last_report: StepReport | None = None
+        self.force_relaxation = float(force_relaxation)
         self.added_mass_coefficient = float(added_mass)
         self.added_mass = [
             _added_mass_estimate(body, fluid_solver.density, self.added_mass_coefficient)
@@ -243,6 +257,9 @@ class Simulation:
             t0 = clock()
             for index, body in enumerate(self.bodies):
                 force = nodal_force[offsets[index]:offsets[index + 1]]
+                if self.force_relaxation < 1.0 and self.step_index > 0:
+                    previous = self.body_forces[index]
+                    force = previous + self.force_relaxation * (force - previous)
                 self.body_forces[index] = force.copy()
                 extra = None
                 if self.added_mass_coefficient > 0.0:
@@ -324,12 +341,13 @@ class Simulation:
             data[f"body{index}_positions"] = body.positions.copy()
             data[f"body{index}_velocities"] = body.velocities.copy()
             data[f"body{index}_previous_velocities"] = self._previous_velocities[index].copy()
+            data[f"body{index}_forces"] = self.body_forces[index].copy()
         return data
 
     def restore(self, data: dict[str, np.ndarray]) -> None:
         """Put the simulation back into the state saved by `checkpoint`."""
         body_keys = {k for k in data if k.startswith("body")}
-        names = ("positions", "velocities", "previous_velocities")
+        names = ("positions", "velocities", "previous_velocities", "forces")
         expected = {f"body{i}_{n}" for i in range(len(self.bodies)) for n in names}
         if body_keys != expected:
             raise ValueError(
@@ -350,6 +368,7 @@ class Simulation:
             body.positions[...] = data[f"body{index}_positions"]
             body.velocities[...] = data[f"body{index}_velocities"]
             self._previous_velocities[index][...] = data[f"body{index}_previous_velocities"]
+            self.body_forces[index] = np.array(data[f"body{index}_forces"], dtype=np.float64)
 
 
 def _added_mass_estimate(body: Any, fluid_density: float, coefficient: float) -> np.ndarray:
