@@ -100,7 +100,7 @@ def run_dfg(cells_per_height: int, *, end_time: float = 3.0, cfl: float = 0.5,
         incremental_pressure: The fluid's pressure-correction form (see `FluidSolver`).
     """
     h = CHANNEL_HEIGHT / cells_per_height
-    grid = Grid2D(nx=int(round(CHANNEL_LENGTH / h)), ny=cells_per_height, h=h)
+    grid = Grid2D(nx=round(CHANNEL_LENGTH / h), ny=cells_per_height, h=h)
     dt = cfl * h / PEAK_SPEED
     steps = int(np.ceil(end_time / dt))
     boundaries = fluid.DomainBoundaries(

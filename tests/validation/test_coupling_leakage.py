@@ -193,7 +193,7 @@ def potential_flow_errors(cells_per_radius: int) -> tuple[float, float]:
     the potential flow, on the faces next to the body and between 1.5 R and 3 R."""
     speed, radius, length = POTENTIAL_SPEED, POTENTIAL_RADIUS, POTENTIAL_BOX
     h = radius / cells_per_radius
-    n = int(round(length / h))
+    n = round(length / h)
     grid = Grid2D(nx=n, ny=n, h=h)
     boundaries = fluid.DomainBoundaries(
         left=fluid.WallNoSlip(), right=fluid.WallNoSlip(), bottom=fluid.WallNoSlip(),
