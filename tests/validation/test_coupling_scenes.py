@@ -89,7 +89,8 @@ def test_paper_bar_in_jet_runs_200_steps() -> None:
     assert np.isfinite(body.positions).all()
     assert simulation.last_report is not None and simulation.last_report.cfl < 10.0
     moved = np.abs(body.positions - body.mesh.points).max()
-    assert 1e-4 < moved < 0.2, f"bar tip moved {moved:.3g} m"
+    assert moved > 1e-3, f"the jet should bend the bar; it moved {moved:.3g} m"
+    assert ((body.positions > 0.0) & (body.positions < 1.0)).all(), "bar left the box"
 
 
 @pytest.fixture(scope="module")
