@@ -9,7 +9,7 @@ from __future__ import annotations
 import sys
 
 DEMO_SCENE = "bar_in_jet"
-DEMO_STEPS = 300
+DEMO_STEPS = 400
 DEMO_OUT = "out/demo"
 
 
