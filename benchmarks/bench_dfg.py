@@ -3,7 +3,8 @@
 Runs ``run_dfg`` of tests/validation/test_coupling_dfg.py (the cylinder as a static obstacle
 in the boundary map, traction integral and the paper's momentum exchange read from the same
 run) at h = 0.41/31 .. 0.41/164, 3 s of simulated time from the Poiseuille profile, CFL 0.5 on
-the peak inflow speed. Prints a Markdown table, writes ``benchmarks/results/dfg.json`` and, with
+the peak inflow speed; and the same with the staircase baseline (faces fully open or closed, no
+cut distances). Prints a Markdown table, writes ``benchmarks/results/dfg.json`` and, with
 ``--plot``, ``docs/img/coupling_dfg_convergence.png`` and ``docs/img/coupling_dfg_history.png``.
 
 Usage: ``python -m benchmarks dfg [--quick] [--plot]`` (``--quick``: up to 0.41/62).
@@ -77,6 +78,7 @@ def main(argv: list[str] | None = None) -> list[dict[str, Any]]:
     for n in resolutions:
         result = dfg.run_dfg(n, end_time=3.0)
         histories[n] = result.history
+        stairs = dfg.run_dfg(n, end_time=3.0, staircase=True)
         rows.append({
             "h": result.h, "cells": f"0.41/{n}", "steps": result.steps,
             "c_D traction": result.drag_traction, "c_L traction": result.lift_traction,
@@ -85,6 +87,8 @@ def main(argv: list[str] | None = None) -> list[dict[str, Any]]:
             "delta_p": result.delta_p,
             "c_D error": (result.drag_traction - reference["c_D"]) / reference["c_D"],
             "c_D drift (last 0.5 s)": result.drift, "seconds": result.seconds,
+            "c_D staircase": stairs.drag_traction, "c_L staircase": stairs.lift_traction,
+            "delta_p staircase": stairs.delta_p,
         })
         print(f"h = 0.41/{n}: c_D = {result.drag_traction:.4f} ({result.seconds:.1f} s)",
               flush=True)

@@ -12,6 +12,7 @@ The table in docs/validation_coupling.md comes from ``python -m benchmarks.bench
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import time
 from dataclasses import dataclass
@@ -88,7 +89,8 @@ def _pressure_on_axis(grid: Grid2D, pressure: np.ndarray, solid: np.ndarray, x: 
 
 
 def run_dfg(cells_per_height: int, *, end_time: float = 3.0, cfl: float = 0.5,
-            segments_per_cell: float = 4.0, incremental_pressure: bool = False) -> DfgResult:
+            segments_per_cell: float = 4.0, incremental_pressure: bool = False,
+            staircase: bool = False) -> DfgResult:
     """Run DFG 2D-1 to ``end_time`` [s] from the inflow profile and return its coefficients.
 
     Args:
@@ -98,6 +100,9 @@ def run_dfg(cells_per_height: int, *, end_time: float = 3.0, cfl: float = 0.5,
         cfl: Time step as a fraction of h / U_m.
         segments_per_cell: Polygon edges of the cylinder per grid cell of its perimeter.
         incremental_pressure: The fluid's pressure-correction form (see `FluidSolver`).
+        staircase: The baseline of METHOD.md §6: faces fully open or closed by whether their
+            point is inside the cylinder, no cut distances (the forces still integrate along
+            the polygon).
     """
     h = CHANNEL_HEIGHT / cells_per_height
     grid = Grid2D(nx=round(CHANNEL_LENGTH / h), ny=cells_per_height, h=h)
@@ -115,6 +120,14 @@ def run_dfg(cells_per_height: int, *, end_time: float = 3.0, cfl: float = 0.5,
         grid, cylinder.points_at(0.0), cylinder.velocities_at(0.0), cylinder.edges
     )
     interior = coupling.interior_boundary_from_map(grid, bmap)
+    if staircase:
+        interior = dataclasses.replace(
+            interior,
+            open_fraction_x=(~interior.solid_faces_x).astype(np.float64),
+            open_fraction_y=(~interior.solid_faces_y).astype(np.float64),
+            cut_theta_x=np.full_like(interior.cut_theta_x, np.inf),
+            cut_theta_y=np.full_like(interior.cut_theta_y, np.inf),
+        )
     state = fluid.FluidState.zeros(grid)
     _, y = grid.faces_x()
     state.velocity_x[...] = 4.0 * PEAK_SPEED * y * (CHANNEL_HEIGHT - y) / CHANNEL_HEIGHT**2
