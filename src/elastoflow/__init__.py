@@ -17,3 +17,7 @@ import os
 os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
 __version__ = "0.1.0"
+
+from elastoflow._api import load, render
+
+__all__ = ["__version__", "load", "render"]

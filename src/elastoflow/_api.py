@@ -1,0 +1,48 @@
+"""The notebook API: a scene by name or file to a ready simulation, and a frame as an array."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+
+def load(scene: Any) -> Any:
+    """A ready `Simulation` from a built-in scene name, a TOML path, or a `Scene` object.
+
+    Example::
+
+        import elastoflow
+        sim = elastoflow.load("bar_in_jet")
+        for _ in range(100):
+            sim.step()
+        speed_x = sim.state.velocity_x          # (nx+1, ny) [m/s]
+        nodes = sim.bodies[0].positions         # (n, 2) [m]
+        rgb = elastoflow.render(sim, view="vorticity")   # (H, W, 3) uint8
+
+    Raises:
+        elastoflow.scenes.SceneError: unknown scene name or an invalid file (one line per
+            problem, naming the key, the value and what is allowed).
+    """
+    from elastoflow.scenes import Scene, build_simulation, resolve_scene
+
+    chosen = scene if isinstance(scene, Scene) else resolve_scene(str(Path(scene)) if isinstance(
+        scene, Path) else scene)
+    return build_simulation(chosen)
+
+
+def render(simulation: Any, view: str = "speed", **options: Any) -> np.ndarray:
+    """The simulation's current frame as an RGB array (H, W, 3) uint8, as the videos show it.
+
+    Args:
+        simulation: A `Simulation`.
+        view: "speed", "vorticity", "pressure" or "dye".
+        **options: Passed to `elastoflow.render.render_frame` (value_range, scale, colorbar).
+    """
+    from elastoflow.render import render_frame
+
+    return render_frame(
+        simulation.grid, simulation.state, simulation.bodies, simulation.obstacles, view,
+        simulation.time, **options,
+    )
