@@ -333,3 +333,14 @@ def test_sides_are_consistent_under_transposition(advection):
     np.testing.assert_allclose(second.velocity_x, first.velocity_y.T, atol=1e-9)
     np.testing.assert_allclose(second.dye, first.dye.T, atol=1e-9)
     np.testing.assert_allclose(second.pressure, first.pressure.T, atol=1e-8)
+
+
+def test_dye_buoyancy_lifts_dyed_fluid():
+    grid = Grid2D(16, 16, 1.0 / 16)
+    solver = FluidSolver(grid, density=1.0, viscosity=0.001, boundaries=CLOSED, buoyancy=2.0)
+    state = FluidState.zeros(grid)
+    state.dye[6:10, 2:6] = 1.0
+    solver.step(state, 0.01, 0.0)
+    assert state.velocity_y[6:10, 3:6].min() > 0.0
+    # Fluid away from the blob moves down to make room: no net vertical flux through any row.
+    np.testing.assert_allclose(state.velocity_y[:, 1:-1].sum(axis=0), 0.0, atol=1e-8)
