@@ -277,27 +277,21 @@ def _corner_range(f, fx, fy, modes, values):
     return low, high
 
 
-@njit(cache=True, inline="always")
-def _finish(source, fx, fy, modes, values, sampled, correct, forward, backward, i, j):
-    # MacCormack: forward + (original - backward) / 2, clamped to the range of the original
-    # at the departure point (Selle et al. 2008) so that no new extrema appear.
-    if not correct:
-        return sampled
-    low, high = _corner_range(source, fx, fy, modes, values)
-    return _clamp(forward[i, j] + 0.5 * (source[i, j] - backward[i, j]), low, high)
-
-
 @njit(cache=True, parallel=True)
 def advect_field_x(
     u, v, source, out, dt, h, modes_u, values_u, modes_v, values_v, has_interior,
-    solid_x, theta_x, cut_x, solid_y, theta_y, cut_y, body_velocity, correct, forward, backward,
+    solid_x, theta_x, cut_x, solid_y, theta_y, cut_y, body_velocity, mode, forward, backward,
+    departure_x, departure_y,
 ):
     """Transport the x-face field ``source`` by (u, v) over ``dt`` into ``out`` (nx+1, ny).
 
     The body arrays (solid flags, cut fractions and cut velocities of the x- and y-faces) are
-    read only with ``has_interior``. With ``correct`` the result is the MacCormack
-    correction of ``forward`` (this step's semi-Lagrangian result) and ``backward``
-    (``forward`` advected back over ``-dt``).
+    read only with ``has_interior``. ``mode`` 0 samples ``source`` at the departure points;
+    1 does the same and stores the departure points (index coordinates of ``source``) in
+    ``departure_x`` / ``departure_y``; 2 skips the trace and writes the MacCormack correction
+    ``forward + (source - backward) / 2`` of this step's semi-Lagrangian result ``forward`` and
+    its backward advection ``backward``, clamped to the range of ``source`` around the stored
+    departure point (Selle et al. 2008), so that no new extrema appear.
     """
     nx1, ny = u.shape
     inv_h = 1.0 / h
@@ -305,12 +299,20 @@ def advect_field_x(
     ly = ny * h
     for i in prange(nx1):
         for j in range(ny):
+            if has_interior and solid_x[i, j]:
+                out[i, j] = body_velocity[i, j]
+                continue
+            if mode == 2:
+                low, high = _corner_range(
+                    source, departure_x[i, j], departure_y[i, j], modes_u, values_u
+                )
+                out[i, j] = _clamp(
+                    forward[i, j] + 0.5 * (source[i, j] - backward[i, j]), low, high
+                )
+                continue
             x = i * h
             y = (j + 0.5) * h
             if has_interior:
-                if solid_x[i, j]:
-                    out[i, j] = body_velocity[i, j]
-                    continue
                 uy = _sample_with_bodies(v, x * inv_h - 0.5, y * inv_h, modes_v, values_v,
                                          solid_y, theta_y, cut_y)
                 xb, yb = _trace_back_bodies(
@@ -325,37 +327,47 @@ def advect_field_x(
                 )
             fx = xb * inv_h
             fy = yb * inv_h - 0.5
-            sampled = 0.0
-            if correct:
-                sampled = 0.0
-            elif has_interior:
-                sampled = _sample_with_bodies(source, fx, fy, modes_u, values_u, solid_x, theta_x,
-                                              cut_x)
+            if mode == 1:
+                departure_x[i, j] = fx
+                departure_y[i, j] = fy
+            if has_interior:
+                out[i, j] = _sample_with_bodies(
+                    source, fx, fy, modes_u, values_u, solid_x, theta_x, cut_x
+                )
             else:
-                sampled = _sample(source, fx, fy, modes_u, values_u)
-            out[i, j] = _finish(
-                source, fx, fy, modes_u, values_u, sampled, correct, forward, backward, i, j
-            )
+                out[i, j] = _sample(source, fx, fy, modes_u, values_u)
 
 
 @njit(cache=True, parallel=True)
 def advect_field_y(
     u, v, source, out, dt, h, modes_u, values_u, modes_v, values_v, has_interior,
-    solid_x, theta_x, cut_x, solid_y, theta_y, cut_y, body_velocity, correct, forward, backward,
+    solid_x, theta_x, cut_x, solid_y, theta_y, cut_y, body_velocity, mode, forward, backward,
+    departure_x, departure_y,
 ):
-    """Transport the y-face field ``source`` by (u, v) over ``dt`` into ``out`` (nx, ny+1)."""
+    """Transport the y-face field ``source`` by (u, v) over ``dt`` into ``out`` (nx, ny+1).
+
+    ``mode`` and the departure arrays as in `advect_field_x`.
+    """
     nx, ny1 = v.shape
     inv_h = 1.0 / h
     lx = nx * h
     ly = (ny1 - 1) * h
     for i in prange(nx):
         for j in range(ny1):
+            if has_interior and solid_y[i, j]:
+                out[i, j] = body_velocity[i, j]
+                continue
+            if mode == 2:
+                low, high = _corner_range(
+                    source, departure_x[i, j], departure_y[i, j], modes_v, values_v
+                )
+                out[i, j] = _clamp(
+                    forward[i, j] + 0.5 * (source[i, j] - backward[i, j]), low, high
+                )
+                continue
             x = (i + 0.5) * h
             y = j * h
             if has_interior:
-                if solid_y[i, j]:
-                    out[i, j] = body_velocity[i, j]
-                    continue
                 ux = _sample_with_bodies(u, x * inv_h, y * inv_h - 0.5, modes_u, values_u,
                                          solid_x, theta_x, cut_x)
                 xb, yb = _trace_back_bodies(
@@ -370,26 +382,27 @@ def advect_field_y(
                 )
             fx = xb * inv_h - 0.5
             fy = yb * inv_h
-            sampled = 0.0
-            if correct:
-                sampled = 0.0
-            elif has_interior:
-                sampled = _sample_with_bodies(source, fx, fy, modes_v, values_v, solid_y, theta_y,
-                                              cut_y)
+            if mode == 1:
+                departure_x[i, j] = fx
+                departure_y[i, j] = fy
+            if has_interior:
+                out[i, j] = _sample_with_bodies(
+                    source, fx, fy, modes_v, values_v, solid_y, theta_y, cut_y
+                )
             else:
-                sampled = _sample(source, fx, fy, modes_v, values_v)
-            out[i, j] = _finish(
-                source, fx, fy, modes_v, values_v, sampled, correct, forward, backward, i, j
-            )
+                out[i, j] = _sample(source, fx, fy, modes_v, values_v)
 
 
 @njit(cache=True, parallel=True)
 def advect_cells(
     u, v, source, out, dt, h, modes_u, values_u, modes_v, values_v, modes_c, values_c,
-    has_interior, solid_x, theta_x, cut_x, solid_y, theta_y, cut_y, solid_cells, correct,
-    forward, backward,
+    has_interior, solid_x, theta_x, cut_x, solid_y, theta_y, cut_y, solid_cells, mode,
+    forward, backward, departure_x, departure_y,
 ):
-    """Transport a cell-centred scalar by (u, v) over ``dt`` into ``out`` (nx, ny)."""
+    """Transport a cell-centred scalar by (u, v) over ``dt`` into ``out`` (nx, ny).
+
+    ``mode`` and the departure arrays as in `advect_field_x`.
+    """
     nx, ny = source.shape
     inv_h = 1.0 / h
     lx = nx * h
@@ -398,6 +411,14 @@ def advect_cells(
         for j in range(ny):
             if has_interior and solid_cells[i, j]:
                 out[i, j] = 0.0
+                continue
+            if mode == 2:
+                low, high = _corner_range(
+                    source, departure_x[i, j], departure_y[i, j], modes_c, values_c
+                )
+                out[i, j] = _clamp(
+                    forward[i, j] + 0.5 * (source[i, j] - backward[i, j]), low, high
+                )
                 continue
             x = (i + 0.5) * h
             y = (j + 0.5) * h
@@ -417,15 +438,15 @@ def advect_cells(
                 )
             fx = xb * inv_h - 0.5
             fy = yb * inv_h - 0.5
-            if correct:
-                sampled = 0.0
-            elif has_interior:
-                sampled = _sample_dye_with_bodies(source, fx, fy, modes_c, values_c, solid_cells)
+            if mode == 1:
+                departure_x[i, j] = fx
+                departure_y[i, j] = fy
+            if has_interior:
+                out[i, j] = _sample_dye_with_bodies(
+                    source, fx, fy, modes_c, values_c, solid_cells
+                )
             else:
-                sampled = _sample(source, fx, fy, modes_c, values_c)
-            out[i, j] = _finish(
-                source, fx, fy, modes_c, values_c, sampled, correct, forward, backward, i, j
-            )
+                out[i, j] = _sample(source, fx, fy, modes_c, values_c)
 
 
 @njit(cache=True, parallel=True)

@@ -227,6 +227,11 @@ class FluidSolver:
         self._backward_u = np.zeros(fx)
         self._backward_v = np.zeros(fy)
         self._backward_dye = np.zeros(c)
+        # Departure points (index coordinates) of the forward MacCormack pass, two per field.
+        if self.advection == "maccormack":
+            self._departures = tuple(np.zeros(shape) for shape in (fx, fx, fy, fy, c, c))
+        else:
+            self._departures = (np.zeros((1, 1)),) * 6
         self._rhs_pressure = np.zeros(c)
         self._solid_u = np.zeros(fx)
         self._solid_v = np.zeros(fy)
@@ -289,7 +294,7 @@ class FluidSolver:
     def _advect_once(
         self, state: FluidState, sources: tuple[np.ndarray, np.ndarray, np.ndarray],
         outs: tuple[np.ndarray, np.ndarray, np.ndarray], dt: float,
-        interior: InteriorBoundary | None, correct: bool = False,
+        interior: InteriorBoundary | None, mode: int = 0,
         forwards: tuple[np.ndarray, ...] | None = None,
         backwards: tuple[np.ndarray, ...] | None = None,
     ) -> None:
@@ -299,22 +304,23 @@ class FluidSolver:
         _, solid_y, theta_y, cut_y, body_y = self._interior_arrays(interior, 1)
         forwards = forwards if forwards is not None else sources
         backwards = backwards if backwards is not None else sources
+        departures = self._departures
         kernels.advect_field_x(
             u, v, sources[0], outs[0], dt, h, self._modes_u, self._values_u, self._modes_v,
-            self._values_v, has, solid_x, theta_x, cut_x, solid_y, theta_y, cut_y, body_x, correct,
-            forwards[0], backwards[0],
+            self._values_v, has, solid_x, theta_x, cut_x, solid_y, theta_y, cut_y, body_x, mode,
+            forwards[0], backwards[0], departures[0], departures[1],
         )
         kernels.advect_field_y(
             u, v, sources[1], outs[1], dt, h, self._modes_u, self._values_u, self._modes_v,
-            self._values_v, has, solid_x, theta_x, cut_x, solid_y, theta_y, cut_y, body_y, correct,
-            forwards[1], backwards[1],
+            self._values_v, has, solid_x, theta_x, cut_x, solid_y, theta_y, cut_y, body_y, mode,
+            forwards[1], backwards[1], departures[2], departures[3],
         )
         solid_cells = interior.solid_cells if interior is not None else self._no_solid
         kernels.advect_cells(
             u, v, sources[2], outs[2], dt, h, self._modes_u, self._values_u, self._modes_v,
             self._values_v, self._modes_dye, self._values_dye, has, solid_x, theta_x, cut_x,
-            solid_y, theta_y, cut_y, solid_cells,
-            correct, forwards[2], backwards[2],
+            solid_y, theta_y, cut_y, solid_cells, mode, forwards[2], backwards[2],
+            departures[4], departures[5],
         )
 
     def advect(
@@ -326,19 +332,22 @@ class FluidSolver:
         body boundary are replaced by cut-distance ghosts (METHOD.md §6), velocity points
         inside bodies take the body velocity and dye does not enter bodies. With
         ``advection="maccormack"`` the semi-Lagrangian result is corrected by the error of a
-        backward step and clamped to the local range (Selle et al. 2008).
+        backward step and clamped to the local range at the departure point (Selle et al.
+        2008).
         """
         self._check_step_input(state, dt, interior)
         fields = (state.velocity_x, state.velocity_y, state.dye)
         forward = (self._buffer_u, self._buffer_v, self._buffer_dye)
-        self._advect_once(state, fields, forward, dt, interior)
-        result = forward
         if self.advection == "maccormack":
+            self._advect_once(state, fields, forward, dt, interior, mode=1)
             backward = (self._backward_u, self._backward_v, self._backward_dye)
             self._advect_once(state, forward, backward, -dt, interior)
             # The correction reads backward[i, j] before writing it, so it can work in place.
-            self._advect_once(state, fields, backward, dt, interior, True, forward, backward)
+            self._advect_once(state, fields, backward, dt, interior, 2, forward, backward)
             result = backward
+        else:
+            self._advect_once(state, fields, forward, dt, interior)
+            result = forward
         for source, target in zip(result, fields):
             kernels.copy_into(source, target)
 
