@@ -235,7 +235,6 @@ class FluidSolver:
         self._rhs_pressure = np.zeros(c)
         self._solid_u = np.zeros(fx)
         self._solid_v = np.zeros(fy)
-        self._divergence = np.zeros(c)
         # Stand-ins for the interior arrays when there are no bodies (never read then).
         self._no_solid = np.zeros((1, 1), dtype=np.bool_)
         self._no_theta = np.full((4, 1, 1), np.inf)
