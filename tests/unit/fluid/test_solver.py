@@ -344,3 +344,29 @@ def test_dye_buoyancy_lifts_dyed_fluid():
     assert state.velocity_y[6:10, 3:6].min() > 0.0
     # Fluid away from the blob moves down to make room: no net vertical flux through any row.
     np.testing.assert_allclose(state.velocity_y[:, 1:-1].sum(axis=0), 0.0, atol=1e-8)
+
+
+def test_sides_are_consistent_under_mirroring():
+    # x -> Lx - x maps left onto right and u onto -u: an inflow from the right into an outflow
+    # on the left must give the mirrored flow of the left-to-right channel.
+    grid = Grid2D(12, 10, 0.1)
+    setups = (
+        DomainBoundaries(Inflow(1.0, profile="parabolic", dye=1.0), Outflow(), WallNoSlip(),
+                         WallMoving(0.3)),
+        DomainBoundaries(Outflow(), Inflow(1.0, profile="parabolic", dye=1.0), WallNoSlip(),
+                         WallMoving(-0.3)),
+    )
+    states = []
+    for boundaries in setups:
+        solver = FluidSolver(grid, density=1.0, viscosity=0.01, boundaries=boundaries,
+                             pressure_solver=PoissonSolverMGPCG(rtol=1e-12, max_iterations=500),
+                             viscosity_solver=PoissonSolverMGPCG(rtol=1e-12, max_iterations=500))
+        state = FluidState.zeros(grid)
+        for k in range(6):
+            solver.step(state, 0.03, 0.03 * k)
+        states.append(state)
+    first, second = states
+    np.testing.assert_allclose(second.velocity_x, -first.velocity_x[::-1], atol=1e-9)
+    np.testing.assert_allclose(second.velocity_y, first.velocity_y[::-1], atol=1e-9)
+    np.testing.assert_allclose(second.dye, first.dye[::-1], atol=1e-9)
+    np.testing.assert_allclose(second.pressure, first.pressure[::-1], atol=1e-8)
