@@ -1,4 +1,12 @@
-"""Incompressible fluid on the MAC grid: state, domain boundaries, jets, solver phases."""
+"""Incompressible fluid on the MAC grid: state, domain boundaries, jets, solver phases.
+
+``FluidSolver`` advances a ``FluidState`` by stable fluids (METHOD.md §3): semi-Lagrangian or
+MacCormack advection, implicit viscosity, forces, and a projection whose faces are weighted by
+their open fraction so that bodies described by an ``InteriorBoundary`` (METHOD.md §6) enter
+with cut-distance boundary conditions. ``divergence_faces_to_cells`` and
+``gradient_cells_to_faces`` are the discrete operators the projection is built from.
+Validation: docs/validation_fluid.md.
+"""
 
 from elastoflow.fluid._boundaries import (
     DomainBoundaries,
