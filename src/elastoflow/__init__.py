@@ -18,6 +18,6 @@ os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
 __version__ = "0.1.0"
 
-from elastoflow._api import load, render
+from elastoflow._api import frame, load
 
-__all__ = ["__version__", "load", "render"]
+__all__ = ["__version__", "frame", "load"]

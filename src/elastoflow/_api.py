@@ -19,7 +19,7 @@ def load(scene: Any) -> Any:
             sim.step()
         speed_x = sim.state.velocity_x          # (nx+1, ny) [m/s]
         nodes = sim.bodies[0].positions         # (n, 2) [m]
-        rgb = elastoflow.render(sim, view="vorticity")   # (H, W, 3) uint8
+        rgb = elastoflow.frame(sim, view="vorticity")    # (H, W, 3) uint8
 
     Raises:
         elastoflow.scenes.SceneError: unknown scene name or an invalid file (one line per
@@ -32,7 +32,7 @@ def load(scene: Any) -> Any:
     return build_simulation(chosen)
 
 
-def render(simulation: Any, view: str = "speed", **options: Any) -> np.ndarray:
+def frame(simulation: Any, view: str = "speed", **options: Any) -> np.ndarray:
     """The simulation's current frame as an RGB array (H, W, 3) uint8, as the videos show it.
 
     Args:

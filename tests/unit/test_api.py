@@ -28,7 +28,7 @@ def test_load_by_file_steps_and_renders(tmp_path):
     assert sim.state.velocity_x.shape == (33, 32)
     assert np.isfinite(sim.state.pressure).all()
     assert sim.bodies[0].positions.shape == before.shape
-    frame = elastoflow.render(sim, view="speed")
+    frame = elastoflow.frame(sim, view="speed")
     assert frame.dtype == np.uint8 and frame.ndim == 3 and frame.shape[2] == 3
 
 

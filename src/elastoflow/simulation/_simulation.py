@@ -250,7 +250,7 @@ class Simulation:
             )
             seconds["coupling_force"] = clock() - t0
 
-        self._check_fluid(next_step)
+        cfl = self._check_fluid(next_step)
 
         substeps_taken: list[int] = []
         if self.bodies:
@@ -282,21 +282,21 @@ class Simulation:
         self.step_index = next_step
         self.interior = interior
         self.boundary_map = bmap
-        speed = max(float(np.abs(state.velocity_x).max()), float(np.abs(state.velocity_y).max()))
         report = StepReport(
             step=next_step,
             time=self.time,
             pressure_iterations=int(solve.iterations),
             pressure_residual=float(solve.residual),
             substeps=substeps_taken,
-            cfl=speed * dt / self.grid.h,
+            cfl=cfl,
             crossing_count=0 if bmap is None else int(bmap.crossing_count),
             seconds_by_phase=seconds,
         )
         self.last_report = report
         return report
 
-    def _check_fluid(self, step: int) -> None:
+    def _check_fluid(self, step: int) -> float:
+        """Raise `SimulationBlowUp` on non-finite fields or runaway CFL; return the CFL number."""
         state = self.state
         for name in ("velocity_x", "velocity_y", "pressure"):
             values = getattr(state, name)
@@ -314,6 +314,7 @@ class Simulation:
                 f"(max speed {speed:.3g} m/s) exceeds the limit {self.cfl_limit:g}; the coupling "
                 "has diverged (a body much lighter than the fluid, or dt too large)"
             )
+        return cfl
 
     def run(self, steps: int, callbacks: Sequence[Any] = ()) -> list[StepReport]:
         """Take ``steps`` steps, calling each ``callback(simulation, report)`` after each."""
