@@ -556,8 +556,29 @@ def coarse_solve_kernel(factor, b, x, m, n):
 
 @njit(cache=True)
 def v_cycle(rows, cols, offsets, diagonal, weights_x, weights_y, total, inverse, level_x,
-            level_b, coarse_factor, r, z, sweeps):
-    """Symmetric V-cycle ``z = M r``: red-black Gauss-Seidel before, black-red after."""
+            level_b, coarse_factor, r, z, sweeps, coarse):
+    """Symmetric V-cycle ``z = M r``: red-black Gauss-Seidel before, black-red after.
+
+    ``coarse`` False keeps the fine level only (symmetric Gauss-Seidel): enough for
+    diagonally dominant operators, whose smooth errors the smoother already damps."""
+    if not coarse:
+        m = rows[0]
+        n = cols[0]
+        size = offsets[1]
+        inv = inverse[:size]
+        wx = weights_x[:size]
+        wy = weights_y[:size]
+        if m * n > PARALLEL_MINIMUM:
+            for sweep in range(sweeps):
+                smooth_parallel(z, r, inv, wx, wy, m, n, 0, sweep == 0)
+            for sweep in range(sweeps):
+                smooth_parallel(z, r, inv, wx, wy, m, n, 1, False)
+        else:
+            for sweep in range(sweeps):
+                smooth_serial(z, r, inv, wx, wy, m, n, 0, sweep == 0)
+            for sweep in range(sweeps):
+                smooth_serial(z, r, inv, wx, wy, m, n, 1, False)
+        return
     levels = rows.shape[0]
     for level in range(levels - 1):
         m = rows[level]
@@ -770,7 +791,8 @@ def _step(x, r, p, q, alpha, m, n):
 
 @njit(cache=True)
 def pcg_kernel(rows, cols, offsets, diagonal, weights_x, weights_y, total, inverse, level_x,
-               level_b, coarse_factor, b, x, r, p, q, z, threshold, max_iterations, sweeps):
+               level_b, coarse_factor, b, x, r, p, q, z, threshold, max_iterations, sweeps,
+               coarse):
     """Preconditioned CG on level 0 until ``|b - A x|^2 <= threshold`` (checked on the true
     residual). Returns ``(iterations, |b - A x|^2)``."""
     m = rows[0]
@@ -792,7 +814,7 @@ def pcg_kernel(rows, cols, offsets, diagonal, weights_x, weights_y, total, inver
             squared = _residual_norm(x, b, d_total, wx, wy, r, m, n)
             break
         v_cycle(rows, cols, offsets, diagonal, weights_x, weights_y, total, inverse, level_x,
-                level_b, coarse_factor, r, z, sweeps)
+                level_b, coarse_factor, r, z, sweeps, coarse)
         rz = _dot(r, z, m, n)
         p[:] = 0.0
         q[:] = 0.0
@@ -808,7 +830,7 @@ def pcg_kernel(rows, cols, offsets, diagonal, weights_x, weights_y, total, inver
             if squared <= threshold:
                 break
             v_cycle(rows, cols, offsets, diagonal, weights_x, weights_y, total, inverse,
-                    level_x, level_b, coarse_factor, r, z, sweeps)
+                    level_x, level_b, coarse_factor, r, z, sweeps, coarse)
             rz_next = _dot(r, z, m, n)
             beta = rz_next / rz
             rz = rz_next
@@ -872,3 +894,64 @@ def finite_minimum_kernel(values):
         bad_rows[i] = bad
         smallest_rows[i] = smallest
     return bad_rows.sum(), smallest_rows.min()
+
+
+@njit(cache=True, parallel=True)
+def operator_matches_kernel(diagonal, weights_x, weights_y, diagonal_flat, weights_x_flat,
+                            weights_y_flat):
+    """Whether the operator equals the one stored in the padded level-0 arrays."""
+    m, n = diagonal.shape
+    stride = n + 2
+    differences = 0
+    for i in prange(m):
+        row = (i + 1) * stride + 1
+        different = 0
+        for j in range(n):
+            if diagonal[i, j] != diagonal_flat[row + j]:
+                different += 1
+            if i < m - 1 and weights_x[i, j] != weights_x_flat[row + j]:
+                different += 1
+            if j < n - 1 and weights_y[i, j] != weights_y_flat[row + j]:
+                different += 1
+        differences += different
+    return differences == 0
+
+
+@njit(cache=True, parallel=True)
+def diagonally_dominant_kernel(diagonal_flat, total_flat, m, n):
+    """Whether every active point's diagonal term is at least the sum of its weights."""
+    stride = n + 2
+    weak = 0
+    for i in prange(m):
+        row = (i + 1) * stride + 1
+        count = 0
+        for j in range(n):
+            if diagonal_flat[row + j] < total_flat[row + j] - diagonal_flat[row + j]:
+                count += 1
+        weak += count
+    return weak == 0
+
+
+@njit(cache=True, parallel=True)
+def pad_masked_kernel(values, active, flat):
+    """Copy ``values`` into the padded ``flat``, 0 at inactive points; return ``(number of
+    non-finite entries, sum of squares of the copied values)``."""
+    m, n = values.shape
+    stride = n + 2
+    bad = 0
+    squared = 0.0
+    for i in prange(m):
+        row = (i + 1) * stride + 1
+        row_bad = 0
+        row_squared = 0.0
+        for j in range(n):
+            value = values[i, j]
+            if not np.isfinite(value):
+                row_bad += 1
+            if not active[i, j]:
+                value = 0.0
+            flat[row + j] = value
+            row_squared += value * value
+        bad += row_bad
+        squared += row_squared
+    return bad, squared

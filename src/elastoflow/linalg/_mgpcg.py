@@ -12,7 +12,9 @@ from elastoflow.linalg._kernels import (
     coarsen_parallel,
     coarsen_serial,
     dense_matrix_kernel,
-    finite_minimum_kernel,
+    diagonally_dominant_kernel,
+    operator_matches_kernel,
+    pad_masked_kernel,
     pad_operator_kernel,
     pad_values_kernel,
     pcg_kernel,
@@ -21,7 +23,7 @@ from elastoflow.linalg._kernels import (
     unpad_values_kernel,
 )
 from elastoflow.linalg._operator import Operator5Point, SolveReport
-from elastoflow.linalg._problem import _compatible_rhs
+from elastoflow.linalg._problem import _analyse, _NullSpace
 
 _COARSEST_SIZE = 32
 
@@ -52,12 +54,33 @@ class _Hierarchy:
         coarse_size = rows[-1] * cols[-1]
         self.dense = np.zeros((coarse_size, coarse_size))
         self.factor = np.zeros((coarse_size, coarse_size))
+        self.values = np.zeros(shape)
+        self.coarse = True
+        self.null_space: _NullSpace | None = None
 
     def _level(self, array: NDArray[np.float64], level: int) -> NDArray[np.float64]:
         return array[self.offsets[level]:self.offsets[level + 1]]
 
-    def build(self, operator: Operator5Point) -> NDArray[np.float64]:
-        """Fill every level from ``operator``; return the coarsest level's Cholesky factor."""
+    def prepare(self, operator: Operator5Point) -> _NullSpace:
+        """Make the levels hold ``operator``; return its active points and null space.
+
+        The levels of the previous operator are kept when ``operator`` has the same values
+        (constant viscosity operators, pressure without moving bodies): comparing costs one
+        pass over the operator, rebuilding several, plus the component analysis.
+        """
+        if self.null_space is not None and operator_matches_kernel(
+            operator.diagonal, operator.weights_x, operator.weights_y,
+            self._level(self.diagonal, 0), self._level(self.weights_x, 0),
+            self._level(self.weights_y, 0),
+        ):
+            return self.null_space
+        self.null_space = None
+        self._build(operator)
+        self.null_space = _analyse(operator)
+        return self.null_space
+
+    def _build(self, operator: Operator5Point) -> None:
+        """Fill every level from ``operator`` and factor the coarsest one."""
         pad_operator_kernel(
             operator.diagonal, operator.weights_x, operator.weights_y,
             self._level(self.diagonal, 0), self._level(self.weights_x, 0),
@@ -65,6 +88,15 @@ class _Hierarchy:
             self._level(self.inverse, 0),
         )
         levels = len(self.rows)
+        # A diagonally dominant operator (implicit viscosity at moderate nu dt / h^2) needs no
+        # coarse correction: symmetric Gauss-Seidel alone reduces every error mode by a large
+        # factor, at a fraction of a V-cycle's cost.
+        self.coarse = levels == 1 or not diagonally_dominant_kernel(
+            self._level(self.diagonal, 0), self._level(self.total, 0),
+            int(self.rows[0]), int(self.cols[0]),
+        )
+        if not self.coarse:
+            return
         for level in range(1, levels):
             m, n = int(self.rows[level]), int(self.cols[level])
             coarsen = coarsen_parallel if m * n > PARALLEL_MINIMUM else coarsen_serial
@@ -82,7 +114,6 @@ class _Hierarchy:
             self.dense,
         )
         semidefinite_cholesky_kernel(self.dense, self.factor)
-        return self.factor
 
 
 @dataclass(frozen=True)
@@ -144,31 +175,39 @@ class PoissonSolverMGPCG:
             ``x`` (shape ``(m, n)``; 0 at inactive points, zero mean on singular components) and
             the report.
         """
-        b, null_space = _compatible_rhs(operator, rhs)
-        norm_b = float(np.sqrt(sum_of_squares_kernel(b)))
-        if norm_b == 0.0:
-            return np.zeros(operator.shape), SolveReport(0, 0.0, True)
+        rhs = np.asarray(rhs, dtype=np.float64)
+        if rhs.shape != operator.shape:
+            raise ValueError(f"rhs: shape {rhs.shape} is not allowed; expected {operator.shape}")
+        if x0 is not None:
+            x0 = np.asarray(x0, dtype=np.float64)
+            if x0.shape != operator.shape:
+                raise ValueError(f"x0: shape {x0.shape} is not allowed; expected {operator.shape}")
         hierarchy = self._hierarchies.get(operator.shape)
         if hierarchy is None:
             hierarchy = _Hierarchy(operator.shape)
             self._hierarchies[operator.shape] = hierarchy
-        coarse_factor = hierarchy.build(operator)
-        pad_values_kernel(b, hierarchy.b)
+        null_space = hierarchy.prepare(operator)
+        bad, squared_b = pad_masked_kernel(rhs, null_space.active, hierarchy.b)
+        if bad:
+            raise ValueError("rhs: values must be finite; got NaN or inf")
+        if null_space.has_singular:
+            unpad_values_kernel(hierarchy.b, hierarchy.values)
+            null_space.remove_means(hierarchy.values)
+            pad_values_kernel(hierarchy.values, hierarchy.b)
+            squared_b = sum_of_squares_kernel(hierarchy.values)
+        norm_b = float(np.sqrt(squared_b))
+        if norm_b == 0.0:
+            return np.zeros(operator.shape), SolveReport(0, 0.0, True)
         if x0 is None:
             hierarchy.x[:] = 0.0
-        else:
-            x0 = np.asarray(x0, dtype=np.float64)
-            if x0.shape != operator.shape:
-                raise ValueError(f"x0: shape {x0.shape} is not allowed; expected {operator.shape}")
-            if x0.size and finite_minimum_kernel(np.ascontiguousarray(x0))[0]:
-                raise ValueError("x0: values must be finite; got NaN or inf")
-            pad_values_kernel(np.where(null_space.active, x0, 0.0), hierarchy.x)
+        elif pad_masked_kernel(x0, null_space.active, hierarchy.x)[0]:
+            raise ValueError("x0: values must be finite; got NaN or inf")
         iterations, squared = pcg_kernel(
             hierarchy.rows, hierarchy.cols, hierarchy.offsets, hierarchy.diagonal,
             hierarchy.weights_x, hierarchy.weights_y, hierarchy.total, hierarchy.inverse,
-            hierarchy.level_x, hierarchy.level_b, coarse_factor, hierarchy.b, hierarchy.x,
+            hierarchy.level_x, hierarchy.level_b, hierarchy.factor, hierarchy.b, hierarchy.x,
             hierarchy.r, hierarchy.p, hierarchy.q, hierarchy.z, (self.rtol * norm_b) ** 2,
-            self.max_iterations, self.smoothing_sweeps,
+            self.max_iterations, self.smoothing_sweeps, hierarchy.coarse,
         )
         x = np.empty(operator.shape)
         unpad_values_kernel(hierarchy.x, x)
