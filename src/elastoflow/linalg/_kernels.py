@@ -918,15 +918,16 @@ def operator_matches_kernel(diagonal, weights_x, weights_y, diagonal_flat, weigh
 
 
 @njit(cache=True, parallel=True)
-def diagonally_dominant_kernel(diagonal_flat, total_flat, m, n):
-    """Whether every active point's diagonal term is at least the sum of its weights."""
+def diagonally_dominant_kernel(diagonal_flat, total_flat, m, n, ratio):
+    """Whether every point's diagonal term is at least ``ratio`` times the sum of its
+    weights."""
     stride = n + 2
     weak = 0
     for i in prange(m):
         row = (i + 1) * stride + 1
         count = 0
         for j in range(n):
-            if diagonal_flat[row + j] < total_flat[row + j] - diagonal_flat[row + j]:
+            if diagonal_flat[row + j] < ratio * (total_flat[row + j] - diagonal_flat[row + j]):
                 count += 1
         weak += count
     return weak == 0
