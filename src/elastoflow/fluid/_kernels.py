@@ -193,6 +193,14 @@ def _sample_dye_with_bodies(f, fx, fy, modes, values, solid):
     j0 = int(math.floor(fy))
     a = fx - i0
     b = fy - j0
+    if (
+        0 <= i0 < m - 1 and 0 <= j0 < n - 1
+        and not (solid[i0, j0] or solid[i0 + 1, j0] or solid[i0, j0 + 1] or solid[i0 + 1, j0 + 1])
+    ):
+        # Away from bodies and sides (nearly every cell): plain bilinear interpolation.
+        return _lerp(
+            _lerp(f[i0, j0], f[i0 + 1, j0], a), _lerp(f[i0, j0 + 1], f[i0 + 1, j0 + 1], a), b
+        )
     total = 0.0
     weight_sum = 0.0
     for k in range(4):

@@ -875,25 +875,52 @@ def sum_of_squares_kernel(values):
     return total
 
 
-@njit(cache=True, parallel=True)
-def finite_minimum_kernel(values):
-    """Return ``(number of non-finite entries, minimum of the finite ones)`` of an ``(m, n)``
-    array, in one pass."""
+# Reassociation lets the reductions vectorise; NaN and inf keep their IEEE behaviour (no
+# nnan/ninf flags), which the finiteness probes ``sum(value * 0)`` rely on.
+_REDUCTION_MATH = {"reassoc", "nsz"}
+
+
+@njit(cache=True, parallel=True, fastmath=_REDUCTION_MATH)
+def _probe_minimum(values):
+    """``(sum of values * 0, minimum)``: the sum is 0 exactly when every entry is finite."""
     m, n = values.shape
-    bad_rows = np.zeros(m, dtype=np.int64)
-    smallest_rows = np.full(m, np.inf)
+    probe = 0.0
+    smallest = np.inf
     for i in prange(m):
-        bad = 0
-        smallest = np.inf
+        row_probe = 0.0
+        row_smallest = np.inf
+        for j in range(n):
+            value = values[i, j]
+            row_probe += value * 0.0
+            row_smallest = min(row_smallest, value)
+        probe += row_probe
+        smallest = min(smallest, row_smallest)
+    return probe, smallest
+
+
+@njit(cache=True)
+def _count_non_finite(values):
+    m, n = values.shape
+    bad = 0
+    smallest = np.inf
+    for i in range(m):
         for j in range(n):
             value = values[i, j]
             if not np.isfinite(value):
                 bad += 1
             elif value < smallest:
                 smallest = value
-        bad_rows[i] = bad
-        smallest_rows[i] = smallest
-    return bad_rows.sum(), smallest_rows.min()
+    return bad, smallest
+
+
+@njit(cache=True)
+def finite_minimum_kernel(values):
+    """Return ``(number of non-finite entries, minimum of the finite ones)`` of an ``(m, n)``
+    array; one vectorised parallel pass when all are finite (the usual case)."""
+    probe, smallest = _probe_minimum(values)
+    if probe == 0.0:
+        return 0, smallest
+    return _count_non_finite(values)
 
 
 @njit(cache=True, parallel=True)
@@ -933,26 +960,25 @@ def diagonally_dominant_kernel(diagonal_flat, total_flat, m, n, ratio):
     return weak == 0
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, parallel=True, fastmath=_REDUCTION_MATH)
 def pad_masked_kernel(values, active, flat):
-    """Copy ``values`` into the padded ``flat``, 0 at inactive points; return ``(number of
-    non-finite entries, sum of squares of the copied values)``."""
+    """Copy ``values`` into the padded ``flat``, 0 at inactive points; return ``(whether
+    some entry is not finite, sum of squares of the copied values)``."""
     m, n = values.shape
     stride = n + 2
-    bad = 0
+    probe = 0.0
     squared = 0.0
     for i in prange(m):
         row = (i + 1) * stride + 1
-        row_bad = 0
+        row_probe = 0.0
         row_squared = 0.0
         for j in range(n):
             value = values[i, j]
-            if not np.isfinite(value):
-                row_bad += 1
-            if not active[i, j]:
-                value = 0.0
+            row_probe += value * 0.0
+            value = value if active[i, j] else 0.0
             flat[row + j] = value
             row_squared += value * value
-        bad += row_bad
+        probe += row_probe
         squared += row_squared
-    return bad, squared
+    return probe != 0.0, squared
+

@@ -62,13 +62,14 @@ class Operator5Point:
         if weights_y.shape != (m, n - 1):
             raise ValueError(f"weights_y: shape {weights_y.shape} is not allowed; expected {(m, n - 1)}")
         for name, array in (("diagonal", diagonal), ("weights_x", weights_x), ("weights_y", weights_y)):
-            if array.size:
-                bad, smallest = finite_minimum_kernel(array)
-                if bad or smallest < 0.0:
-                    raise ValueError(
-                        f"{name}: values must be finite and >= 0; got {bad} non-finite, "
-                        f"minimum {smallest!r}"
-                    )
+            if not array.size:
+                continue
+            bad, smallest = finite_minimum_kernel(array)
+            if bad or smallest < 0.0:
+                raise ValueError(
+                    f"{name}: values must be finite and >= 0; got {bad} non-finite, "
+                    f"minimum {smallest!r}"
+                )
         object.__setattr__(self, "diagonal", diagonal)
         object.__setattr__(self, "weights_x", weights_x)
         object.__setattr__(self, "weights_y", weights_y)
