@@ -8,7 +8,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from elastoflow.linalg._kernels import (
-    PARALLEL_MINIMUM,
+    COARSEN_PARALLEL_MINIMUM,
     coarsen_parallel,
     coarsen_serial,
     dense_matrix_kernel,
@@ -105,7 +105,7 @@ class _Hierarchy:
             return
         for level in range(1, levels):
             m, n = int(self.rows[level]), int(self.cols[level])
-            coarsen = coarsen_parallel if m * n > PARALLEL_MINIMUM else coarsen_serial
+            coarsen = coarsen_parallel if m * n > COARSEN_PARALLEL_MINIMUM else coarsen_serial
             coarsen(
                 self._level(self.diagonal, level - 1), self._level(self.weights_x, level - 1),
                 self._level(self.weights_y, level - 1), self._level(self.total, level - 1),
