@@ -21,6 +21,10 @@ THETA_MIN = 1e-3
 # sinking disc produced 139 m/s on a face open by 6e-6 (tests/validation/
 # test_coupling_buoyancy.py); 1e-2 bounds the amplification at 100.
 OPEN_MIN = 1e-2
+# Kernels over more points than this run in parallel; below, starting the threads costs more
+# than it saves on the 2 shared cores (the pointwise passes take ~0.05 ms serial at 256^2,
+# and a parallel region as much when the cores are busy).
+PARALLEL_MINIMUM = 300 * 300
 
 
 @njit(cache=True, inline="always")
@@ -458,19 +462,112 @@ def advect_cells(
 
 
 @njit(cache=True, parallel=True)
-def copy_into(source, target):
-    """``target[...] = source`` in parallel."""
+def _copy_into_parallel(source, target):
     m, n = source.shape
     for i in prange(m):
         for j in range(n):
             target[i, j] = source[i, j]
 
 
+@njit(cache=True)
+def _copy_into_serial(source, target):
+    m, n = source.shape
+    for i in range(m):
+        for j in range(n):
+            target[i, j] = source[i, j]
+
+
+@njit(cache=True)
+def copy_into(source, target):
+    """``target[...] = source`` in parallel."""
+    if source.size > PARALLEL_MINIMUM:
+        return _copy_into_parallel(source, target)
+    return _copy_into_serial(source, target)
+
+
+@njit(cache=True, inline="always")
+def _viscosity_row(f, c, axis, fixed_low, fixed_high, tangential_modes, tangential_values,
+                   has_interior, solid, theta, cut_velocity, assemble_operator, diagonal,
+                   weights_x, weights_y, rhs, i):
+    m, n = f.shape
+    for j in range(n):
+        if not has_interior and 1 < i < m - 2 and 1 < j < n - 2:
+            # All four neighbours are free interior points: no boundary terms.
+            rhs[i, j] = f[i, j]
+            if assemble_operator:
+                diagonal[i, j] = 1.0
+                weights_x[i, j] = c
+                weights_y[i, j] = c
+            continue
+        if _is_fixed(i, j, m, n, axis, fixed_low, fixed_high, has_interior, solid):
+            rhs[i, j] = f[i, j]
+            if assemble_operator:
+                diagonal[i, j] = 1.0
+                if i + 1 < m:
+                    weights_x[i, j] = 0.0
+                if j + 1 < n:
+                    weights_y[i, j] = 0.0
+            continue
+        d = 1.0
+        r = f[i, j]
+        for direction in range(4):
+            ni = i + (-1 if direction == 0 else (1 if direction == 1 else 0))
+            nj = j + (-1 if direction == 2 else (1 if direction == 3 else 0))
+            coupled = False
+            if ni < 0 or ni >= m or nj < 0 or nj >= n:
+                along = 0 if direction < 2 else 1
+                if along != axis:
+                    side = 0 if (direction == 0 or direction == 2) else 1
+                    if tangential_modes[side] == 1:
+                        d += 2.0 * c
+                        r += 2.0 * c * tangential_values[side]
+            elif has_interior and theta[direction, i, j] <= 1.0:
+                t = max(theta[direction, i, j], THETA_MIN)
+                d += c / t
+                r += c * cut_velocity[direction, i, j] / t
+            elif _is_fixed(ni, nj, m, n, axis, fixed_low, fixed_high, has_interior, solid):
+                d += c
+                r += c * f[ni, nj]
+            elif has_interior and theta[direction ^ 1, ni, nj] <= 1.0:
+                # Only the other side sees the cut: no coupling keeps the matrix symmetric.
+                coupled = False
+            else:
+                coupled = True
+            if not assemble_operator:
+                continue
+            if direction == 1 and ni < m:
+                weights_x[i, j] = c if coupled else 0.0
+            elif direction == 3 and nj < n:
+                weights_y[i, j] = c if coupled else 0.0
+        if assemble_operator:
+            diagonal[i, j] = d
+        rhs[i, j] = r
+
+
 @njit(cache=True, parallel=True)
-def build_viscosity_system(
-    f, c, axis, fixed_low, fixed_high, tangential_modes, tangential_values,
-    has_interior, solid, theta, cut_velocity, diagonal, weights_x, weights_y, rhs,
-):
+def _build_viscosity_system_parallel(f, c, axis, fixed_low, fixed_high, tangential_modes,
+                                     tangential_values, has_interior, solid, theta, cut_velocity,
+                                     assemble_operator, diagonal, weights_x, weights_y, rhs):
+    for i in prange(f.shape[0]):
+        _viscosity_row(f, c, axis, fixed_low, fixed_high, tangential_modes, tangential_values,
+                       has_interior, solid, theta, cut_velocity, assemble_operator, diagonal,
+                       weights_x, weights_y, rhs, i)
+
+
+@njit(cache=True)
+def _build_viscosity_system_serial(f, c, axis, fixed_low, fixed_high, tangential_modes,
+                                   tangential_values, has_interior, solid, theta, cut_velocity,
+                                   assemble_operator, diagonal, weights_x, weights_y, rhs):
+    for i in range(f.shape[0]):
+        _viscosity_row(f, c, axis, fixed_low, fixed_high, tangential_modes, tangential_values,
+                       has_interior, solid, theta, cut_velocity, assemble_operator, diagonal,
+                       weights_x, weights_y, rhs, i)
+
+
+@njit(cache=True)
+def build_viscosity_system(f, c, axis, fixed_low, fixed_high, tangential_modes, tangential_values,
+                           has_interior, solid, theta, cut_velocity, assemble_operator, diagonal,
+                           weights_x, weights_y, rhs):
     """Assemble ``(I - nu dt lap) f = f*`` for one velocity component as a 5-point operator.
 
     Args:
@@ -480,49 +577,17 @@ def build_viscosity_system(
             normal boundary faces, fixed when ``fixed_low`` / ``fixed_high``.
         tangential_modes: Ghost modes (0 copy, 1 Dirichlet) of the two sides along the other
             axis, low then high; ``tangential_values`` their wall velocities.
+        assemble_operator: False writes only ``rhs`` (the operator is known unchanged).
     """
-    m, n = f.shape
-    for i in prange(m):
-        for j in range(n):
-            if _is_fixed(i, j, m, n, axis, fixed_low, fixed_high, has_interior, solid):
-                diagonal[i, j] = 1.0
-                rhs[i, j] = f[i, j]
-                if i + 1 < m:
-                    weights_x[i, j] = 0.0
-                if j + 1 < n:
-                    weights_y[i, j] = 0.0
-                continue
-            d = 1.0
-            r = f[i, j]
-            for direction in range(4):
-                ni = i + (-1 if direction == 0 else (1 if direction == 1 else 0))
-                nj = j + (-1 if direction == 2 else (1 if direction == 3 else 0))
-                coupled = False
-                if ni < 0 or ni >= m or nj < 0 or nj >= n:
-                    along = 0 if direction < 2 else 1
-                    if along != axis:
-                        side = 0 if (direction == 0 or direction == 2) else 1
-                        if tangential_modes[side] == 1:
-                            d += 2.0 * c
-                            r += 2.0 * c * tangential_values[side]
-                elif has_interior and theta[direction, i, j] <= 1.0:
-                    t = max(theta[direction, i, j], THETA_MIN)
-                    d += c / t
-                    r += c * cut_velocity[direction, i, j] / t
-                elif _is_fixed(ni, nj, m, n, axis, fixed_low, fixed_high, has_interior, solid):
-                    d += c
-                    r += c * f[ni, nj]
-                elif has_interior and theta[direction ^ 1, ni, nj] <= 1.0:
-                    # Only the other side sees the cut: no coupling keeps the matrix symmetric.
-                    coupled = False
-                else:
-                    coupled = True
-                if direction == 1 and ni < m:
-                    weights_x[i, j] = c if coupled else 0.0
-                elif direction == 3 and nj < n:
-                    weights_y[i, j] = c if coupled else 0.0
-            diagonal[i, j] = d
-            rhs[i, j] = r
+    if f.size > PARALLEL_MINIMUM:
+        return _build_viscosity_system_parallel(f, c, axis, fixed_low, fixed_high,
+                                                tangential_modes, tangential_values, has_interior,
+                                                solid, theta, cut_velocity, assemble_operator,
+                                                diagonal, weights_x, weights_y, rhs)
+    return _build_viscosity_system_serial(f, c, axis, fixed_low, fixed_high, tangential_modes,
+                                          tangential_values, has_interior, solid, theta,
+                                          cut_velocity, assemble_operator, diagonal, weights_x,
+                                          weights_y, rhs)
 
 
 @njit(cache=True)
@@ -544,15 +609,8 @@ def _open(fraction):
 
 
 @njit(cache=True, parallel=True)
-def face_solid_velocity(
-    solid, body_velocity, open_fraction, theta, cut_velocity, across_low, out,
-):
-    """Body velocity component at every face that is not fully open, 0 elsewhere.
-
-    Faces whose point is inside a body take the body velocity there; partly open faces with
-    their point in fluid take the velocity at the nearer crossing along the face (directions
-    ``across_low`` and ``across_low + 1``, within half a spacing).
-    """
+def _face_solid_velocity_parallel(solid, body_velocity, open_fraction, theta, cut_velocity,
+                                  across_low, out):
     m, n = solid.shape
     for i in prange(m):
         for j in range(n):
@@ -571,13 +629,45 @@ def face_solid_velocity(
                 out[i, j] = 0.0
 
 
-@njit(cache=True, parallel=True)
-def pressure_rhs(u, v, scale, has_interior, open_x, open_y, solid_u, solid_v, rhs):
-    """``rhs = -scale * h * div(A w + (1 - A) u_s)`` per cell, ``scale = rho h / dt``.
+@njit(cache=True)
+def _face_solid_velocity_serial(solid, body_velocity, open_fraction, theta, cut_velocity,
+                                across_low, out):
+    m, n = solid.shape
+    for i in range(m):
+        for j in range(n):
+            if solid[i, j]:
+                out[i, j] = body_velocity[i, j]
+            elif open_fraction[i, j] < 1.0:
+                t_low = theta[across_low, i, j]
+                t_high = theta[across_low + 1, i, j]
+                if t_low <= t_high and t_low <= 0.5:
+                    out[i, j] = cut_velocity[across_low, i, j]
+                elif t_high <= 0.5:
+                    out[i, j] = cut_velocity[across_low + 1, i, j]
+                else:
+                    out[i, j] = 0.0
+            else:
+                out[i, j] = 0.0
 
-    ``h * div`` is the sum of signed face fluxes; all faces, domain sides included, enter with
-    their current values.
+
+@njit(cache=True)
+def face_solid_velocity(solid, body_velocity, open_fraction, theta, cut_velocity, across_low,
+                        out):
+    """Body velocity component at every face that is not fully open, 0 elsewhere.
+
+    Faces whose point is inside a body take the body velocity there; partly open faces with
+    their point in fluid take the velocity at the nearer crossing along the face (directions
+    ``across_low`` and ``across_low + 1``, within half a spacing).
     """
+    if solid.size > PARALLEL_MINIMUM:
+        return _face_solid_velocity_parallel(solid, body_velocity, open_fraction, theta,
+                                             cut_velocity, across_low, out)
+    return _face_solid_velocity_serial(solid, body_velocity, open_fraction, theta, cut_velocity,
+                                       across_low, out)
+
+
+@njit(cache=True, parallel=True)
+def _pressure_rhs_parallel(u, v, scale, has_interior, open_x, open_y, solid_u, solid_v, rhs):
     nx, ny = rhs.shape
     for i in prange(nx):
         for j in range(ny):
@@ -597,9 +687,42 @@ def pressure_rhs(u, v, scale, has_interior, open_x, open_y, solid_u, solid_v, rh
             rhs[i, j] = -scale * flux
 
 
+@njit(cache=True)
+def _pressure_rhs_serial(u, v, scale, has_interior, open_x, open_y, solid_u, solid_v, rhs):
+    nx, ny = rhs.shape
+    for i in range(nx):
+        for j in range(ny):
+            if has_interior:
+                a_east = _open(open_x[i + 1, j])
+                a_west = _open(open_x[i, j])
+                a_north = _open(open_y[i, j + 1])
+                a_south = _open(open_y[i, j])
+                flux = (
+                    a_east * u[i + 1, j] + (1.0 - a_east) * solid_u[i + 1, j]
+                    - a_west * u[i, j] - (1.0 - a_west) * solid_u[i, j]
+                    + a_north * v[i, j + 1] + (1.0 - a_north) * solid_v[i, j + 1]
+                    - a_south * v[i, j] - (1.0 - a_south) * solid_v[i, j]
+                )
+            else:
+                flux = u[i + 1, j] - u[i, j] + v[i, j + 1] - v[i, j]
+            rhs[i, j] = -scale * flux
+
+
+@njit(cache=True)
+def pressure_rhs(u, v, scale, has_interior, open_x, open_y, solid_u, solid_v, rhs):
+    """``rhs = -scale * h * div(A w + (1 - A) u_s)`` per cell, ``scale = rho h / dt``.
+
+    ``h * div`` is the sum of signed face fluxes; all faces, domain sides included, enter with
+    their current values.
+    """
+    if rhs.size > PARALLEL_MINIMUM:
+        return _pressure_rhs_parallel(u, v, scale, has_interior, open_x, open_y, solid_u, solid_v,
+                                      rhs)
+    return _pressure_rhs_serial(u, v, scale, has_interior, open_x, open_y, solid_u, solid_v, rhs)
+
+
 @njit(cache=True, parallel=True)
-def build_pressure_operator(open_x, open_y, outflow, diagonal, weights_x, weights_y):
-    """Face weights = open fractions; an outflow side adds ``2 A`` (p = 0 on the side)."""
+def _build_pressure_operator_parallel(open_x, open_y, outflow, diagonal, weights_x, weights_y):
     nx, ny = diagonal.shape
     for i in prange(nx):
         for j in range(ny):
@@ -619,15 +742,39 @@ def build_pressure_operator(open_x, open_y, outflow, diagonal, weights_x, weight
                 weights_y[i, j] = _open(open_y[i, j + 1])
 
 
-@njit(cache=True, parallel=True)
-def subtract_pressure_gradient(
-    u, v, p, k, outflow, has_interior, open_x, open_y, solid_u, solid_v,
-):
-    """``u = w - (dt/rho) grad p`` on faces with A > 0, ``u = u_s`` on closed faces.
+@njit(cache=True)
+def _build_pressure_operator_serial(open_x, open_y, outflow, diagonal, weights_x, weights_y):
+    nx, ny = diagonal.shape
+    for i in range(nx):
+        for j in range(ny):
+            d = 0.0
+            if i == 0 and outflow[0]:
+                d += 2.0 * _open(open_x[0, j])
+            if i == nx - 1 and outflow[1]:
+                d += 2.0 * _open(open_x[nx, j])
+            if j == 0 and outflow[2]:
+                d += 2.0 * _open(open_y[i, 0])
+            if j == ny - 1 and outflow[3]:
+                d += 2.0 * _open(open_y[i, ny])
+            diagonal[i, j] = d
+            if i + 1 < nx:
+                weights_x[i, j] = _open(open_x[i + 1, j])
+            if j + 1 < ny:
+                weights_y[i, j] = _open(open_y[i, j + 1])
 
-    ``k = dt / (rho h)``. Wall and inflow sides keep their prescribed values; an outflow side
-    uses the ghost pressure ``-p`` of its Dirichlet condition.
-    """
+
+@njit(cache=True)
+def build_pressure_operator(open_x, open_y, outflow, diagonal, weights_x, weights_y):
+    """Face weights = open fractions; an outflow side adds ``2 A`` (p = 0 on the side)."""
+    if diagonal.size > PARALLEL_MINIMUM:
+        return _build_pressure_operator_parallel(open_x, open_y, outflow, diagonal, weights_x,
+                                                 weights_y)
+    return _build_pressure_operator_serial(open_x, open_y, outflow, diagonal, weights_x, weights_y)
+
+
+@njit(cache=True, parallel=True)
+def _subtract_pressure_gradient_parallel(u, v, p, k, outflow, has_interior, open_x, open_y,
+                                         solid_u, solid_v):
     nx, ny = p.shape
     for i in prange(nx + 1):
         for j in range(ny):
@@ -661,6 +808,59 @@ def subtract_pressure_gradient(
                 v[i, j] = solid_v[i, j]
             else:
                 v[i, j] -= k * gradient
+
+
+@njit(cache=True)
+def _subtract_pressure_gradient_serial(u, v, p, k, outflow, has_interior, open_x, open_y, solid_u,
+                                       solid_v):
+    nx, ny = p.shape
+    for i in range(nx + 1):
+        for j in range(ny):
+            if i == 0:
+                if not outflow[0]:
+                    continue
+                gradient = 2.0 * p[0, j]
+            elif i == nx:
+                if not outflow[1]:
+                    continue
+                gradient = -p[nx - 1, j] - p[nx - 1, j]
+            else:
+                gradient = p[i, j] - p[i - 1, j]
+            if has_interior and _open(open_x[i, j]) == 0.0:
+                u[i, j] = solid_u[i, j]
+            else:
+                u[i, j] -= k * gradient
+    for i in range(nx):
+        for j in range(ny + 1):
+            if j == 0:
+                if not outflow[2]:
+                    continue
+                gradient = 2.0 * p[i, 0]
+            elif j == ny:
+                if not outflow[3]:
+                    continue
+                gradient = -2.0 * p[i, ny - 1]
+            else:
+                gradient = p[i, j] - p[i, j - 1]
+            if has_interior and _open(open_y[i, j]) == 0.0:
+                v[i, j] = solid_v[i, j]
+            else:
+                v[i, j] -= k * gradient
+
+
+@njit(cache=True)
+def subtract_pressure_gradient(u, v, p, k, outflow, has_interior, open_x, open_y, solid_u,
+                               solid_v):
+    """``u = w - (dt/rho) grad p`` on faces with A > 0, ``u = u_s`` on closed faces.
+
+    ``k = dt / (rho h)``. Wall and inflow sides keep their prescribed values; an outflow side
+    uses the ghost pressure ``-p`` of its Dirichlet condition.
+    """
+    if p.size > PARALLEL_MINIMUM:
+        return _subtract_pressure_gradient_parallel(u, v, p, k, outflow, has_interior, open_x,
+                                                    open_y, solid_u, solid_v)
+    return _subtract_pressure_gradient_serial(u, v, p, k, outflow, has_interior, open_x, open_y,
+                                              solid_u, solid_v)
 
 
 @njit(cache=True, parallel=True)

@@ -362,13 +362,13 @@ class FluidSolver:
         else:
             fixed_low, fixed_high = not self._outflow[2], not self._outflow[3]
             modes, values = self._tangential_v
+        # Without bodies the operator depends on dt only: keep it between steps.
+        cached = self._viscosity_operators.get((axis, dt)) if interior is None else None
         kernels.build_viscosity_system(
             f, c, axis, fixed_low, fixed_high, modes, values, has, solid, theta, cut,
-            diagonal, weights_x, weights_y, rhs,
+            cached is None, diagonal, weights_x, weights_y, rhs,
         )
         if interior is None:
-            # Without bodies the operator depends on dt only: keep it between steps.
-            cached = self._viscosity_operators.get((axis, dt))
             if cached is None:
                 if len(self._viscosity_operators) > 8:
                     self._viscosity_operators.clear()
