@@ -1,5 +1,6 @@
 from __future__ import annotations
 
+import inspect
 import math
 import time as _time
 from dataclasses import dataclass, field
@@ -47,6 +48,17 @@ def _check_positive(name: str, value: Any) -> float:
     if not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0.0:
         raise ValueError(f"FluidSolver {name} = {value!r}: must be a finite number > 0")
     return float(value)
+
+
+def _takes_out(solver: Any) -> bool:
+    try:
+        return "out" in inspect.signature(solver.solve).parameters
+    except (TypeError, ValueError):
+        return False
+
+
+def _writable_into(array: np.ndarray) -> bool:
+    return array.dtype == np.float64 and array.flags.c_contiguous and array.flags.writeable
 
 
 class FluidSolver:
@@ -141,6 +153,10 @@ class FluidSolver:
                 )
         self.pressure_solver = pressure_solver
         self.viscosity_solver = viscosity_solver
+        # Solvers that can write the solution into a given array spare a copy and a fresh
+        # allocation (page faults on large grids) per solve.
+        self._pressure_out = _takes_out(pressure_solver)
+        self._viscosity_out = _takes_out(viscosity_solver)
         if advection not in _ADVECTION_SCHEMES:
             raise ValueError(
                 f"FluidSolver advection = {advection!r}: must be one of {_ADVECTION_SCHEMES}"
@@ -399,8 +415,11 @@ class FluidSolver:
         iterations = 0
         for axis, f in ((0, state.velocity_x), (1, state.velocity_y)):
             operator, rhs = self._viscosity_operator(f, axis, dt, interior)
-            solution, report = self.viscosity_solver.solve(operator, rhs, x0=f)
-            kernels.copy_into(solution, f)
+            if self._viscosity_out and _writable_into(f):
+                _, report = self.viscosity_solver.solve(operator, rhs, x0=f, out=f)
+            else:
+                solution, report = self.viscosity_solver.solve(operator, rhs, x0=f)
+                kernels.copy_into(solution, f)
             iterations += int(report.iterations)
         return iterations
 
@@ -467,10 +486,15 @@ class FluidSolver:
             self._subtract_gradient(state, increment, dt, interior)
             state.pressure += increment
             return report
-        pressure, report = self.pressure_solver.solve(
-            operator, self._rhs_pressure, x0=state.pressure
-        )
-        kernels.copy_into(pressure, state.pressure)
+        if self._pressure_out and _writable_into(state.pressure):
+            _, report = self.pressure_solver.solve(
+                operator, self._rhs_pressure, x0=state.pressure, out=state.pressure
+            )
+        else:
+            pressure, report = self.pressure_solver.solve(
+                operator, self._rhs_pressure, x0=state.pressure
+            )
+            kernels.copy_into(pressure, state.pressure)
         self._subtract_gradient(state, state.pressure, dt, interior)
         return report
 

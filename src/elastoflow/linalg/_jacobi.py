@@ -9,7 +9,7 @@ from numpy.typing import NDArray
 
 from elastoflow.linalg._kernels import jacobi_kernel, sum_of_squares_kernel
 from elastoflow.linalg._operator import Operator5Point, SolveReport
-from elastoflow.linalg._problem import _compatible_rhs, _initial_guess
+from elastoflow.linalg._problem import _compatible_rhs, _initial_guess, _output
 
 
 @dataclass(frozen=True)
@@ -44,6 +44,7 @@ class PoissonSolverJacobi:
         operator: Operator5Point,
         rhs: NDArray[np.float64],
         x0: NDArray[np.float64] | None = None,
+        out: NDArray[np.float64] | None = None,
     ) -> tuple[NDArray[np.float64], SolveReport]:
         """Solve ``A x = rhs``.
 
@@ -51,21 +52,29 @@ class PoissonSolverJacobi:
             operator: The operator ``A`` on an ``(m, n)`` array.
             rhs: Right-hand side, shape ``(m, n)``.
             x0: Optional initial guess, shape ``(m, n)``.
+            out: Optional C-contiguous float64 array of shape ``(m, n)`` to receive ``x``
+                (may be ``x0``); a new array otherwise.
 
         Returns:
             ``x`` (shape ``(m, n)``; 0 at inactive points, zero mean on singular components) and
             the report.
         """
+        _output(out, operator.shape)
         b, null_space = _compatible_rhs(operator, rhs)
         x = _initial_guess(operator, x0, null_space.active)
         norm_b = float(np.sqrt(sum_of_squares_kernel(b)))
         if norm_b == 0.0:
-            return np.zeros(operator.shape), SolveReport(0, 0.0, True)
+            x = _output(out, operator.shape)
+            x[...] = 0.0
+            return x, SolveReport(0, 0.0, True)
         iterations, squared = jacobi_kernel(
             operator.diagonal, operator.weights_x, operator.weights_y, b, x, np.empty_like(x),
             self.omega, (self.rtol * norm_b) ** 2, self.max_iterations,
         )
         null_space.remove_means(x)
+        if out is not None:
+            out[...] = x
+            x = out
         relative = float(np.sqrt(squared)) / norm_b
         return x, SolveReport(iterations, relative, relative <= self.rtol)
 

@@ -23,7 +23,7 @@ from elastoflow.linalg._kernels import (
     unpad_values_kernel,
 )
 from elastoflow.linalg._operator import Operator5Point, SolveReport
-from elastoflow.linalg._problem import _analyse, _NullSpace
+from elastoflow.linalg._problem import _analyse, _NullSpace, _output
 
 _COARSEST_SIZE = 32
 # Smallest ratio of diagonal term to sum of weights, over all points, for which one level's
@@ -62,6 +62,8 @@ class _Hierarchy:
         self.values = np.zeros(shape)
         self.coarse = True
         self.null_space: _NullSpace | None = None
+        # The operator the levels hold; kept alive so that its identity is not reused.
+        self.operator: Operator5Point | None = None
 
     def _level(self, array: NDArray[np.float64], level: int) -> NDArray[np.float64]:
         return array[self.offsets[level]:self.offsets[level + 1]]
@@ -69,19 +71,25 @@ class _Hierarchy:
     def prepare(self, operator: Operator5Point) -> _NullSpace:
         """Make the levels hold ``operator``; return its active points and null space.
 
-        The levels of the previous operator are kept when ``operator`` has the same values
-        (constant viscosity operators, pressure without moving bodies): comparing costs one
-        pass over the operator, rebuilding several, plus the component analysis.
+        The levels of the previous operator are kept when ``operator`` is the same object
+        (its arrays are not changed after construction, by contract) or has the same values
+        (a new operator of unchanged bodies): comparing costs one pass over the operator,
+        rebuilding several, plus the component analysis.
         """
-        if self.null_space is not None and operator_matches_kernel(
-            operator.diagonal, operator.weights_x, operator.weights_y,
-            self._level(self.diagonal, 0), self._level(self.weights_x, 0),
-            self._level(self.weights_y, 0),
-        ):
-            return self.null_space
+        if self.null_space is not None:
+            if operator is self.operator:
+                return self.null_space
+            if operator_matches_kernel(
+                operator.diagonal, operator.weights_x, operator.weights_y,
+                self._level(self.diagonal, 0), self._level(self.weights_x, 0),
+                self._level(self.weights_y, 0),
+            ):
+                self.operator = operator
+                return self.null_space
         self.null_space = None
         self._build(operator)
         self.null_space = _analyse(operator)
+        self.operator = operator
         return self.null_space
 
     def _build(self, operator: Operator5Point) -> None:
@@ -169,6 +177,7 @@ class PoissonSolverMGPCG:
         operator: Operator5Point,
         rhs: NDArray[np.float64],
         x0: NDArray[np.float64] | None = None,
+        out: NDArray[np.float64] | None = None,
     ) -> tuple[NDArray[np.float64], SolveReport]:
         """Solve ``A x = rhs``.
 
@@ -176,11 +185,14 @@ class PoissonSolverMGPCG:
             operator: The operator ``A`` on an ``(m, n)`` array.
             rhs: Right-hand side, shape ``(m, n)``.
             x0: Optional initial guess (warm start), shape ``(m, n)``.
+            out: Optional C-contiguous float64 array of shape ``(m, n)`` to receive ``x``
+                (may be ``x0``); a new array otherwise.
 
         Returns:
             ``x`` (shape ``(m, n)``; 0 at inactive points, zero mean on singular components) and
             the report.
         """
+        _output(out, operator.shape)
         rhs = np.asarray(rhs, dtype=np.float64)
         if rhs.shape != operator.shape:
             raise ValueError(f"rhs: shape {rhs.shape} is not allowed; expected {operator.shape}")
@@ -203,7 +215,9 @@ class PoissonSolverMGPCG:
             squared_b = sum_of_squares_kernel(hierarchy.values)
         norm_b = float(np.sqrt(squared_b))
         if norm_b == 0.0:
-            return np.zeros(operator.shape), SolveReport(0, 0.0, True)
+            x = _output(out, operator.shape)
+            x[...] = 0.0
+            return x, SolveReport(0, 0.0, True)
         if x0 is None:
             hierarchy.x[:] = 0.0
         elif pad_masked_kernel(x0, null_space.active, hierarchy.x)[0]:
@@ -215,7 +229,7 @@ class PoissonSolverMGPCG:
             hierarchy.r, hierarchy.p, hierarchy.q, hierarchy.z, (self.rtol * norm_b) ** 2,
             self.max_iterations, self.smoothing_sweeps, hierarchy.coarse,
         )
-        x = np.empty(operator.shape)
+        x = _output(out, operator.shape)
         unpad_values_kernel(hierarchy.x, x)
         null_space.remove_means(x)
         relative = float(np.sqrt(squared)) / norm_b

@@ -37,6 +37,9 @@ class Operator5Point:
     weights is inactive. A connected component (through positive weights) with no positive
     diagonal is singular: its null space is the constant on the component.
 
+    The arrays must not be changed after construction (build a new operator instead): solvers
+    keep data derived from the last operator they solved with and recognise it by identity.
+
     Attributes:
         diagonal: Extra diagonal term (Dirichlet contributions, Helmholtz identity), shape
             ``(m, n)``, >= 0.

@@ -76,3 +76,16 @@ def _initial_guess(
     if x0.size and finite_minimum_kernel(np.ascontiguousarray(x0))[0]:
         raise ValueError("x0: values must be finite; got NaN or inf")
     return np.where(active, x0, 0.0)
+
+
+def _output(out: NDArray[np.float64] | None, shape: tuple[int, int]) -> NDArray[np.float64]:
+    """``out`` checked to be a C-contiguous float64 array of ``shape``, or a new array."""
+    if out is None:
+        return np.empty(shape)
+    if (not isinstance(out, np.ndarray) or out.shape != shape or out.dtype != np.float64
+            or not out.flags.c_contiguous or not out.flags.writeable):
+        raise ValueError(
+            f"out: {type(out).__name__} of shape {getattr(out, 'shape', None)} is not allowed; "
+            f"expected a writeable C-contiguous float64 array of shape {shape}"
+        )
+    return out

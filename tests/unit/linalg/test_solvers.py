@@ -334,3 +334,39 @@ def test_non_finite_input_raises() -> None:
             solver.solve(operator, rhs)
         with pytest.raises(ValueError, match="x0"):
             solver.solve(operator, np.ones((4, 3)), x0=rhs)
+
+
+def test_mgpcg_reuses_levels_only_for_the_same_operator() -> None:
+    """One solver instance across operators of one shape: a changed operator (a new object
+    with other values) is rebuilt, the same object or equal values reuse the levels; every
+    answer matches the direct solve. The diagonally dominant (Gauss-Seidel-only) case and a
+    singular one are both included."""
+    shape = (40, 33)
+    rng = np.random.default_rng(41)
+    dominant = Operator5Point(np.ones(shape), np.full((39, 33), 0.5), np.full((40, 32), 0.5))
+    neumann = random_operator(shape, 42, dirichlet=False, walls=False)
+    solver = PoissonSolverMGPCG(rtol=1e-10)
+    for operator in (dominant, neumann, dominant, Operator5Point(
+            dominant.diagonal.copy(), dominant.weights_x.copy(), dominant.weights_y.copy()),
+            neumann):
+        rhs = rng.standard_normal(shape)
+        x, report = solver.solve(operator, rhs)
+        expected, _ = reference_solve(operator, rhs)
+        assert report.converged
+        np.testing.assert_allclose(x, expected, atol=1e-7 * np.abs(expected).max())
+
+
+@pytest.mark.parametrize("make_solver", SOLVERS)
+def test_solution_into_out(make_solver) -> None:
+    operator = random_operator((10, 8), 51)
+    rhs = np.random.default_rng(52).standard_normal((10, 8))
+    solver = make_solver(1e-8)
+    expected, _ = solver.solve(operator, rhs)
+    out = np.full((10, 8), 7.0)
+    x, report = solver.solve(operator, rhs, x0=out, out=out)
+    assert x is out and report.converged
+    np.testing.assert_allclose(out, expected, atol=1e-6 * np.abs(expected).max())
+    with pytest.raises(ValueError, match="out"):
+        solver.solve(operator, rhs, out=np.empty((10, 8), dtype=np.float32))
+    with pytest.raises(ValueError, match="out"):
+        solver.solve(operator, rhs, out=np.empty((8, 10)))
