@@ -3,8 +3,8 @@
 ``Operator5Point(diagonal, weights_x, weights_y)`` describes a symmetric positive
 semi-definite 5-point operator on an ``(m, n)`` array,
 ``(A x)[i, j] = diagonal[i, j] x[i, j] + sum_nb w (x[i, j] - x[nb])``; ``apply_operator``
-computes ``A x``. Every solver has ``solve(operator, rhs, x0=None) -> (x, SolveReport)`` and
-guarantees:
+computes ``A x``. Every solver has ``solve(operator, rhs, x0=None, out=None) -> (x,
+SolveReport)`` (``out``: an array to receive ``x``, may be ``x0``) and guarantees:
 
 * inactive points (zero diagonal and zero weights) get ``x = 0``; ``rhs`` there is ignored;
 * on every singular (pure Neumann) connected component the right-hand side is made compatible
@@ -23,7 +23,8 @@ gradient preconditioned by one geometric multigrid V-cycle (McAdams, Sifakis & T
 style): its preconditioner is symmetric positive definite on the active points, so CG
 converges for every such operator, and its iteration count barely grows with the grid
 (6-7 iterations to 1e-6 from 128^2 to 1024^2 on pressure problems with outflow, bodies with
-fractional faces, or closed boxes).
+fractional faces, or closed boxes). It keeps its multigrid levels and component analysis while
+the operator is unchanged, so an operator's arrays must not be modified after construction.
 """
 
 

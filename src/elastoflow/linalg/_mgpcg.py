@@ -142,7 +142,11 @@ class PoissonSolverMGPCG:
     as Dirichlet outflow or cut faces). Restriction is the transpose of piecewise-constant
     prolongation; smoothing is red-black Gauss-Seidel before and black-red after. The
     preconditioner is therefore symmetric positive definite on the active points, and CG
-    converges for every operator of the contract.
+    converges for every operator of the contract. An operator whose diagonal term is at least a
+    quarter of the sum of its weights at every point (implicit viscosity up to
+    ``nu dt / h^2 = 1``) is preconditioned by the fine level's symmetric Gauss-Seidel alone,
+    which is cheaper there. The levels and the component analysis are kept while the same
+    operator (or one with equal values) is solved again.
 
     Guarantee: returns when the true relative residual is ``<= rtol`` or after
     ``max_iterations`` CG iterations; the iteration count is nearly independent of the grid
