@@ -748,6 +748,19 @@ def _search_direction_row(z, p, q, total, weights_x, weights_y, beta, i, n):
     k = uint64((i + 1) * (n + 2) + 1)
     end = k + uint64(n)
     product = 0.0
+    if beta == 0.0:
+        # First direction of a (re)start: p and q hold stale values of an earlier solve, which
+        # are not read, so they need no clearing pass.
+        while k < end:
+            direction = z[k]
+            image = (total[k] * direction - weights_x[k] * z[k + up]
+                     - weights_x[k - up] * z[k - up] - weights_y[k] * z[k + one]
+                     - weights_y[k - one] * z[k - one])
+            p[k] = direction
+            q[k] = image
+            product += direction * image
+            k += one
+        return product
     while k < end:
         applied = (total[k] * z[k] - weights_x[k] * z[k + up] - weights_x[k - up] * z[k - up]
                    - weights_y[k] * z[k + one] - weights_y[k - one] * z[k - one])
@@ -896,8 +909,6 @@ def pcg_kernel(rows, cols, offsets, diagonal, weights_x, weights_y, total, inver
         v_cycle(rows, cols, offsets, diagonal, weights_x, weights_y, total, inverse, level_x,
                 level_b, coarse_factor, r, z, sweeps, coarse)
         rz = _dot(r, z, m, n)
-        p[:] = 0.0
-        q[:] = 0.0
         beta = 0.0
         pq = 1.0
         while iterations < max_iterations:
