@@ -222,8 +222,9 @@ class Simulation:
         fluid.apply_forces(state, dt, self.time)
         seconds["forces"] = clock() - t0
 
-        nodal_force = None
+        nodal_force = np.zeros((0, 2))
         if self.bodies and self.force_model == "momentum_exchange":
+            assert bmap is not None
             t0 = clock()
             nodal_force = force_momentum_exchange(
                 self.grid, bmap, state.velocity_x, state.velocity_y,
@@ -242,6 +243,7 @@ class Simulation:
         seconds["pressure"] = clock() - t0
 
         if self.bodies and self.force_model == "traction":
+            assert bmap is not None
             t0 = clock()
             nodal_force = force_traction(
                 self.grid, bmap, state.velocity_x, state.velocity_y,
@@ -271,7 +273,7 @@ class Simulation:
                     report = body.advance(
                         dt, self.substeps, force, step=next_step, added_mass=extra
                     )
-                except Exception as error:  # noqa: BLE001 - re-raised with where it happened
+                except Exception as error:  # re-raised with where it happened
                     raise SimulationBlowUp(
                         f"step {next_step}, t = {self.time + dt:.6g} s, body {index}: {error}"
                     ) from error
