@@ -1193,3 +1193,107 @@ def pad_masked_kernel(values, active, flat):
         return _pad_masked_kernel_parallel(values, active, flat)
     return _pad_masked_kernel_serial(values, active, flat)
 
+
+
+@njit(cache=True, inline="always")
+def _load_operator_row(diagonal, weights_x, weights_y, diagonal_flat, weights_x_flat,
+                       weights_y_flat, total_flat, inverse_flat, active, ratio, i, m, n):
+    """One row of `load_operator_kernel`; returns (changed, missing diagonal, weak) counts."""
+    row = (i + 1) * (n + 2) + 1
+    changed = 0
+    missing = 0
+    weak = 0
+    for j in range(n):
+        k = row + j
+        value = diagonal[i, j]
+        if diagonal_flat[k] != value:
+            changed += 1
+        diagonal_flat[k] = value
+        # Summed in the order of `pad_operator_kernel` so that the levels are identical.
+        total = value
+        if i < m - 1:
+            weight = weights_x[i, j]
+            total += weight
+        else:
+            weight = 0.0
+        if weights_x_flat[k] != weight:
+            changed += 1
+        weights_x_flat[k] = weight
+        if i > 0:
+            total += weights_x[i - 1, j]
+        if j < n - 1:
+            weight = weights_y[i, j]
+            total += weight
+        else:
+            weight = 0.0
+        if weights_y_flat[k] != weight:
+            changed += 1
+        weights_y_flat[k] = weight
+        if j > 0:
+            total += weights_y[i, j - 1]
+        total_flat[k] = total
+        inverse_flat[k] = 1.0 / total if total > 0.0 else 0.0
+        # All terms are >= 0, so a point has a positive term exactly when their sum does.
+        is_active = total > 0.0
+        active[i, j] = is_active
+        if is_active and value <= 0.0:
+            missing += 1
+        if value < ratio * (total - value):
+            weak += 1
+    return changed, missing, weak
+
+
+@njit(cache=True, parallel=True)
+def _load_operator_kernel_parallel(diagonal, weights_x, weights_y, diagonal_flat, weights_x_flat,
+                                   weights_y_flat, total_flat, inverse_flat, active, ratio):
+    m, n = diagonal.shape
+    changed = 0
+    missing = 0
+    weak = 0
+    for i in prange(m):
+        row_changed, row_missing, row_weak = _load_operator_row(
+            diagonal, weights_x, weights_y, diagonal_flat, weights_x_flat, weights_y_flat,
+            total_flat, inverse_flat, active, ratio, i, m, n,
+        )
+        changed += row_changed
+        missing += row_missing
+        weak += row_weak
+    return changed > 0, missing == 0, weak == 0
+
+
+@njit(cache=True)
+def _load_operator_kernel_serial(diagonal, weights_x, weights_y, diagonal_flat, weights_x_flat,
+                                 weights_y_flat, total_flat, inverse_flat, active, ratio):
+    m, n = diagonal.shape
+    changed = 0
+    missing = 0
+    weak = 0
+    for i in range(m):
+        row_changed, row_missing, row_weak = _load_operator_row(
+            diagonal, weights_x, weights_y, diagonal_flat, weights_x_flat, weights_y_flat,
+            total_flat, inverse_flat, active, ratio, i, m, n,
+        )
+        changed += row_changed
+        missing += row_missing
+        weak += row_weak
+    return changed > 0, missing == 0, weak == 0
+
+
+@njit(cache=True)
+def load_operator_kernel(diagonal, weights_x, weights_y, diagonal_flat, weights_x_flat,
+                         weights_y_flat, total_flat, inverse_flat, active, ratio):
+    """Copy the operator into the padded level-0 arrays in one pass.
+
+    Fills totals and inverses and the ``(m, n)`` active mask, and returns whether any value
+    differed from what the level held, whether every active point has a positive diagonal,
+    and whether every diagonal is at least ``ratio`` times the point's sum of weights. Fuses
+    what `operator_matches_kernel`, `pad_operator_kernel`, `active_mask_kernel` and
+    `diagonally_dominant_kernel` do in four passes.
+    """
+    if diagonal.size > PARALLEL_MINIMUM:
+        return _load_operator_kernel_parallel(diagonal, weights_x, weights_y, diagonal_flat,
+                                              weights_x_flat, weights_y_flat, total_flat,
+                                              inverse_flat, active, ratio)
+    return _load_operator_kernel_serial(diagonal, weights_x, weights_y, diagonal_flat,
+                                        weights_x_flat, weights_y_flat, total_flat,
+                                        inverse_flat, active, ratio)

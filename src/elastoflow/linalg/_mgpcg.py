@@ -12,10 +12,8 @@ from elastoflow.linalg._kernels import (
     coarsen_parallel,
     coarsen_serial,
     dense_matrix_kernel,
-    diagonally_dominant_kernel,
-    operator_matches_kernel,
+    load_operator_kernel,
     pad_masked_kernel,
-    pad_operator_kernel,
     pad_values_kernel,
     pcg_kernel,
     semidefinite_cholesky_kernel,
@@ -73,42 +71,36 @@ class _Hierarchy:
 
         The levels of the previous operator are kept when ``operator`` is the same object
         (its arrays are not changed after construction, by contract) or has the same values
-        (a new operator of unchanged bodies): comparing costs one pass over the operator,
-        rebuilding several, plus the component analysis.
+        (a new operator of unchanged bodies). Loading the fine level compares the values as it
+        copies them, so a changed operator costs no extra pass for the comparison.
         """
-        if self.null_space is not None:
-            if operator is self.operator:
-                return self.null_space
-            if operator_matches_kernel(
-                operator.diagonal, operator.weights_x, operator.weights_y,
-                self._level(self.diagonal, 0), self._level(self.weights_x, 0),
-                self._level(self.weights_y, 0),
-            ):
-                self.operator = operator
-                return self.null_space
-        self.null_space = None
-        self._build(operator)
-        self.null_space = _analyse(operator)
-        self.operator = operator
-        return self.null_space
-
-    def _build(self, operator: Operator5Point) -> None:
-        """Fill every level from ``operator`` and factor the coarsest one."""
-        pad_operator_kernel(
+        if self.null_space is not None and operator is self.operator:
+            return self.null_space
+        # A fresh mask each time: the previous null space may still be held by a caller.
+        active = np.empty(operator.shape, dtype=np.bool_)
+        changed, all_have_diagonal, dominant = load_operator_kernel(
             operator.diagonal, operator.weights_x, operator.weights_y,
             self._level(self.diagonal, 0), self._level(self.weights_x, 0),
             self._level(self.weights_y, 0), self._level(self.total, 0),
-            self._level(self.inverse, 0),
+            self._level(self.inverse, 0), active, _SMOOTHER_ONLY_DOMINANCE,
         )
+        if self.null_space is not None and not changed:
+            self.operator = operator
+            return self.null_space
+        self.null_space = None
+        self._build(dominant)
+        self.null_space = _analyse(operator, active, all_have_diagonal)
+        self.operator = operator
+        return self.null_space
+
+    def _build(self, dominant: bool) -> None:
+        """Fill the coarse levels from the loaded fine level and factor the coarsest one."""
         levels = len(self.rows)
         # An operator with a strong diagonal (implicit viscosity, I - nu dt lap, up to
         # nu dt / h^2 = 1) needs no coarse correction: symmetric Gauss-Seidel alone reduces
         # every error mode by a large factor, at a fraction of a V-cycle's cost and with no
         # coarse levels to build.
-        self.coarse = levels == 1 or not diagonally_dominant_kernel(
-            self._level(self.diagonal, 0), self._level(self.total, 0),
-            int(self.rows[0]), int(self.cols[0]), _SMOOTHER_ONLY_DOMINANCE,
-        )
+        self.coarse = levels == 1 or not dominant
         if not self.coarse:
             return
         for level in range(1, levels):

@@ -36,11 +36,21 @@ class _NullSpace:
             remove_component_means_kernel(x, self.labels, self.singular, self.count)
 
 
-def _analyse(operator: Operator5Point) -> _NullSpace:
-    active = np.empty(operator.shape, dtype=np.bool_)
-    all_have_diagonal = active_mask_kernel(
-        operator.diagonal, operator.weights_x, operator.weights_y, active
-    )
+def _analyse(
+    operator: Operator5Point,
+    active: NDArray[np.bool_] | None = None,
+    all_have_diagonal: bool = False,
+) -> _NullSpace:
+    """Active points and singular components of ``operator``.
+
+    ``active`` (shape ``(m, n)``) with ``all_have_diagonal`` may be given when already known
+    (the multigrid solver computes both while loading the operator); the array is kept.
+    """
+    if active is None:
+        active = np.empty(operator.shape, dtype=np.bool_)
+        all_have_diagonal = active_mask_kernel(
+            operator.diagonal, operator.weights_x, operator.weights_y, active
+        )
     if all_have_diagonal:
         return _NullSpace(active, None, None, 0)
     labels = np.empty(operator.shape, dtype=np.int64)
