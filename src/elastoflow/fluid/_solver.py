@@ -483,7 +483,7 @@ class FluidSolver:
         )
         if self.incremental_pressure:
             increment, report = self.pressure_solver.solve(operator, self._rhs_pressure)
-            self._subtract_gradient(state, increment, dt, interior)
+            self._subtract_gradient(state, increment, dt, interior, solid_known=True)
             state.pressure += increment
             return report
         if self._pressure_out and _writable_into(state.pressure):
@@ -495,7 +495,7 @@ class FluidSolver:
                 operator, self._rhs_pressure, x0=state.pressure
             )
             kernels.copy_into(pressure, state.pressure)
-        self._subtract_gradient(state, state.pressure, dt, interior)
+        self._subtract_gradient(state, state.pressure, dt, interior, solid_known=True)
         return report
 
     def _solid_face_velocities(
@@ -514,14 +514,18 @@ class FluidSolver:
 
     def _subtract_gradient(
         self, state: FluidState, pressure: np.ndarray, dt: float,
-        interior: InteriorBoundary | None,
+        interior: InteriorBoundary | None, solid_known: bool = False,
     ) -> None:
+        """``u -= dt/rho grad p``; ``solid_known``: the body face velocities are in the buffers."""
         if interior is None:
             has, open_x, open_y = False, self._no_values, self._no_values
             solid_u, solid_v = self._no_values, self._no_values
         else:
             has, open_x, open_y = True, interior.open_fraction_x, interior.open_fraction_y
-            solid_u, solid_v = self._solid_face_velocities(interior)
+            if solid_known:
+                solid_u, solid_v = self._solid_u, self._solid_v
+            else:
+                solid_u, solid_v = self._solid_face_velocities(interior)
         kernels.subtract_pressure_gradient(
             state.velocity_x, state.velocity_y, pressure, dt / (self.density * self.grid.h),
             self._outflow, has, open_x, open_y, solid_u, solid_v,
