@@ -220,76 +220,7 @@ PARALLEL_MINIMUM = 300 * 300
 COARSEN_PARALLEL_MINIMUM = 32 * 32
 
 
-@njit(cache=True, parallel=True)
-def _pad_operator_kernel_parallel(diagonal, weights_x, weights_y, diagonal_flat, weights_x_flat,
-                                  weights_y_flat, total_flat, inverse_flat):
-    m, n = diagonal.shape
-    stride = n + 2
-    for i in prange(m):
-        row = (i + 1) * stride + 1
-        for j in range(n):
-            value = diagonal[i, j]
-            diagonal_flat[row + j] = value
-            if i < m - 1:
-                weight = weights_x[i, j]
-                weights_x_flat[row + j] = weight
-                value += weight
-            else:
-                weights_x_flat[row + j] = 0.0
-            if i > 0:
-                value += weights_x[i - 1, j]
-            if j < n - 1:
-                weight = weights_y[i, j]
-                weights_y_flat[row + j] = weight
-                value += weight
-            else:
-                weights_y_flat[row + j] = 0.0
-            if j > 0:
-                value += weights_y[i, j - 1]
-            total_flat[row + j] = value
-            inverse_flat[row + j] = 1.0 / value if value > 0.0 else 0.0
 
-
-@njit(cache=True)
-def _pad_operator_kernel_serial(diagonal, weights_x, weights_y, diagonal_flat, weights_x_flat,
-                                weights_y_flat, total_flat, inverse_flat):
-    m, n = diagonal.shape
-    stride = n + 2
-    for i in range(m):
-        row = (i + 1) * stride + 1
-        for j in range(n):
-            value = diagonal[i, j]
-            diagonal_flat[row + j] = value
-            if i < m - 1:
-                weight = weights_x[i, j]
-                weights_x_flat[row + j] = weight
-                value += weight
-            else:
-                weights_x_flat[row + j] = 0.0
-            if i > 0:
-                value += weights_x[i - 1, j]
-            if j < n - 1:
-                weight = weights_y[i, j]
-                weights_y_flat[row + j] = weight
-                value += weight
-            else:
-                weights_y_flat[row + j] = 0.0
-            if j > 0:
-                value += weights_y[i, j - 1]
-            total_flat[row + j] = value
-            inverse_flat[row + j] = 1.0 / value if value > 0.0 else 0.0
-
-
-@njit(cache=True)
-def pad_operator_kernel(diagonal, weights_x, weights_y, diagonal_flat, weights_x_flat,
-                        weights_y_flat, total_flat, inverse_flat):
-    """Copy the operator into the padded level-0 arrays and fill its totals and inverses."""
-    if diagonal.size > PARALLEL_MINIMUM:
-        return _pad_operator_kernel_parallel(diagonal, weights_x, weights_y, diagonal_flat,
-                                             weights_x_flat, weights_y_flat, total_flat,
-                                             inverse_flat)
-    return _pad_operator_kernel_serial(diagonal, weights_x, weights_y, diagonal_flat,
-                                       weights_x_flat, weights_y_flat, total_flat, inverse_flat)
 
 
 @njit(cache=True, parallel=True)
@@ -1055,92 +986,10 @@ def finite_minimum_kernel(values):
     return _count_non_finite(values)
 
 
-@njit(cache=True, parallel=True)
-def _operator_matches_kernel_parallel(diagonal, weights_x, weights_y, diagonal_flat,
-                                      weights_x_flat, weights_y_flat):
-    m, n = diagonal.shape
-    stride = n + 2
-    differences = 0
-    for i in prange(m):
-        row = (i + 1) * stride + 1
-        different = 0
-        for j in range(n):
-            if diagonal[i, j] != diagonal_flat[row + j]:
-                different += 1
-            if i < m - 1 and weights_x[i, j] != weights_x_flat[row + j]:
-                different += 1
-            if j < n - 1 and weights_y[i, j] != weights_y_flat[row + j]:
-                different += 1
-        differences += different
-    return differences == 0
 
 
-@njit(cache=True)
-def _operator_matches_kernel_serial(diagonal, weights_x, weights_y, diagonal_flat, weights_x_flat,
-                                    weights_y_flat):
-    m, n = diagonal.shape
-    stride = n + 2
-    differences = 0
-    for i in range(m):
-        row = (i + 1) * stride + 1
-        different = 0
-        for j in range(n):
-            if diagonal[i, j] != diagonal_flat[row + j]:
-                different += 1
-            if i < m - 1 and weights_x[i, j] != weights_x_flat[row + j]:
-                different += 1
-            if j < n - 1 and weights_y[i, j] != weights_y_flat[row + j]:
-                different += 1
-        differences += different
-    return differences == 0
 
 
-@njit(cache=True)
-def operator_matches_kernel(diagonal, weights_x, weights_y, diagonal_flat, weights_x_flat,
-                            weights_y_flat):
-    """Whether the operator equals the one stored in the padded level-0 arrays."""
-    if diagonal.size > PARALLEL_MINIMUM:
-        return _operator_matches_kernel_parallel(diagonal, weights_x, weights_y, diagonal_flat,
-                                                 weights_x_flat, weights_y_flat)
-    return _operator_matches_kernel_serial(diagonal, weights_x, weights_y, diagonal_flat,
-                                           weights_x_flat, weights_y_flat)
-
-
-@njit(cache=True, parallel=True)
-def _diagonally_dominant_kernel_parallel(diagonal_flat, total_flat, m, n, ratio):
-    stride = n + 2
-    weak = 0
-    for i in prange(m):
-        row = (i + 1) * stride + 1
-        count = 0
-        for j in range(n):
-            if diagonal_flat[row + j] < ratio * (total_flat[row + j] - diagonal_flat[row + j]):
-                count += 1
-        weak += count
-    return weak == 0
-
-
-@njit(cache=True)
-def _diagonally_dominant_kernel_serial(diagonal_flat, total_flat, m, n, ratio):
-    stride = n + 2
-    weak = 0
-    for i in range(m):
-        row = (i + 1) * stride + 1
-        count = 0
-        for j in range(n):
-            if diagonal_flat[row + j] < ratio * (total_flat[row + j] - diagonal_flat[row + j]):
-                count += 1
-        weak += count
-    return weak == 0
-
-
-@njit(cache=True)
-def diagonally_dominant_kernel(diagonal_flat, total_flat, m, n, ratio):
-    """Whether every point's diagonal term is at least ``ratio`` times the sum of its
-    weights."""
-    if m * n > PARALLEL_MINIMUM:
-        return _diagonally_dominant_kernel_parallel(diagonal_flat, total_flat, m, n, ratio)
-    return _diagonally_dominant_kernel_serial(diagonal_flat, total_flat, m, n, ratio)
 
 
 @njit(cache=True, parallel=True, fastmath=_REDUCTION_MATH)
@@ -1209,7 +1058,7 @@ def _load_operator_row(diagonal, weights_x, weights_y, diagonal_flat, weights_x_
         if diagonal_flat[k] != value:
             changed += 1
         diagonal_flat[k] = value
-        # Summed in the order of `pad_operator_kernel` so that the levels are identical.
+        # Summed in the same order as the level's own products, term by term.
         total = value
         if i < m - 1:
             weight = weights_x[i, j]
@@ -1286,9 +1135,8 @@ def load_operator_kernel(diagonal, weights_x, weights_y, diagonal_flat, weights_
 
     Fills totals and inverses and the ``(m, n)`` active mask, and returns whether any value
     differed from what the level held, whether every active point has a positive diagonal,
-    and whether every diagonal is at least ``ratio`` times the point's sum of weights. Fuses
-    what `operator_matches_kernel`, `pad_operator_kernel`, `active_mask_kernel` and
-    `diagonally_dominant_kernel` do in four passes.
+    and whether every diagonal is at least ``ratio`` times the point's sum of weights (one
+    pass instead of the four that comparing, padding, marking and the dominance test took).
     """
     if diagonal.size > PARALLEL_MINIMUM:
         return _load_operator_kernel_parallel(diagonal, weights_x, weights_y, diagonal_flat,
