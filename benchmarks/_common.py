@@ -7,6 +7,7 @@ Benchmarks are measurements, never assertions. Each benchmark module exposes
 from __future__ import annotations
 
 import json
+import math
 import os
 import platform
 import subprocess
@@ -82,3 +83,47 @@ def markdown_table(rows: list[dict[str, Any]], columns: list[str]) -> str:
     for row in rows:
         lines.append("| " + " | ".join(fmt(row.get(c, "")) for c in columns) + " |")
     return "\n".join(lines)
+
+
+def versus_target(value: float, target: float, *, at_most: bool) -> str:
+    """``'met'`` or the miss factor, e.g. ``'x1.6 over'`` (``at_most``) or ``'x1.6 under'``.
+
+    Args:
+        value: The measured figure.
+        target: The issue's target for it.
+        at_most: True when the target is an upper bound (times, shares, memory), False when it
+            is a lower bound (steps/s, frames/s).
+    """
+    if math.isnan(value) or target <= 0.0:
+        return "n/a"
+    if at_most:
+        return "met" if value <= target else f"x{value / target:.2f} over"
+    return "met" if value >= target else f"x{target / max(value, 1e-300):.2f} under"
+
+
+def run_child(module: str, args: list[str], env: dict[str, str] | None = None,
+              timeout: float = 1800.0) -> dict[str, Any]:
+    """Run ``python -m MODULE ARGS`` in a fresh process; its last stdout line is JSON.
+
+    A fresh process per case keeps each case's peak memory (``ru_maxrss``) its own.
+    """
+    import sys
+
+    root = Path(__file__).resolve().parent.parent
+    child_env = dict(os.environ if env is None else env)
+    child_env["PYTHONPATH"] = os.pathsep.join(
+        p for p in (str(root), child_env.get("PYTHONPATH", "")) if p)
+    done = subprocess.run([sys.executable, "-m", module, *args], cwd=root, env=child_env,
+                          capture_output=True, text=True, timeout=timeout, check=False)
+    if done.returncode != 0:
+        raise RuntimeError(f"{module} {' '.join(args)} failed:\n{done.stderr[-2000:]}")
+    return json.loads(done.stdout.strip().splitlines()[-1])
+
+
+def peak_memory_mb() -> float:
+    """This process's peak resident memory [MB] (``ru_maxrss``, KiB on Linux)."""
+    import resource
+    import sys
+
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    return peak / 1e6 if sys.platform == "darwin" else peak * 1024 / 1e6

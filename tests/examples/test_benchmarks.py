@@ -1,0 +1,66 @@
+"""The benchmark modules run end to end in their smallest mode (no timing assertions).
+
+Each writes its JSON into a temporary folder here, never over ``benchmarks/results``.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+import pytest
+
+pytest.importorskip("elastoflow.simulation")
+_ROOT = Path(__file__).resolve().parents[2]
+if (_ROOT / "benchmarks").is_dir() and str(_ROOT) not in sys.path:
+    sys.path.insert(0, str(_ROOT))
+benchmarks_common = pytest.importorskip("benchmarks._common")
+
+
+@pytest.fixture()
+def results(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
+    monkeypatch.setattr(benchmarks_common, "RESULTS_DIR", tmp_path)
+    return tmp_path
+
+
+def _written(folder: Path, name: str) -> list[dict]:
+    payload = json.loads((folder / f"{name}.json").read_text())
+    assert payload["machine"]["cores"] >= 1 and payload["commit"]
+    return payload["results"]
+
+
+def test_versus_target_says_met_or_by_how_much() -> None:
+    versus = benchmarks_common.versus_target
+    assert versus(10.0, 20.0, at_most=True) == "met"
+    assert versus(30.0, 20.0, at_most=True) == "x1.50 over"
+    assert versus(50.0, 100.0, at_most=False) == "x2.00 under"
+    assert versus(100.0, 60.0, at_most=False) == "met"
+
+
+def test_scenes_runs_each_case_in_its_own_process(results: Path) -> None:
+    from benchmarks import bench_scenes
+
+    rows = bench_scenes.main(["--cases", "bar_in_jet,large_512", "--steps", "2", "--warmup",
+                              "1", "--size", "32"])
+    assert [row["case"] for row in rows] == ["bar_in_jet", "large_512"]
+    written = _written(results, "scenes")
+    assert written[-1]["case"].startswith("baseline")
+    for row in rows:
+        assert row["peak_memory_mb"] > written[-1]["peak_memory_mb"] > 0.0
+        assert row["boundary_map_ms"] > 0.0 and row["classification_ms"] > 0.0
+        assert row["share_vs_5pct"] == "met" or row["share_vs_5pct"].endswith("over")
+    assert rows[1]["bodies"] == 5 and rows[1]["obstacles"] == 1
+
+
+def test_output_viewer_and_startup_run(results: Path) -> None:
+    from benchmarks import bench_output, bench_startup, bench_viewer
+
+    output = bench_output.main(["--steps", "2", "--size", "32"])[0]
+    assert output["ms_per_step_with_video"] > 0.0 and output["ms_per_frame_drawing"] > 0.0
+    viewer = bench_viewer.main(["--frames", "2", "--size", "32"])[0]
+    assert viewer["fps"] > 0.0 and viewer["ms_update"] > 0.0
+    startup = bench_startup.main(["--quick"])[0]
+    assert 0.0 < startup["seconds_imports"] < startup["seconds_to_first_step"]
+    for name in ("output", "viewer", "startup"):
+        assert _written(results, name)
