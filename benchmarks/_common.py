@@ -121,9 +121,21 @@ def run_child(module: str, args: list[str], env: dict[str, str] | None = None,
 
 
 def peak_memory_mb() -> float:
-    """This process's peak resident memory [MB] (``ru_maxrss``, KiB on Linux)."""
+    """This process's peak resident memory [MB].
+
+    Linux: ``VmHWM`` of ``/proc/self/status``, the high-water mark of this process's own
+    address space; ``ru_maxrss`` is carried over ``exec`` from the process that started it, so
+    a child started by a large parent (a pytest-xdist worker, or the runner after the 1024²
+    fluid case) would report the parent's peak. Elsewhere ``ru_maxrss``.
+    """
     import resource
     import sys
 
+    try:
+        for line in Path("/proc/self/status").read_text().splitlines():
+            if line.startswith("VmHWM:"):
+                return int(line.split()[1]) * 1024 / 1e6
+    except (OSError, ValueError, IndexError):
+        pass
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
     return peak / 1e6 if sys.platform == "darwin" else peak * 1024 / 1e6
