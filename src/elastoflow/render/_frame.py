@@ -4,13 +4,20 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from functools import cache, lru_cache
 from typing import Any
 
 import numpy as np
 
-from elastoflow.render._colormap import COLORMAP_BY_VIEW, apply_colormap, colormap_lut
+from elastoflow.render._colormap import COLORMAP_BY_VIEW, colormap_lut
 from elastoflow.render._fields import speed_at_cells, vorticity_at_cells
-from elastoflow.render._kernels import draw_segments, fill_polygon, fill_triangles
+from elastoflow.render._kernels import (
+    color_field,
+    draw_segments,
+    draw_triangle_edges,
+    fill_polygon,
+    fill_triangles,
+)
 
 VIEWS: tuple[str, ...] = ("speed", "vorticity", "pressure", "dye")
 BODY_FILL_COLOR = np.array([235, 235, 235], dtype=np.uint8)
@@ -111,13 +118,21 @@ def render_frame(
     """
     values = view_values(grid, state, view)
     low, high = value_range if value_range is not None else default_value_range(values, view)
+    low, high = float(low), float(high)
     scale = default_scale(grid) if scale is None else int(scale)
     colormap = COLORMAP_BY_VIEW[view]
 
-    # Row 0 is the top of the picture: flip y.
-    cells = apply_colormap(values.T[::-1], low, high, colormap)
-    field = np.repeat(np.repeat(cells, scale, axis=0), scale, axis=1)
-    height, width = field.shape[:2]
+    height, width = grid.ny * scale, grid.nx * scale
+    panel_width = _panel_width(height) if colorbar else 0
+    out_height = height + (height % 2)
+    out_width = width + panel_width
+    out_width += out_width % 2
+    image = np.empty((out_height, out_width, 3), dtype=np.uint8)
+    field = image[:height, :width]
+    color_field(field, np.asarray(values, dtype=np.float64), low, high, colormap_lut(colormap),
+                scale)
+    if out_height > height:
+        image[height:] = PANEL_COLOR
 
     origin = np.asarray(getattr(grid, "origin", (0.0, 0.0)), dtype=np.float64)
     pixels_per_metre = scale / grid.h
@@ -137,18 +152,14 @@ def render_frame(
         points, triangles = _body_geometry(body)
         pixels = to_pixels(points)
         fill_triangles(field, pixels, triangles, BODY_FILL_COLOR)
-        edges = triangle_edges(triangles)
-        draw_segments(field, pixels[edges[:, 0]], pixels[edges[:, 1]], BODY_EDGE_COLOR)
+        draw_triangle_edges(field, pixels, triangles, BODY_EDGE_COLOR)
 
-    panel_width = _panel_width(height) if colorbar else 0
-    out_height = height + (height % 2)
-    out_width = width + panel_width
-    out_width += out_width % 2
-    image = np.empty((out_height, out_width, 3), dtype=np.uint8)
-    image[...] = PANEL_COLOR
-    image[:height, :width] = field
     if colorbar:
-        _draw_colorbar(image, width, height, colormap, low, high, _LABELS[view])
+        image[:, width:] = _static_panel(out_height, out_width - width, height, colormap,
+                                         _LABELS[view])
+        _draw_colorbar_values(image, width, height, low, high)
+    elif out_width > width:
+        image[:, width:] = PANEL_COLOR
     if time is not None:
         _draw_time(image, now, height)
     return image
@@ -158,6 +169,7 @@ def _panel_width(height: int) -> int:
     return max(64, min(110, height // 5))
 
 
+@cache
 def _font(size: int) -> Any:
     from PIL import ImageFont
 
@@ -171,41 +183,125 @@ def _text_size(height: int) -> int:
     return max(9, min(16, height // 28))
 
 
-def _draw_colorbar(image: np.ndarray, x_start: int, height: int, colormap: str, low: float,
-                   high: float, label: str) -> None:
-    from PIL import Image, ImageDraw
-
+def _colorbar_layout(x_start: int, height: int) -> tuple[int, int, int, int]:
+    """(top, bottom, left, bar_width) of the colour bar in image pixels."""
     margin = max(6, height // 20)
     bar_width = max(8, height // 32)
     top, bottom = margin + 2 * _text_size(height), height - margin
     left = x_start + margin // 2 + 2
     if bottom - top < 8:
         top, bottom = 2, height - 2
+    return top, bottom, left, bar_width
+
+
+@lru_cache(maxsize=16)
+def _static_panel(out_height: int, panel_width: int, height: int, colormap: str,
+                  label: str) -> np.ndarray:
+    """The colour bar panel without its value labels: ramp, frame and the view's name.
+
+    Shape (out_height, panel_width, 3) uint8, read-only; drawn once per size, map and label
+    because it does not change from frame to frame.
+    """
+    from PIL import Image, ImageDraw
+
+    panel = np.empty((out_height, panel_width, 3), dtype=np.uint8)
+    panel[...] = PANEL_COLOR
+    top, bottom, left, bar_width = _colorbar_layout(0, height)
     # Highest value at the top.
     ramp = colormap_lut(colormap)[np.linspace(255, 0, bottom - top).astype(np.intp)]
-    image[top:bottom, left:left + bar_width] = ramp[:, None, :]
-    image[top:bottom, left - 1] = 0
-    image[top:bottom, left + bar_width] = 0
-    image[top - 1, left - 1:left + bar_width + 1] = 0
-    image[bottom, left - 1:left + bar_width + 1] = 0
+    panel[top:bottom, left:left + bar_width] = ramp[:, None, :]
+    panel[top:bottom, left - 1] = 0
+    panel[top:bottom, left + bar_width] = 0
+    panel[top - 1, left - 1:left + bar_width + 1] = 0
+    panel[bottom, left - 1:left + bar_width + 1] = 0
+    picture = Image.fromarray(panel)
+    ImageDraw.Draw(picture).text((3, 2), label, fill=(0, 0, 0), font=_font(_text_size(height)))
+    panel = np.asarray(picture).copy()
+    panel.flags.writeable = False
+    return panel
 
-    picture = Image.fromarray(image)
-    draw = ImageDraw.Draw(picture)
-    font = _font(_text_size(height))
-    draw.text((x_start + 3, 2), label, fill=(0, 0, 0), font=font)
+
+@lru_cache(maxsize=1024)
+def _text_patch(text: str, size: int) -> tuple[int, int, np.ndarray]:
+    """Black ``text`` on white as drawn at the origin: (dx, dy, patch (h, w, 3) uint8), the
+    patch's top-left corner at (dx, dy) from the text's anchor."""
+    from PIL import Image, ImageDraw
+
+    font = _font(size)
+    x0, y0, x1, y1 = (int(v) for v in font.getbbox(text))
+    picture = Image.new("RGB", (max(1, x1 - x0), max(1, y1 - y0)), PANEL_COLOR)
+    ImageDraw.Draw(picture).text((-x0, -y0), text, fill=(0, 0, 0), font=font)
+    patch = np.asarray(picture).copy()
+    patch.flags.writeable = False
+    return x0, y0, patch
+
+
+def _draw_colorbar_values(image: np.ndarray, x_start: int, height: int, low: float,
+                          high: float) -> None:
+    """Write the colour bar's top, middle and bottom values beside it.
+
+    The cached glyph patches are black on white and the panel behind them is white, so the
+    darker of the two is the text exactly as Pillow draws it there.
+    """
+    top, bottom, left, bar_width = _colorbar_layout(x_start, height)
+    size = _text_size(height)
     for value, row in ((high, top), (0.5 * (low + high), (top + bottom) // 2), (low, bottom)):
-        draw.text((left + bar_width + 3, row - _text_size(height) // 2), f"{value:.3g}",
-                  fill=(0, 0, 0), font=font)
-    image[...] = np.asarray(picture)
+        dx, dy, patch = _text_patch(f"{value:.3g}", size)
+        x, y = left + bar_width + 3 + dx, row - size // 2 + dy
+        _paste_darker(image, patch, x, y)
+
+
+def _paste_darker(image: np.ndarray, patch: np.ndarray, x: int, y: int) -> None:
+    rows = slice(max(y, 0), min(y + patch.shape[0], image.shape[0]))
+    cols = slice(max(x, 0), min(x + patch.shape[1], image.shape[1]))
+    if rows.start >= rows.stop or cols.start >= cols.stop:
+        return
+    part = patch[rows.start - y:rows.stop - y, cols.start - x:cols.stop - x]
+    np.minimum(image[rows, cols], part, out=image[rows, cols])
+
+
+def _time_box(time: float, height: int) -> tuple[str, int, tuple[float, float, float, float]]:
+    size = _text_size(height) + 2
+    text = f"t = {time:.2f} s"
+    return text, size, (2, 2, 4 + size * len(text) * 0.6, 4 + size * 1.2)
+
+
+@lru_cache(maxsize=1024)
+def _time_patch(text: str, size: int, box: tuple[float, float, float, float]
+                ) -> tuple[np.ndarray, np.ndarray] | None:
+    """The time label as Pillow draws it at the top-left corner: (covered (h, w) bool,
+    pixels (h, w, 3) uint8), or None when the text overhangs its black box (then the field
+    shows through the glyphs' edges and the label is drawn in place)."""
+    from PIL import Image, ImageDraw
+
+    font = _font(size)
+    x0, y0, x1, y1 = font.getbbox(text)
+    rows, cols = math.ceil(box[3]) + 2, math.ceil(box[2]) + 2
+    covered = Image.new("L", (cols, rows), 0)
+    ImageDraw.Draw(covered).rectangle(box, fill=255)
+    inside = np.asarray(covered) > 0
+    text_rows, text_cols = slice(3 + y0, 3 + y1), slice(4 + x0, 4 + x1)
+    if 3 + y0 < 0 or 4 + x0 < 0 or 3 + y1 > rows or 4 + x1 > cols or not np.all(
+            inside[text_rows, text_cols]):
+        return None
+    picture = Image.new("RGB", (cols, rows), (0, 0, 0))
+    ImageDraw.Draw(picture).text((4, 3), text, fill=(255, 255, 255), font=font)
+    return inside, np.asarray(picture).copy()
 
 
 def _draw_time(image: np.ndarray, time: float, height: int) -> None:
+    text, size, box = _time_box(time, height)
+    cached = _time_patch(text, size, box)
+    if cached is not None:
+        inside, pixels = cached
+        rows, cols = min(inside.shape[0], image.shape[0]), min(inside.shape[1], image.shape[1])
+        inside, pixels = inside[:rows, :cols], pixels[:rows, :cols]
+        image[:rows, :cols][inside] = pixels[inside]
+        return
     from PIL import Image, ImageDraw
 
     picture = Image.fromarray(image)
     draw = ImageDraw.Draw(picture)
-    size = _text_size(height) + 2
-    text = f"t = {time:.2f} s"
-    draw.rectangle((2, 2, 4 + size * len(text) * 0.6, 4 + size * 1.2), fill=(0, 0, 0))
+    draw.rectangle(box, fill=(0, 0, 0))
     draw.text((4, 3), text, fill=(255, 255, 255), font=_font(size))
     image[...] = np.asarray(picture)

@@ -9,7 +9,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 
 @njit(cache=True)
@@ -85,3 +85,64 @@ def draw_segments(image: np.ndarray, starts: np.ndarray, ends: np.ndarray,
             if 0 <= row < height and 0 <= col < width:
                 for c in range(3):
                     image[row, col, c] = color[c]
+
+
+@njit(cache=True)
+def draw_triangle_edges(image: np.ndarray, points: np.ndarray, triangles: np.ndarray,
+                        color: np.ndarray) -> None:
+    """Draw every edge of a triangle mesh as a one-pixel segment (DDA).
+
+    Each edge runs from its lower to its higher node index, so an edge shared by two triangles
+    lands on the same pixels both times and the picture equals drawing each edge once.
+    """
+    height, width = image.shape[0], image.shape[1]
+    for t in range(triangles.shape[0]):
+        for corner in range(3):
+            a = triangles[t, corner]
+            b = triangles[t, (corner + 1) % 3]
+            if a > b:
+                a, b = b, a
+            xa, ya = points[a, 0], points[a, 1]
+            dx, dy = points[b, 0] - xa, points[b, 1] - ya
+            if not (math.isfinite(dx) and math.isfinite(dy)):
+                continue
+            samples = int(max(abs(dx), abs(dy))) + 1
+            for s in range(samples + 1):
+                f = s / samples
+                col = math.floor(xa + f * dx)
+                row = math.floor(ya + f * dy)
+                if 0 <= row < height and 0 <= col < width:
+                    for c in range(3):
+                        image[row, col, c] = color[c]
+
+
+@njit(cache=True, parallel=True)
+def color_field(image: np.ndarray, values: np.ndarray, low: float, high: float,
+                lut: np.ndarray, scale: int) -> None:
+    """Colour cell values (nx, ny) through ``lut`` (256, 3) into the top-left
+    (ny * scale, nx * scale) pixels of ``image``, each cell a ``scale`` x ``scale`` block, y up.
+
+    Values map linearly from [low, high] to the table's 256 entries, clipped; NaN takes the
+    first entry (as `apply_colormap` does).
+    """
+    nx, ny = values.shape
+    span = high - low if high > low else 1.0
+    factor = 255.0 / span
+    for j in prange(ny):
+        row = (ny - 1 - j) * scale
+        for i in range(nx):
+            x = (values[i, j] - low) * factor
+            if not x >= 0.0:
+                index = 0
+            elif x > 255.0:
+                index = 255
+            else:
+                index = int(x)
+            col = i * scale
+            for s in range(scale):
+                for c in range(3):
+                    image[row, col + s, c] = lut[index, c]
+        for r in range(1, scale):
+            for col in range(nx * scale):
+                for c in range(3):
+                    image[row + r, col, c] = image[row, col, c]

@@ -135,3 +135,24 @@ def test_video_writer_rejects_changing_size(tmp_path) -> None:
         video.append(np.zeros((8, 8, 3), np.uint8))
         with pytest.raises(ValueError, match="frame size"):
             video.append(np.zeros((10, 8, 3), np.uint8))
+
+
+def test_cached_colour_bar_labels_follow_the_value_range() -> None:
+    grid = Grid2D(32, 32, 1.0 / 32)
+    state = _state(grid, 0.5)
+    field_width = 32 * 16
+    first = render_frame(grid, state, view="speed", scale=16, value_range=(0.0, 1.0))
+    again = render_frame(grid, state, view="speed", scale=16, value_range=(0.0, 1.0))
+    other = render_frame(grid, state, view="speed", scale=16, value_range=(0.0, 7.0))
+    back = render_frame(grid, state, view="speed", scale=16, value_range=(0.0, 1.0))
+    np.testing.assert_array_equal(first, again)
+    np.testing.assert_array_equal(first, back)
+    # Same field colour scale aside, only the labels differ: the panel changes, the ramp not.
+    assert np.any(first[:, field_width:] != other[:, field_width:])
+    ramp_column = field_width + 32 // 2 + 2 + 4
+    np.testing.assert_array_equal(first[:, ramp_column], other[:, ramp_column])
+    # Labels are drawn on the panel: dark pixels right of the ramp, different per range.
+    labels_first = first[:, ramp_column + 16:].min(axis=-1) < 128
+    labels_other = other[:, ramp_column + 16:].min(axis=-1) < 128
+    assert labels_first.any() and labels_other.any()
+    assert np.any(labels_first != labels_other)
