@@ -1,5 +1,6 @@
 from __future__ import annotations
 
+import weakref
 from dataclasses import dataclass
 
 import numpy as np
@@ -123,6 +124,52 @@ def classify_points(
     return out
 
 
+_NO_BODY = np.empty((0, 0), dtype=np.int32)
+
+# Index box (i_begin, i_end, j_begin, j_end) that the last call wrote into each ``out`` it
+# returned, keyed by the object's id (InteriorBoundary is not hashable); outside that box the
+# object holds the empty state, so the next call resets only the box. A weak reference drops
+# the entry when the object dies and guards against a reused id.
+_written_boxes: dict[int, tuple[weakref.ref[InteriorBoundary], tuple[int, int, int, int]]] = {}
+
+
+def _written_box(out: InteriorBoundary, nx: int, ny: int) -> tuple[int, int, int, int]:
+    entry = _written_boxes.get(id(out))
+    if entry is not None and entry[0]() is out:
+        return entry[1]
+    return 0, nx + 1, 0, ny + 1
+
+
+def _remember_written_box(out: InteriorBoundary, box: tuple[int, int, int, int]) -> None:
+    key = id(out)
+    entry = _written_boxes.get(key)
+    if entry is not None and entry[0]() is out:
+        _written_boxes[key] = (entry[0], box)
+        return
+
+    def forget(_: weakref.ref[InteriorBoundary]) -> None:
+        _written_boxes.pop(key, None)
+
+    _written_boxes[key] = (weakref.ref(out, forget), box)
+
+
+def _reset(out: InteriorBoundary, box: tuple[int, int, int, int]) -> None:
+    """Put the empty state (fluid, open, no cut) back into the index box of every array."""
+    i_begin, i_end, j_begin, j_end = box
+    if i_begin >= i_end or j_begin >= j_end:
+        return
+    cells = (slice(i_begin, i_end), slice(j_begin, j_end))
+    every_direction = (slice(None), *cells)
+    for array, value in ((out.solid_cells, False), (out.solid_faces_x, False),
+                         (out.solid_faces_y, False), (out.velocity_faces_x, 0.0),
+                         (out.velocity_faces_y, 0.0), (out.open_fraction_x, 1.0),
+                         (out.open_fraction_y, 1.0)):
+        array[cells] = value
+    for array, value in ((out.cut_theta_x, np.inf), (out.cut_theta_y, np.inf),
+                         (out.cut_velocity_x, 0.0), (out.cut_velocity_y, 0.0)):
+        array[every_direction] = value
+
+
 def interior_boundary_from_map(
     grid: Grid2D,
     bmap: BoundaryMap,
@@ -148,16 +195,19 @@ def interior_boundary_from_map(
       disagree for an edge nearly parallel to a column, the cut is set at the neighbour,
       theta = 1).
 
-    The work is proportional to the number of crossings and solid points, apart from
-    allocating (or, with ``out``, resetting) the dense arrays of the result and one pass over
-    the face flags for the guarantee below.
+    The work is proportional to the number of crossings, the number of half-grid lines and
+    the area of the bodies' bounding boxes (plus 2 h): with ``out`` a result of an earlier
+    call, only the box that call wrote is reset and only the box of this map is scanned for
+    the guarantee above. Allocating without ``out``, an ``out`` not returned by this function
+    and a given ``classification`` cost the whole grid.
 
     Args:
         grid: The MAC grid.
         bmap: The boundary map of that grid.
         classification: The result of ``classify_points`` when the caller already has it.
         out: An interior boundary of this grid to overwrite in place (saves allocating the
-            dense arrays every step).
+            dense arrays every step). If it was returned by an earlier call, its arrays must
+            not have been written since (outside that call's box they are assumed empty).
 
     Returns:
         The interior boundary (``out`` when given).
@@ -165,21 +215,10 @@ def interior_boundary_from_map(
     _check_grid(grid, bmap)
     nx, ny, h = grid.nx, grid.ny, grid.h
     ox, oy = grid.origin
+    box = _kernels.touched_box(bmap.x_offsets, bmap.x_coordinate, bmap.x_sign, bmap.y_offsets,
+                               bmap.y_coordinate, bmap.y_sign, ox, oy, h, nx, ny)
     if out is None:
-        fx, fy = (nx + 1, ny), (nx, ny + 1)
-        out = InteriorBoundary(
-            solid_cells=np.zeros((nx, ny), dtype=np.bool_),
-            solid_faces_x=np.zeros(fx, dtype=np.bool_),
-            solid_faces_y=np.zeros(fy, dtype=np.bool_),
-            velocity_faces_x=np.zeros(fx),
-            velocity_faces_y=np.zeros(fy),
-            open_fraction_x=np.empty(fx),
-            open_fraction_y=np.empty(fy),
-            cut_theta_x=np.empty((4, *fx)),
-            cut_theta_y=np.empty((4, *fy)),
-            cut_velocity_x=np.empty((4, *fx)),
-            cut_velocity_y=np.empty((4, *fy)),
-        )
+        out = InteriorBoundary.empty(grid)
     else:
         out.check(grid)
         for name in ("solid_cells", "solid_faces_x", "solid_faces_y"):
@@ -188,33 +227,34 @@ def interior_boundary_from_map(
                      "open_fraction_y", "cut_theta_x", "cut_theta_y", "cut_velocity_x",
                      "cut_velocity_y"):
             _check_out(name, getattr(out, name), getattr(out, name).shape, np.float64)
+        _reset(out, _written_box(out, nx, ny))
 
     if classification is None:
-        no_body = np.empty((0, 0), dtype=np.int32)
-        _fill_classification(grid, bmap, out.solid_cells, out.solid_faces_x, out.solid_faces_y,
-                             no_body, no_body, no_body, out.velocity_faces_x,
-                             out.velocity_faces_y)
+        _kernels.classify_lines(bmap.x_offsets, bmap.x_coordinate, bmap.x_sign, bmap.x_edge,
+                                bmap.x_velocity, bmap.edge_body, 1, ny, 1, nx, ox, 0.5 * h, -1,
+                                out.solid_cells, _NO_BODY, out.velocity_faces_x)
+        _kernels.classify_lines(bmap.x_offsets, bmap.x_coordinate, bmap.x_sign, bmap.x_edge,
+                                bmap.x_velocity, bmap.edge_body, 1, ny, 0, nx + 1, ox, 0.5 * h,
+                                0, out.solid_faces_x, _NO_BODY, out.velocity_faces_x)
+        _kernels.classify_lines(bmap.x_offsets, bmap.x_coordinate, bmap.x_sign, bmap.x_edge,
+                                bmap.x_velocity, bmap.edge_body, 0, ny + 1, 1, nx, ox, 0.5 * h,
+                                1, out.solid_faces_y, _NO_BODY, out.velocity_faces_y)
     else:
+        # The caller's flags may be set anywhere: the whole grid counts as written.
+        box = (0, nx + 1, 0, ny + 1)
         out.solid_cells[...] = classification.solid_cells
         out.solid_faces_x[...] = classification.solid_faces_x
         out.solid_faces_y[...] = classification.solid_faces_y
         out.velocity_faces_x[...] = classification.velocity_faces_x
         out.velocity_faces_y[...] = classification.velocity_faces_y
 
-    open_x, open_y = out.open_fraction_x, out.open_fraction_y
-    open_x.fill(1.0)
-    open_y.fill(1.0)
     _kernels.open_fraction_lines(bmap.y_offsets, bmap.y_coordinate, bmap.y_sign, 0, nx + 1, ny,
-                                 oy, h, False, open_x)
+                                 oy, h, False, out.open_fraction_x)
     _kernels.open_fraction_lines(bmap.x_offsets, bmap.x_coordinate, bmap.x_sign, 0, ny + 1, nx,
-                                 ox, h, True, open_y)
+                                 ox, h, True, out.open_fraction_y)
 
     theta_x, theta_y = out.cut_theta_x, out.cut_theta_y
     cut_velocity_x, cut_velocity_y = out.cut_velocity_x, out.cut_velocity_y
-    theta_x.fill(np.inf)
-    theta_y.fill(np.inf)
-    cut_velocity_x.fill(0.0)
-    cut_velocity_y.fill(0.0)
     x_map = (bmap.x_offsets, bmap.x_coordinate, bmap.x_velocity)
     y_map = (bmap.y_offsets, bmap.y_coordinate, bmap.y_velocity)
     # u points: ±x on rows J = 2j+1 (points I = 2i), ±y on columns I = 2i (points J = 2j+1).
@@ -227,6 +267,9 @@ def interior_boundary_from_map(
                        theta_y[0], theta_y[1], cut_velocity_y[0], cut_velocity_y[1])
     _kernels.cut_lines(*y_map, 1, 1, nx, 0, ny + 1, oy, h, False,
                        theta_y[2], theta_y[3], cut_velocity_y[2], cut_velocity_y[3])
-    _kernels.reconcile_cuts_y(out.solid_faces_x, out.velocity_faces_x, theta_x, cut_velocity_x)
-    _kernels.reconcile_cuts_y(out.solid_faces_y, out.velocity_faces_y, theta_y, cut_velocity_y)
+    _kernels.reconcile_cuts_y(out.solid_faces_x, out.velocity_faces_x, theta_x, cut_velocity_x,
+                              *box)
+    _kernels.reconcile_cuts_y(out.solid_faces_y, out.velocity_faces_y, theta_y, cut_velocity_y,
+                              *box)
+    _remember_written_box(out, box)
     return out

@@ -599,6 +599,10 @@ def reconcile_cuts_y(
     velocity_faces: np.ndarray,
     theta: np.ndarray,
     cut_velocity: np.ndarray,
+    i_begin: int,
+    i_end: int,
+    j_begin: int,
+    j_end: int,
 ) -> None:
     """Give every point whose ±y neighbour differs in solid flag a cut in that direction.
 
@@ -607,10 +611,13 @@ def reconcile_cuts_y(
     different sides of a point (a 1e-16 disagreement); the fluid relies on a fluid point next
     to a solid one having a finite cut, so such a pair gets theta = 1 (the boundary at the
     neighbour) with the body velocity of whichever point is solid.
+
+    Only points i in [i_begin, i_end), j in [j_begin, j_end) (clipped to the array) are
+    visited: a box holding every solid point and one point more towards +y and -y suffices.
     """
     ni, nj = solid.shape
-    for i in range(ni):
-        for j in range(nj - 1):
+    for i in range(max(i_begin, 0), min(i_end, ni)):
+        for j in range(max(j_begin, 0), min(j_end, nj) - 1):
             if solid[i, j] == solid[i, j + 1]:
                 continue
             value = velocity_faces[i, j] if solid[i, j] else velocity_faces[i, j + 1]
@@ -620,3 +627,90 @@ def reconcile_cuts_y(
             if theta[2, i, j + 1] == np.inf:
                 theta[2, i, j + 1] = 1.0
                 cut_velocity[2, i, j + 1] = value
+
+
+@njit(cache=True)
+def _index_range(low: float, high: float, origin: float, h: float, limit: int) -> tuple[int, int]:
+    """Half-open index range [begin, end) within [0, limit) of grid points (integer or
+    half-integer multiples of h from ``origin``) within 2 h of the coordinates [low, high]."""
+    q_low = (low - origin) / h - 3.0
+    q_high = (high - origin) / h + 3.0
+    begin = 0 if q_low <= 0.0 else (limit if q_low >= limit else int(q_low))
+    end = 0 if q_high <= 0.0 else (limit if q_high >= limit else int(q_high) + 1)
+    return begin, end
+
+
+@njit(cache=True)
+def touched_box(
+    x_offsets: np.ndarray,
+    x_coordinate: np.ndarray,
+    x_sign: np.ndarray,
+    y_offsets: np.ndarray,
+    y_coordinate: np.ndarray,
+    y_sign: np.ndarray,
+    origin_x: float,
+    origin_y: float,
+    h: float,
+    nx: int,
+    ny: int,
+) -> tuple[int, int, int, int]:
+    """Index box i in [i_begin, i_end), j in [j_begin, j_end) holding every grid point (cell,
+    u or v, clipped to 0 <= i, j <= n) that the classification, open-fraction, cut and
+    reconcile kernels may write for this map.
+
+    Those kernels write only points within h of a line's crossings along the line, or
+    between its crossings, or (a line whose signs do not sum to 0, i.e. an open boundary)
+    from a crossing to the line's end. A margin of 2 h more covers the half-cell offsets of
+    the point families and reconcile's neighbour. Cost: the number of lines.
+
+    Returns:
+        (i_begin, i_end, j_begin, j_end); an empty box (begin == end) when the map is empty.
+    """
+    half_h = 0.5 * h
+    x_low = math.inf
+    x_high = -math.inf
+    y_low = math.inf
+    y_high = -math.inf
+    for row in range(x_offsets.shape[0] - 1):
+        begin = x_offsets[row]
+        end = x_offsets[row + 1]
+        if end == begin:
+            continue
+        y = origin_y + row * half_h
+        y_low = min(y_low, y)
+        y_high = max(y_high, y)
+        winding = 0
+        for c in range(begin, end):
+            winding += x_sign[c]
+            value = x_coordinate[c]
+            if math.isnan(value):
+                return 0, nx + 1, 0, ny + 1
+            x_low = min(x_low, value)
+            x_high = max(x_high, value)
+        if winding != 0:
+            x_high = math.inf
+    for column in range(y_offsets.shape[0] - 1):
+        begin = y_offsets[column]
+        end = y_offsets[column + 1]
+        if end == begin:
+            continue
+        x = origin_x + column * half_h
+        x_low = min(x_low, x)
+        x_high = max(x_high, x)
+        winding = 0
+        for c in range(begin, end):
+            winding += y_sign[c]
+            value = y_coordinate[c]
+            if math.isnan(value):
+                return 0, nx + 1, 0, ny + 1
+            y_low = min(y_low, value)
+            y_high = max(y_high, value)
+        if winding != 0:
+            y_high = math.inf
+    if x_low > x_high or y_low > y_high:
+        return 0, 0, 0, 0
+    i_begin, i_end = _index_range(x_low, x_high, origin_x, h, nx + 1)
+    j_begin, j_end = _index_range(y_low, y_high, origin_y, h, ny + 1)
+    if i_begin >= i_end or j_begin >= j_end:
+        return 0, 0, 0, 0
+    return i_begin, i_end, j_begin, j_end
