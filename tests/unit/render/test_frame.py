@@ -156,3 +156,8 @@ def test_cached_colour_bar_labels_follow_the_value_range() -> None:
     labels_other = other[:, ramp_column + 16:].min(axis=-1) < 128
     assert labels_first.any() and labels_other.any()
     assert np.any(labels_first != labels_other)
+
+
+def test_video_writer_rejects_unknown_preset(tmp_path) -> None:
+    with pytest.raises(ValueError, match="preset = 'quick'"):
+        VideoWriter(tmp_path / "v.mp4", preset="quick")
