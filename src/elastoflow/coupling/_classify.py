@@ -158,16 +158,10 @@ def _reset(out: InteriorBoundary, box: tuple[int, int, int, int]) -> None:
     i_begin, i_end, j_begin, j_end = box
     if i_begin >= i_end or j_begin >= j_end:
         return
-    cells = (slice(i_begin, i_end), slice(j_begin, j_end))
-    every_direction = (slice(None), *cells)
-    for array, value in ((out.solid_cells, False), (out.solid_faces_x, False),
-                         (out.solid_faces_y, False), (out.velocity_faces_x, 0.0),
-                         (out.velocity_faces_y, 0.0), (out.open_fraction_x, 1.0),
-                         (out.open_fraction_y, 1.0)):
-        array[cells] = value
-    for array, value in ((out.cut_theta_x, np.inf), (out.cut_theta_y, np.inf),
-                         (out.cut_velocity_x, 0.0), (out.cut_velocity_y, 0.0)):
-        array[every_direction] = value
+    _kernels.reset_box(i_begin, i_end, j_begin, j_end, out.solid_cells, out.solid_faces_x,
+                       out.solid_faces_y, out.velocity_faces_x, out.velocity_faces_y,
+                       out.open_fraction_x, out.open_fraction_y, out.cut_theta_x,
+                       out.cut_theta_y, out.cut_velocity_x, out.cut_velocity_y)
 
 
 def interior_boundary_from_map(
