@@ -109,8 +109,23 @@ def test_draw_returns_the_frame_with_the_body(viewer: Viewer) -> None:
     assert "step 0" in viewer.status()
 
 
+def test_draw_reuses_its_surface_and_shows_the_new_frame(viewer: Viewer) -> None:
+    viewer.handle_event(_key(pygame.K_r))
+    viewer.view = "speed"
+    first = pygame.surfarray.array3d(viewer.draw())
+    viewer.simulation.state.velocity_x[...] = np.linspace(0.0, 1.0, viewer.simulation.grid.ny)
+    surface = viewer.draw()
+    assert viewer.draw() is surface
+    second = pygame.surfarray.array3d(surface)
+    assert np.any(first != second)
+    expected = viewer.frame()
+    rows = expected.shape[0] - 30  # above the status line
+    np.testing.assert_array_equal(second.swapaxes(0, 1)[:rows], expected[:rows])
+
+
 def test_run_viewer_opens_a_window_and_steps() -> None:
     from elastoflow.viewer import run_viewer
 
     viewer = run_viewer(parse_scene(_SCENE), scale=4, max_frames=3)
     assert viewer.simulation.step_index == 3
+
