@@ -126,42 +126,56 @@ def classify_points(
 
 _NO_BODY = np.empty((0, 0), dtype=np.int32)
 
-# Index box (i_begin, i_end, j_begin, j_end) that the last call wrote into each ``out`` it
-# returned, keyed by the object's id (InteriorBoundary is not hashable); outside that box the
-# object holds the empty state, so the next call resets only the box. A weak reference drops
-# the entry when the object dies and guards against a reused id.
-_written_boxes: dict[int, tuple[weakref.ref[InteriorBoundary], tuple[int, int, int, int]]] = {}
+# Index boxes (i_begin, i_end, j_begin, j_end), shape (K, 4), that the last call wrote into
+# each ``out`` it returned, keyed by the object's id (InteriorBoundary is not hashable); outside
+# them the object holds the empty state, so the next call resets only those boxes. A weak
+# reference drops the entry when the object dies and guards against a reused id.
+_written_boxes: dict[int, tuple[weakref.ref[InteriorBoundary], np.ndarray]] = {}
 
 
-def _written_box(out: InteriorBoundary, nx: int, ny: int) -> tuple[int, int, int, int]:
+def _touched_boxes(grid: Grid2D, bmap: BoundaryMap) -> np.ndarray:
+    """One index box per body that this map's kernels may write, shape (K, 4)."""
+    edge_body = bmap.edge_body
+    edge_count = edge_body.shape[0]
+    group_count = int(edge_body.max()) + 1 if edge_count else 0
+    if edge_count and (int(edge_body.min()) < 0 or group_count > edge_count):
+        # Body ids outside [0, E): one box for all rather than a table indexed by id.
+        edge_body = np.zeros(edge_count, dtype=np.int64)
+        group_count = 1
+    return _kernels.touched_boxes(
+        bmap.x_offsets, bmap.x_coordinate, bmap.x_sign, bmap.x_edge, bmap.y_offsets,
+        bmap.y_coordinate, bmap.y_sign, bmap.y_edge, edge_body, group_count, grid.origin[0],
+        grid.origin[1], grid.h, grid.nx, grid.ny)
+
+
+def _written_boxes_of(out: InteriorBoundary, nx: int, ny: int) -> np.ndarray:
     entry = _written_boxes.get(id(out))
     if entry is not None and entry[0]() is out:
         return entry[1]
-    return 0, nx + 1, 0, ny + 1
+    return np.array([[0, nx + 1, 0, ny + 1]], dtype=np.int64)
 
 
-def _remember_written_box(out: InteriorBoundary, box: tuple[int, int, int, int]) -> None:
+def _remember_written_boxes(out: InteriorBoundary, boxes: np.ndarray) -> None:
     key = id(out)
     entry = _written_boxes.get(key)
     if entry is not None and entry[0]() is out:
-        _written_boxes[key] = (entry[0], box)
+        _written_boxes[key] = (entry[0], boxes)
         return
 
     def forget(_: weakref.ref[InteriorBoundary]) -> None:
         _written_boxes.pop(key, None)
 
-    _written_boxes[key] = (weakref.ref(out, forget), box)
+    _written_boxes[key] = (weakref.ref(out, forget), boxes)
 
 
-def _reset(out: InteriorBoundary, box: tuple[int, int, int, int]) -> None:
-    """Put the empty state (fluid, open, no cut) back into the index box of every array."""
-    i_begin, i_end, j_begin, j_end = box
-    if i_begin >= i_end or j_begin >= j_end:
+def _reset(out: InteriorBoundary, boxes: np.ndarray) -> None:
+    """Put the empty state (fluid, open, no cut) back into the index boxes of every array."""
+    if boxes.shape[0] == 0:
         return
-    _kernels.reset_box(i_begin, i_end, j_begin, j_end, out.solid_cells, out.solid_faces_x,
-                       out.solid_faces_y, out.velocity_faces_x, out.velocity_faces_y,
-                       out.open_fraction_x, out.open_fraction_y, out.cut_theta_x,
-                       out.cut_theta_y, out.cut_velocity_x, out.cut_velocity_y)
+    _kernels.reset_boxes(boxes, out.solid_cells, out.solid_faces_x, out.solid_faces_y,
+                         out.velocity_faces_x, out.velocity_faces_y, out.open_fraction_x,
+                         out.open_fraction_y, out.cut_theta_x, out.cut_theta_y,
+                         out.cut_velocity_x, out.cut_velocity_y)
 
 
 def interior_boundary_from_map(
@@ -190,8 +204,8 @@ def interior_boundary_from_map(
       theta = 1).
 
     The work is proportional to the number of crossings, the number of half-grid lines and
-    the area of the bodies' bounding boxes (plus 2 h): with ``out`` a result of an earlier
-    call, only the box that call wrote is reset and only the box of this map is scanned for
+    the area of each body's bounding box (plus 2 h): with ``out`` a result of an earlier
+    call, only the boxes that call wrote are reset and only this map's boxes are scanned for
     the guarantee above. Allocating without ``out``, an ``out`` not returned by this function
     and a given ``classification`` cost the whole grid.
 
@@ -201,7 +215,7 @@ def interior_boundary_from_map(
         classification: The result of ``classify_points`` when the caller already has it.
         out: An interior boundary of this grid to overwrite in place (saves allocating the
             dense arrays every step). If it was returned by an earlier call, its arrays must
-            not have been written since (outside that call's box they are assumed empty).
+            not have been written since (outside that call's boxes they are assumed empty).
 
     Returns:
         The interior boundary (``out`` when given).
@@ -209,8 +223,7 @@ def interior_boundary_from_map(
     _check_grid(grid, bmap)
     nx, ny, h = grid.nx, grid.ny, grid.h
     ox, oy = grid.origin
-    box = _kernels.touched_box(bmap.x_offsets, bmap.x_coordinate, bmap.x_sign, bmap.y_offsets,
-                               bmap.y_coordinate, bmap.y_sign, ox, oy, h, nx, ny)
+    boxes = _touched_boxes(grid, bmap)
     if out is None:
         out = InteriorBoundary.empty(grid)
     else:
@@ -221,7 +234,7 @@ def interior_boundary_from_map(
                      "open_fraction_y", "cut_theta_x", "cut_theta_y", "cut_velocity_x",
                      "cut_velocity_y"):
             _check_out(name, getattr(out, name), getattr(out, name).shape, np.float64)
-        _reset(out, _written_box(out, nx, ny))
+        _reset(out, _written_boxes_of(out, nx, ny))
 
     if classification is None:
         _kernels.classify_lines(bmap.x_offsets, bmap.x_coordinate, bmap.x_sign, bmap.x_edge,
@@ -235,7 +248,7 @@ def interior_boundary_from_map(
                                 1, out.solid_faces_y, _NO_BODY, out.velocity_faces_y)
     else:
         # The caller's flags may be set anywhere: the whole grid counts as written.
-        box = (0, nx + 1, 0, ny + 1)
+        boxes = np.array([[0, nx + 1, 0, ny + 1]], dtype=np.int64)
         out.solid_cells[...] = classification.solid_cells
         out.solid_faces_x[...] = classification.solid_faces_x
         out.solid_faces_y[...] = classification.solid_faces_y
@@ -262,8 +275,8 @@ def interior_boundary_from_map(
     _kernels.cut_lines(*y_map, 1, 1, nx, 0, ny + 1, oy, h, False,
                        theta_y[2], theta_y[3], cut_velocity_y[2], cut_velocity_y[3])
     _kernels.reconcile_cuts_y(out.solid_faces_x, out.velocity_faces_x, theta_x, cut_velocity_x,
-                              *box)
+                              boxes)
     _kernels.reconcile_cuts_y(out.solid_faces_y, out.velocity_faces_y, theta_y, cut_velocity_y,
-                              *box)
-    _remember_written_box(out, box)
+                              boxes)
+    _remember_written_boxes(out, boxes)
     return out

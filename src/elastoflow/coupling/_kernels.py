@@ -599,10 +599,7 @@ def reconcile_cuts_y(
     velocity_faces: np.ndarray,
     theta: np.ndarray,
     cut_velocity: np.ndarray,
-    i_begin: int,
-    i_end: int,
-    j_begin: int,
-    j_end: int,
+    boxes: np.ndarray,
 ) -> None:
     """Give every point whose ±y neighbour differs in solid flag a cut in that direction.
 
@@ -612,12 +609,29 @@ def reconcile_cuts_y(
     to a solid one having a finite cut, so such a pair gets theta = 1 (the boundary at the
     neighbour) with the body velocity of whichever point is solid.
 
-    Only points i in [i_begin, i_end), j in [j_begin, j_end) (clipped to the array) are
-    visited: a box holding every solid point and one point more towards +y and -y suffices.
+    Only points in the index boxes (i_begin, i_end, j_begin, j_end), shape (K, 4), clipped to
+    the array, are visited: boxes holding every solid point and one point more towards +y and
+    -y suffice. Overlapping boxes are harmless (a second visit changes nothing).
     """
     ni, nj = solid.shape
-    for i in range(max(i_begin, 0), min(i_end, ni)):
-        for j in range(max(j_begin, 0), min(j_end, nj) - 1):
+    for box in range(boxes.shape[0]):
+        _reconcile_box(solid, velocity_faces, theta, cut_velocity, max(boxes[box, 0], 0),
+                       min(boxes[box, 1], ni), max(boxes[box, 2], 0), min(boxes[box, 3], nj))
+
+
+@njit(cache=True)
+def _reconcile_box(
+    solid: np.ndarray,
+    velocity_faces: np.ndarray,
+    theta: np.ndarray,
+    cut_velocity: np.ndarray,
+    i_begin: int,
+    i_end: int,
+    j_begin: int,
+    j_end: int,
+) -> None:
+    for i in range(i_begin, i_end):
+        for j in range(j_begin, j_end - 1):
             if solid[i, j] == solid[i, j + 1]:
                 continue
             value = velocity_faces[i, j] if solid[i, j] else velocity_faces[i, j + 1]
@@ -641,87 +655,113 @@ def _index_range(low: float, high: float, origin: float, h: float, limit: int) -
 
 
 @njit(cache=True)
-def touched_box(
+def _extend_along(
+    offsets: np.ndarray,
+    coordinate: np.ndarray,
+    sign: np.ndarray,
+    edge_index: np.ndarray,
+    edge_group: np.ndarray,
+    origin_across: float,
+    half_h: float,
+    along_bounds: np.ndarray,
+    across_bounds: np.ndarray,
+) -> bool:
+    """Grow each group's bounds [low, high] by what one map's lines may write; False on NaN."""
+    for line in range(offsets.shape[0] - 1):
+        begin = offsets[line]
+        end = offsets[line + 1]
+        across = origin_across + line * half_h
+        winding = 0
+        for c in range(begin, end):
+            value = coordinate[c]
+            if math.isnan(value):
+                return False
+            group = edge_group[edge_index[c]]
+            across_bounds[group, 0] = min(across_bounds[group, 0], across)
+            across_bounds[group, 1] = max(across_bounds[group, 1], across)
+            along_bounds[group, 0] = min(along_bounds[group, 0], value)
+            winding += sign[c]
+            # The span after a crossing is filled (and attributed) from that crossing to the
+            # next one, or to the line's end when the winding never returns to 0.
+            if winding == 0:
+                reach = value
+            elif c + 1 < end:
+                reach = coordinate[c + 1]
+            else:
+                reach = math.inf
+            along_bounds[group, 1] = max(along_bounds[group, 1], reach)
+    return True
+
+
+@njit(cache=True)
+def touched_boxes(
     x_offsets: np.ndarray,
     x_coordinate: np.ndarray,
     x_sign: np.ndarray,
+    x_edge: np.ndarray,
     y_offsets: np.ndarray,
     y_coordinate: np.ndarray,
     y_sign: np.ndarray,
+    y_edge: np.ndarray,
+    edge_group: np.ndarray,
+    group_count: int,
     origin_x: float,
     origin_y: float,
     h: float,
     nx: int,
     ny: int,
-) -> tuple[int, int, int, int]:
-    """Index box i in [i_begin, i_end), j in [j_begin, j_end) holding every grid point (cell,
-    u or v, clipped to 0 <= i, j <= n) that the classification, open-fraction, cut and
+) -> np.ndarray:
+    """Index boxes, one per edge group (body), that hold every grid point (cell, u or v,
+    clipped to 0 <= i <= nx, 0 <= j <= ny) the classification, open-fraction, cut and
     reconcile kernels may write for this map.
 
-    Those kernels write only points within h of a line's crossings along the line, or
-    between its crossings, or (a line whose signs do not sum to 0, i.e. an open boundary)
-    from a crossing to the line's end. A margin of 2 h more covers the half-cell offsets of
-    the point families and reconcile's neighbour. Cost: the number of lines.
+    Those kernels write only points within h of a crossing along its line, or in the span
+    from a crossing to the next one (or to the line's end, for a winding that never returns
+    to 0, as an open chain leaves), which is charged to the crossing's group. A margin of 2 h
+    more covers the half-cell offsets of the point families and reconcile's neighbour.
+    Cost: lines plus crossings.
+
+    Args:
+        edge_group: Group index in [0, group_count) of each edge, shape (E,).
 
     Returns:
-        (i_begin, i_end, j_begin, j_end); an empty box (begin == end) when the map is empty.
+        Boxes (i_begin, i_end, j_begin, j_end), half-open, int64, shape (K, 4): the non-empty
+        ones only; the whole grid as one box when a coordinate is NaN.
     """
     half_h = 0.5 * h
-    x_low = math.inf
-    x_high = -math.inf
-    y_low = math.inf
-    y_high = -math.inf
-    for row in range(x_offsets.shape[0] - 1):
-        begin = x_offsets[row]
-        end = x_offsets[row + 1]
-        if end == begin:
+    # Columns 0/1: x low/high [m]; columns 2/3: y low/high [m].
+    bounds = np.empty((group_count, 4))
+    bounds[:, 0] = math.inf
+    bounds[:, 1] = -math.inf
+    bounds[:, 2] = math.inf
+    bounds[:, 3] = -math.inf
+    whole = np.array([[0, nx + 1, 0, ny + 1]], dtype=np.int64)
+    if not _extend_along(x_offsets, x_coordinate, x_sign, x_edge, edge_group, origin_y, half_h,
+                         bounds[:, 0:2], bounds[:, 2:4]):
+        return whole
+    if not _extend_along(y_offsets, y_coordinate, y_sign, y_edge, edge_group, origin_x, half_h,
+                         bounds[:, 2:4], bounds[:, 0:2]):
+        return whole
+    boxes = np.empty((group_count, 4), dtype=np.int64)
+    count = 0
+    for group in range(group_count):
+        if bounds[group, 0] > bounds[group, 1] or bounds[group, 2] > bounds[group, 3]:
             continue
-        y = origin_y + row * half_h
-        y_low = min(y_low, y)
-        y_high = max(y_high, y)
-        winding = 0
-        for c in range(begin, end):
-            winding += x_sign[c]
-            value = x_coordinate[c]
-            if math.isnan(value):
-                return 0, nx + 1, 0, ny + 1
-            x_low = min(x_low, value)
-            x_high = max(x_high, value)
-        if winding != 0:
-            x_high = math.inf
-    for column in range(y_offsets.shape[0] - 1):
-        begin = y_offsets[column]
-        end = y_offsets[column + 1]
-        if end == begin:
+        i_begin, i_end = _index_range(bounds[group, 0], bounds[group, 1], origin_x, h, nx + 1)
+        j_begin, j_end = _index_range(bounds[group, 2], bounds[group, 3], origin_y, h, ny + 1)
+        if i_begin >= i_end or j_begin >= j_end:
             continue
-        x = origin_x + column * half_h
-        x_low = min(x_low, x)
-        x_high = max(x_high, x)
-        winding = 0
-        for c in range(begin, end):
-            winding += y_sign[c]
-            value = y_coordinate[c]
-            if math.isnan(value):
-                return 0, nx + 1, 0, ny + 1
-            y_low = min(y_low, value)
-            y_high = max(y_high, value)
-        if winding != 0:
-            y_high = math.inf
-    if x_low > x_high or y_low > y_high:
-        return 0, 0, 0, 0
-    i_begin, i_end = _index_range(x_low, x_high, origin_x, h, nx + 1)
-    j_begin, j_end = _index_range(y_low, y_high, origin_y, h, ny + 1)
-    if i_begin >= i_end or j_begin >= j_end:
-        return 0, 0, 0, 0
-    return i_begin, i_end, j_begin, j_end
+        boxes[count, 0] = i_begin
+        boxes[count, 1] = i_end
+        boxes[count, 2] = j_begin
+        boxes[count, 3] = j_end
+        count += 1
+    return boxes[:count].copy()
 
 
 @njit(cache=True)
-def reset_box(
-    i_begin: int,
-    i_end: int,
-    j_begin: int,
-    j_end: int,
+def reset_boxes(
+    boxes: np.ndarray,
     solid_cells: np.ndarray,
     solid_faces_x: np.ndarray,
     solid_faces_y: np.ndarray,
@@ -734,20 +774,23 @@ def reset_box(
     cut_velocity_x: np.ndarray,
     cut_velocity_y: np.ndarray,
 ) -> None:
-    """Empty state (fluid, fully open, nothing cut) in the index box of every interior-boundary
-    array (each clipped to its own shape); one kernel instead of a slice assignment each."""
-    _fill_box(solid_cells, i_begin, i_end, j_begin, j_end, False)
-    _fill_box(solid_faces_x, i_begin, i_end, j_begin, j_end, False)
-    _fill_box(solid_faces_y, i_begin, i_end, j_begin, j_end, False)
-    _fill_box(velocity_faces_x, i_begin, i_end, j_begin, j_end, 0.0)
-    _fill_box(velocity_faces_y, i_begin, i_end, j_begin, j_end, 0.0)
-    _fill_box(open_fraction_x, i_begin, i_end, j_begin, j_end, 1.0)
-    _fill_box(open_fraction_y, i_begin, i_end, j_begin, j_end, 1.0)
-    for d in range(4):
-        _fill_box(cut_theta_x[d], i_begin, i_end, j_begin, j_end, np.inf)
-        _fill_box(cut_theta_y[d], i_begin, i_end, j_begin, j_end, np.inf)
-        _fill_box(cut_velocity_x[d], i_begin, i_end, j_begin, j_end, 0.0)
-        _fill_box(cut_velocity_y[d], i_begin, i_end, j_begin, j_end, 0.0)
+    """Empty state (fluid, fully open, nothing cut) in each index box (i_begin, i_end,
+    j_begin, j_end), shape (K, 4), of every interior-boundary array (clipped to its shape)."""
+    for box in range(boxes.shape[0]):
+        i_begin, i_end = boxes[box, 0], boxes[box, 1]
+        j_begin, j_end = boxes[box, 2], boxes[box, 3]
+        _fill_box(solid_cells, i_begin, i_end, j_begin, j_end, False)
+        _fill_box(solid_faces_x, i_begin, i_end, j_begin, j_end, False)
+        _fill_box(solid_faces_y, i_begin, i_end, j_begin, j_end, False)
+        _fill_box(velocity_faces_x, i_begin, i_end, j_begin, j_end, 0.0)
+        _fill_box(velocity_faces_y, i_begin, i_end, j_begin, j_end, 0.0)
+        _fill_box(open_fraction_x, i_begin, i_end, j_begin, j_end, 1.0)
+        _fill_box(open_fraction_y, i_begin, i_end, j_begin, j_end, 1.0)
+        for d in range(4):
+            _fill_box(cut_theta_x[d], i_begin, i_end, j_begin, j_end, np.inf)
+            _fill_box(cut_theta_y[d], i_begin, i_end, j_begin, j_end, np.inf)
+            _fill_box(cut_velocity_x[d], i_begin, i_end, j_begin, j_end, 0.0)
+            _fill_box(cut_velocity_y[d], i_begin, i_end, j_begin, j_end, 0.0)
 
 
 @njit(cache=True)

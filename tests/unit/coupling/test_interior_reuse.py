@@ -131,3 +131,25 @@ def test_open_chain_filling_to_the_line_end_is_cleared_next_step(reverse):
     bmap = _map(grid, bodies)
     _assert_same(interior_boundary_from_map(grid, bmap, out=out),
                  interior_boundary_from_map(grid, bmap), 0)
+
+
+@pytest.mark.parametrize("chain_body", [0, 1, 1000])
+def test_open_chain_span_over_another_body_is_charged_and_cleared(chain_body):
+    # Every row of the chain meets the closed body of another id further on: the rows fill
+    # from the chain to the body and on to the domain edge, and the span between them must
+    # count as written (a body id of 1000, beyond the number of edges, takes the one-box path).
+    grid = Grid2D(32, 32, 1.0 / 32.0)
+    chain = np.array([[0.2, 0.47], [0.22, 0.5], [0.2, 0.53]])
+    closed, closed_velocities = _body(lambda s: (0.6, 0.5), 0.0, 0.08, 0.0, 0.1)
+    points = np.concatenate([chain, closed])
+    velocities = np.concatenate([np.full_like(chain, 0.5), closed_velocities])
+    edges = np.concatenate([np.array([[0, 1], [1, 2]]), polygon_edges(len(closed), 3)])
+    edge_body = np.concatenate([[chain_body, chain_body], np.full(len(closed), 2)])
+    mixed = build_boundary_map(grid, points, velocities, edges, edge_body)
+    out = interior_boundary_from_map(grid, mixed)
+    assert out.solid_cells[10:16, 16].all()
+    for step, bodies in enumerate(([_body(lambda s: (0.6, 0.5), 0.0, 0.08, 0.0, 0.1)],
+                                   [_body(lambda s: (0.3, 0.3), 0.0, 0.05, 0.0, 0.0)], [])):
+        bmap = _map(grid, bodies)
+        _assert_same(interior_boundary_from_map(grid, bmap, out=out),
+                     interior_boundary_from_map(grid, bmap), step)
