@@ -10,6 +10,8 @@ from typing import Any, Self
 
 import numpy as np
 
+from elastoflow.render._kernels import rgb_to_yuv420
+
 _X264_PRESETS = ("ultrafast", "superfast", "veryfast", "faster", "fast", "medium", "slow",
                  "slower", "veryslow")
 
@@ -60,6 +62,7 @@ class VideoWriter:
         self._frames_for_gif: list[np.ndarray] = []
         self._format = "gif" if self.path.suffix.lower() == ".gif" else "mp4"
         self._size: tuple[int, int] | None = None
+        self._yuv = np.empty(0, dtype=np.uint8)
 
     def __enter__(self) -> Self:
         return self
@@ -69,18 +72,22 @@ class VideoWriter:
         self.close()
 
     def _open_ffmpeg(self) -> None:
-        import imageio.v2 as imageio
+        import imageio_ffmpeg
 
+        assert self._size is not None
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self._temporary = self.path.with_name(f".{self.path.stem}.{os.getpid()}.tmp.mp4")
-        self._writer = imageio.get_writer(
-            str(self._temporary), format="FFMPEG", mode="I", fps=self.fps, codec="libx264",
-            pixelformat="yuv420p", quality=self.quality, macro_block_size=1,
+        height, width = self._size
+        self._writer = imageio_ffmpeg.write_frames(
+            str(self._temporary), (width, height), pix_fmt_in="yuv420p", pix_fmt_out="yuv420p",
+            fps=self.fps, codec="libx264", quality=self.quality, macro_block_size=1,
             # One encoder thread: with ultrafast it keeps far ahead of a simulation, and
             # threads only add synchronisation CPU taken from the run.
             output_params=["-preset", self.preset, "-threads", "1"],
             ffmpeg_log_level="error",
         )
+        self._writer.send(None)
+        self._yuv = np.empty(height * width * 3 // 2, dtype=np.uint8)
 
     def _fall_back(self, error: Exception) -> None:
         self.fallback_reason = f"ffmpeg failed ({error}); writing a GIF instead"
@@ -105,7 +112,8 @@ class VideoWriter:
             try:
                 if self._writer is None:
                     self._open_ffmpeg()
-                self._writer.append_data(frame)
+                rgb_to_yuv420(frame, self._yuv)
+                self._writer.send(self._yuv)
             except Exception as error:  # noqa: BLE001 - any ffmpeg failure means: use GIF
                 self._fall_back(error)
         if self._format == "gif":

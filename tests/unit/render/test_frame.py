@@ -161,3 +161,20 @@ def test_cached_colour_bar_labels_follow_the_value_range() -> None:
 def test_video_writer_rejects_unknown_preset(tmp_path) -> None:
     with pytest.raises(ValueError, match="preset = 'quick'"):
         VideoWriter(tmp_path / "v.mp4", preset="quick")
+
+
+def test_rgb_to_yuv420_gives_bt601_limited_range_values() -> None:
+    from elastoflow.render._kernels import rgb_to_yuv420
+
+    # Left half white, right half pure red; bottom rows black: 4 x 4 pixels.
+    image = np.zeros((4, 4, 3), dtype=np.uint8)
+    image[:2, :2] = 255
+    image[:2, 2:] = (255, 0, 0)
+    out = np.empty(4 * 4 * 3 // 2, dtype=np.uint8)
+    rgb_to_yuv420(image, out)
+    y, u, v = out[:16].reshape(4, 4), out[16:20].reshape(2, 2), out[20:].reshape(2, 2)
+    # Published BT.601 studio-swing values: white (235, 128, 128), red (81, 90, 240),
+    # black (16, 128, 128).
+    assert y[0, 0] == 235 and y[0, 3] == 81 and y[3, 0] == 16
+    assert (u[0, 0], v[0, 0]) == (128, 128) and (u[0, 1], v[0, 1]) == (90, 240)
+    assert (u[1, 0], v[1, 0]) == (128, 128)
