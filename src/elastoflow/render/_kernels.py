@@ -184,3 +184,15 @@ def rgb_to_yuv420(image: np.ndarray, out: np.ndarray) -> None:
             index = pair * half_width + half_col
             out[u_start + index] = np.uint8(u)
             out[v_start + index] = np.uint8(v)
+
+
+@njit(cache=True)
+def speed_from_faces(velocity_x: np.ndarray, velocity_y: np.ndarray, out: np.ndarray) -> None:
+    """Velocity magnitude at cell centres from MAC face velocities: ``out`` (nx, ny) from
+    ``velocity_x`` (nx + 1, ny) and ``velocity_y`` (nx, ny + 1) [m/s]."""
+    nx, ny = out.shape
+    for i in range(nx):
+        for j in range(ny):
+            ux = 0.5 * (velocity_x[i, j] + velocity_x[i + 1, j])
+            vy = 0.5 * (velocity_y[i, j] + velocity_y[i, j + 1])
+            out[i, j] = math.sqrt(ux * ux + vy * vy)
