@@ -67,24 +67,30 @@ def fill_polygon(image: np.ndarray, polygon: np.ndarray, color: np.ndarray) -> N
                     image[row, col, c] = color[c]
 
 
+@njit(cache=True, inline="always")
+def _draw_segment(image: np.ndarray, xa: float, ya: float, xb: float, yb: float,
+                  color: np.ndarray) -> None:
+    """One-pixel segment from (xa, ya) to (xb, yb) in pixel coordinates (DDA)."""
+    height, width = image.shape[0], image.shape[1]
+    dx, dy = xb - xa, yb - ya
+    if not (math.isfinite(dx) and math.isfinite(dy)):
+        return
+    samples = int(max(abs(dx), abs(dy))) + 1
+    for s in range(samples + 1):
+        f = s / samples
+        col = math.floor(xa + f * dx)
+        row = math.floor(ya + f * dy)
+        if 0 <= row < height and 0 <= col < width:
+            for c in range(3):
+                image[row, col, c] = color[c]
+
+
 @njit(cache=True)
 def draw_segments(image: np.ndarray, starts: np.ndarray, ends: np.ndarray,
                   color: np.ndarray) -> None:
     """Draw one-pixel line segments from ``starts[k]`` to ``ends[k]`` (DDA)."""
-    height, width = image.shape[0], image.shape[1]
     for k in range(starts.shape[0]):
-        xa, ya = starts[k, 0], starts[k, 1]
-        dx, dy = ends[k, 0] - xa, ends[k, 1] - ya
-        if not (math.isfinite(dx) and math.isfinite(dy)):
-            continue
-        samples = int(max(abs(dx), abs(dy))) + 1
-        for s in range(samples + 1):
-            f = s / samples
-            col = math.floor(xa + f * dx)
-            row = math.floor(ya + f * dy)
-            if 0 <= row < height and 0 <= col < width:
-                for c in range(3):
-                    image[row, col, c] = color[c]
+        _draw_segment(image, starts[k, 0], starts[k, 1], ends[k, 0], ends[k, 1], color)
 
 
 @njit(cache=True)
@@ -95,25 +101,13 @@ def draw_triangle_edges(image: np.ndarray, points: np.ndarray, triangles: np.nda
     Each edge runs from its lower to its higher node index, so an edge shared by two triangles
     lands on the same pixels both times and the picture equals drawing each edge once.
     """
-    height, width = image.shape[0], image.shape[1]
     for t in range(triangles.shape[0]):
         for corner in range(3):
             a = triangles[t, corner]
             b = triangles[t, (corner + 1) % 3]
             if a > b:
                 a, b = b, a
-            xa, ya = points[a, 0], points[a, 1]
-            dx, dy = points[b, 0] - xa, points[b, 1] - ya
-            if not (math.isfinite(dx) and math.isfinite(dy)):
-                continue
-            samples = int(max(abs(dx), abs(dy))) + 1
-            for s in range(samples + 1):
-                f = s / samples
-                col = math.floor(xa + f * dx)
-                row = math.floor(ya + f * dy)
-                if 0 <= row < height and 0 <= col < width:
-                    for c in range(3):
-                        image[row, col, c] = color[c]
+            _draw_segment(image, points[a, 0], points[a, 1], points[b, 0], points[b, 1], color)
 
 
 @njit(cache=True, parallel=True)
