@@ -21,10 +21,10 @@ THETA_MIN = 1e-3
 # sinking disc produced 139 m/s on a face open by 6e-6 (tests/validation/
 # test_coupling_buoyancy.py); 1e-2 bounds the amplification at 100.
 OPEN_MIN = 1e-2
-# Kernels over more points than this run in parallel; below, starting the threads costs more
-# than it saves on the 2 shared cores (the pointwise passes take ~0.05 ms serial at 256^2,
-# and a parallel region as much when the cores are busy).
-PARALLEL_MINIMUM = 300 * 300
+# Kernels over more points than this run in parallel; below, the work per thread is too small
+# for the region's start (~1.5 us with the package's GOMP_SPINCOUNT; measured with the linear
+# algebra's limit, `elastoflow.linalg._kernels.PARALLEL_MINIMUM`).
+PARALLEL_MINIMUM = 96 * 96
 
 
 @njit(cache=True, inline="always")
@@ -579,9 +579,7 @@ def build_viscosity_system(f, c, axis, fixed_low, fixed_high, tangential_modes, 
             axis, low then high; ``tangential_values`` their wall velocities.
         assemble_operator: False writes only ``rhs`` (the operator is known unchanged).
     """
-    # With bodies every point takes the branchy general path: threads pay from 128^2 on
-    # (256^2: 0.7 ms serial per component).
-    if f.size > PARALLEL_MINIMUM or (has_interior and f.size > 128 * 128):
+    if f.size > PARALLEL_MINIMUM:
         return _build_viscosity_system_parallel(f, c, axis, fixed_low, fixed_high,
                                                 tangential_modes, tangential_values, has_interior,
                                                 solid, theta, cut_velocity, assemble_operator,

@@ -210,11 +210,12 @@ def jacobi_kernel(diagonal, weights_x, weights_y, rhs, x, x_next, omega, thresho
 # +x neighbour), ``weights_y[k]`` couples ``k`` with ``k + 1``; ``total[k]`` is the diagonal
 # plus the four weights and ``inverse[k]`` its inverse (0 at inactive points).
 
-# Levels and vectors with more points than this run in parallel; below, waking the threads
-# costs more than it saves. Measured on 2 shared cores (ms per call, parallel / serial):
-# smoothing sweep 256^2 0.12 / 0.09, 512^2 0.29 / 0.38; residual 256^2 0.09 / 0.09,
-# 512^2 0.24 / 0.39; starting a parallel region costs ~0.05 ms when the cores are busy.
-PARALLEL_MINIMUM = 300 * 300
+# Levels and vectors with more points than this run in parallel; below, the work per thread
+# is too small for the region's start. With idle threads spinning briefly (the package sets
+# GOMP_SPINCOUNT) a region starts in ~1.5 us; with sleeping threads it cost ~50 us, and the
+# limit was 300^2. bar_in_jet at 256^2, ms per step with the fluid and solver limits at
+# 300^2 / 128^2 / 96^2 / 64^2: 12.4 / 9.4-9.8 / 9.2 / 9.4-9.5.
+PARALLEL_MINIMUM = 96 * 96
 # Coarsening pays for threads much earlier (the serial loop does not vectorise: 128^2
 # 0.10 / 0.80 ms, 32^2 0.04 / 0.05 ms).
 COARSEN_PARALLEL_MINIMUM = 32 * 32
