@@ -568,29 +568,8 @@ def coarse_solve_kernel(factor, b, x, m, n):
 
 @njit(cache=True)
 def v_cycle(rows, cols, offsets, diagonal, weights_x, weights_y, total, inverse, level_x,
-            level_b, coarse_factor, r, z, sweeps, coarse):
-    """Symmetric V-cycle ``z = M r``: red-black Gauss-Seidel before, black-red after.
-
-    ``coarse`` False keeps the fine level only (symmetric Gauss-Seidel): enough for
-    diagonally dominant operators, whose smooth errors the smoother already damps."""
-    if not coarse:
-        m = rows[0]
-        n = cols[0]
-        size = offsets[1]
-        inv = inverse[:size]
-        wx = weights_x[:size]
-        wy = weights_y[:size]
-        if m * n > PARALLEL_MINIMUM:
-            for sweep in range(sweeps):
-                smooth_parallel(z, r, inv, wx, wy, m, n, 0, sweep == 0)
-            for sweep in range(sweeps):
-                smooth_parallel(z, r, inv, wx, wy, m, n, 1, False)
-        else:
-            for sweep in range(sweeps):
-                smooth_serial(z, r, inv, wx, wy, m, n, 0, sweep == 0)
-            for sweep in range(sweeps):
-                smooth_serial(z, r, inv, wx, wy, m, n, 1, False)
-        return
+            level_b, coarse_factor, r, z, sweeps):
+    """Symmetric V-cycle ``z = M r``: red-black Gauss-Seidel before, black-red after."""
     levels = rows.shape[0]
     for level in range(levels - 1):
         m = rows[level]
@@ -816,8 +795,7 @@ def _step(x, r, p, q, alpha, m, n):
 
 @njit(cache=True)
 def pcg_kernel(rows, cols, offsets, diagonal, weights_x, weights_y, total, inverse, level_x,
-               level_b, coarse_factor, b, x, r, p, q, z, threshold, max_iterations, sweeps,
-               coarse):
+               level_b, coarse_factor, b, x, r, p, q, z, threshold, max_iterations, sweeps):
     """Preconditioned CG on level 0 until ``|b - A x|^2 <= threshold`` (checked on the true
     residual). Returns ``(iterations, |b - A x|^2)``."""
     m = rows[0]
@@ -839,7 +817,7 @@ def pcg_kernel(rows, cols, offsets, diagonal, weights_x, weights_y, total, inver
             squared = _residual_norm(x, b, d_total, wx, wy, r, m, n)
             break
         v_cycle(rows, cols, offsets, diagonal, weights_x, weights_y, total, inverse, level_x,
-                level_b, coarse_factor, r, z, sweeps, coarse)
+                level_b, coarse_factor, r, z, sweeps)
         rz = _dot(r, z, m, n)
         beta = 0.0
         pq = 1.0
@@ -853,7 +831,7 @@ def pcg_kernel(rows, cols, offsets, diagonal, weights_x, weights_y, total, inver
             if squared <= threshold:
                 break
             v_cycle(rows, cols, offsets, diagonal, weights_x, weights_y, total, inverse,
-                    level_x, level_b, coarse_factor, r, z, sweeps, coarse)
+                    level_x, level_b, coarse_factor, r, z, sweeps)
             rz_next = _dot(r, z, m, n)
             beta = rz_next / rz
             rz = rz_next
@@ -861,6 +839,95 @@ def pcg_kernel(rows, cols, offsets, diagonal, weights_x, weights_y, total, inver
             squared = _residual_norm(x, b, d_total, wx, wy, r, m, n)
             break
     return iterations, squared
+
+
+@njit(cache=True, inline="always")
+def _chebyshev_row(x, x_next, direction, b, total, inverse, weights_x, weights_y, scale_old,
+                   scale_new, i, n):
+    up = uint64(n + 2)
+    k = uint64((i + 1) * (n + 2) + 1)
+    end = k + uint64(n)
+    squared = 0.0
+    while k < end:
+        value = _residual_at(x, b, total, weights_x, weights_y, k, up)
+        squared += value * value
+        change = scale_new * inverse[k] * value
+        if scale_old != 0.0:
+            # The first pass must not read the stale (possibly non-finite) direction.
+            change += scale_old * direction[k]
+        direction[k] = change
+        x_next[k] = x[k] + change
+        k += uint64(1)
+    return squared
+
+
+@njit(cache=True, parallel=True)
+def _chebyshev_sweep_parallel(x, x_next, direction, b, total, inverse, weights_x, weights_y,
+                              scale_old, scale_new, m, n):
+    squared = 0.0
+    for i in prange(m):
+        squared += _chebyshev_row(x, x_next, direction, b, total, inverse, weights_x,
+                                  weights_y, scale_old, scale_new, i, n)
+    return squared
+
+
+@njit(cache=True)
+def _chebyshev_sweep_serial(x, x_next, direction, b, total, inverse, weights_x, weights_y,
+                            scale_old, scale_new, m, n):
+    squared = 0.0
+    for i in range(m):
+        squared += _chebyshev_row(x, x_next, direction, b, total, inverse, weights_x,
+                                  weights_y, scale_old, scale_new, i, n)
+    return squared
+
+
+@njit(cache=True)
+def chebyshev_kernel(rows, cols, offsets, total, inverse, weights_x, weights_y, b, x, x_other,
+                     direction, spread, threshold, max_iterations):
+    """Jacobi-preconditioned Chebyshev iteration on level 0 (Saad, *Iterative Methods for
+    Sparse Linear Systems*, Alg. 12.1) for an operator whose Jacobi iteration matrix has
+    row sums ``<= spread < 1``: the eigenvalues of ``D^-1 A`` then lie in
+    ``[1 - spread, 1 + spread]`` (Gershgorin), and each iteration reduces the error by about
+    ``(sqrt(k) - 1) / (sqrt(k) + 1)``, ``k = (1 + spread) / (1 - spread)``, with no inner
+    products. Each pass computes the true residual of the current iterate, so the iteration
+    stops on ``|b - A x|^2 <= threshold`` exactly as CG does.
+
+    Returns ``(iterations, |b - A x|^2, whether the solution is in x_other)``.
+    """
+    m = rows[0]
+    n = cols[0]
+    size = offsets[1]
+    d_total = total[:size]
+    inv = inverse[:size]
+    wx = weights_x[:size]
+    wy = weights_y[:size]
+    parallel = m * n > PARALLEL_MINIMUM
+    current = x
+    following = x_other
+    in_other = False
+    # theta = 1 (centre of the interval), delta = spread (its half-width), sigma = 1 / delta.
+    sigma = 1.0 / spread
+    rho_old = spread
+    scale_old = 0.0
+    scale_new = 1.0
+    iterations = 0
+    while True:
+        if parallel:
+            squared = _chebyshev_sweep_parallel(current, following, direction, b, d_total, inv,
+                                                wx, wy, scale_old, scale_new, m, n)
+        else:
+            squared = _chebyshev_sweep_serial(current, following, direction, b, d_total, inv,
+                                              wx, wy, scale_old, scale_new, m, n)
+        # The pass measured the residual of `current` before stepping to `following`.
+        if squared <= threshold or iterations >= max_iterations:
+            return iterations, squared, in_other
+        current, following = following, current
+        in_other = not in_other
+        iterations += 1
+        rho_new = 1.0 / (2.0 * sigma - rho_old)
+        scale_old = rho_new * rho_old
+        scale_new = 2.0 * rho_new / spread
+        rho_old = rho_new
 
 
 @njit(cache=True)
@@ -1048,11 +1115,13 @@ def pad_masked_kernel(values, active, flat):
 @njit(cache=True, inline="always")
 def _load_operator_row(diagonal, weights_x, weights_y, diagonal_flat, weights_x_flat,
                        weights_y_flat, total_flat, inverse_flat, active, ratio, i, m, n):
-    """One row of `load_operator_kernel`; returns (changed, missing diagonal, weak) counts."""
+    """One row of `load_operator_kernel`; returns (changed, missing diagonal, weak) counts and
+    the row's largest ratio of weights to total (the Jacobi iteration matrix's row sum)."""
     row = (i + 1) * (n + 2) + 1
     changed = 0
     missing = 0
     weak = 0
+    spread = 0.0
     for j in range(n):
         k = row + j
         value = diagonal[i, j]
@@ -1090,7 +1159,9 @@ def _load_operator_row(diagonal, weights_x, weights_y, diagonal_flat, weights_x_
             missing += 1
         if value < ratio * (total - value):
             weak += 1
-    return changed, missing, weak
+        if is_active:
+            spread = max(spread, (total - value) / total)
+    return changed, missing, weak, spread
 
 
 @njit(cache=True, parallel=True)
@@ -1100,15 +1171,17 @@ def _load_operator_kernel_parallel(diagonal, weights_x, weights_y, diagonal_flat
     changed = 0
     missing = 0
     weak = 0
+    spreads = np.empty(m)
     for i in prange(m):
-        row_changed, row_missing, row_weak = _load_operator_row(
+        row_changed, row_missing, row_weak, row_spread = _load_operator_row(
             diagonal, weights_x, weights_y, diagonal_flat, weights_x_flat, weights_y_flat,
             total_flat, inverse_flat, active, ratio, i, m, n,
         )
+        spreads[i] = row_spread
         changed += row_changed
         missing += row_missing
         weak += row_weak
-    return changed > 0, missing == 0, weak == 0
+    return changed > 0, missing == 0, weak == 0, spreads.max()
 
 
 @njit(cache=True)
@@ -1118,15 +1191,17 @@ def _load_operator_kernel_serial(diagonal, weights_x, weights_y, diagonal_flat, 
     changed = 0
     missing = 0
     weak = 0
+    spreads = np.empty(m)
     for i in range(m):
-        row_changed, row_missing, row_weak = _load_operator_row(
+        row_changed, row_missing, row_weak, row_spread = _load_operator_row(
             diagonal, weights_x, weights_y, diagonal_flat, weights_x_flat, weights_y_flat,
             total_flat, inverse_flat, active, ratio, i, m, n,
         )
+        spreads[i] = row_spread
         changed += row_changed
         missing += row_missing
         weak += row_weak
-    return changed > 0, missing == 0, weak == 0
+    return changed > 0, missing == 0, weak == 0, spreads.max()
 
 
 @njit(cache=True)
@@ -1136,8 +1211,10 @@ def load_operator_kernel(diagonal, weights_x, weights_y, diagonal_flat, weights_
 
     Fills totals and inverses and the ``(m, n)`` active mask, and returns whether any value
     differed from what the level held, whether every active point has a positive diagonal,
-    and whether every diagonal is at least ``ratio`` times the point's sum of weights (one
-    pass instead of the four that comparing, padding, marking and the dominance test took).
+    whether every diagonal is at least ``ratio`` times the point's sum of weights (one pass
+    instead of the four that comparing, padding, marking and the dominance test took), and
+    the largest ratio of a point's weights to its total over the active points, a bound on
+    the spectral radius of the Jacobi iteration matrix ``D^-1 (D - A)``.
     """
     if diagonal.size > PARALLEL_MINIMUM:
         return _load_operator_kernel_parallel(diagonal, weights_x, weights_y, diagonal_flat,

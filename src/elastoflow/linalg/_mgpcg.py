@@ -11,6 +11,7 @@ from elastoflow.linalg._kernels import (
     COARSEN_PARALLEL_MINIMUM,
     coarsen_parallel,
     coarsen_serial,
+    chebyshev_kernel,
     dense_matrix_kernel,
     load_operator_kernel,
     pad_masked_kernel,
@@ -24,10 +25,12 @@ from elastoflow.linalg._operator import Operator5Point, SolveReport
 from elastoflow.linalg._problem import _analyse, _NullSpace, _output
 
 _COARSEST_SIZE = 32
-# Smallest ratio of diagonal term to sum of weights, over all points, for which one level's
-# symmetric Gauss-Seidel beats the V-cycle as preconditioner. Measured on I + c L at 256^2
-# (warm start, rtol 1e-6), ms per solve V-cycle / Gauss-Seidel: c = 0.1: 1.9 / 1.1,
-# c = 0.5: 3.1 / 2.5, c = 1: 3.8 / 3.3, c = 2: 4.6 / 5.6 (ratio = 1 / (4 c)).
+# Smallest ratio of diagonal term to sum of weights, over all points, for which the
+# Jacobi-preconditioned Chebyshev iteration beats MGPCG. Measured on I + c L at 256^2 (warm
+# start from a 2 % perturbation, rtol 1e-6), ms per solve Chebyshev / MGPCG (iterations):
+# c = 0.085: 0.45 (5) / 0.63 (1), c = 0.33: 0.52 (7) / 0.99 (2), c = 1: 0.78 (13) / 0.96 (2),
+# c = 2: 1.07 (19) / 0.97 (2), c = 4: 1.60 (29) / 1.40 (3) (ratio = 1 / (4 c)). At ratio
+# 1/4 the Jacobi row sums are <= 0.8, and each Chebyshev iteration divides the error by ~2.
 _SMOOTHER_ONLY_DOMINANCE = 0.25
 
 
@@ -59,6 +62,7 @@ class _Hierarchy:
         self.factor = np.zeros((coarse_size, coarse_size))
         self.values = np.zeros(shape)
         self.coarse = True
+        self.spread = 1.0
         self.null_space: _NullSpace | None = None
         # The operator the levels hold; kept alive so that its identity is not reused.
         self.operator: Operator5Point | None = None
@@ -78,7 +82,7 @@ class _Hierarchy:
             return self.null_space
         # A fresh mask each time: the previous null space may still be held by a caller.
         active = np.empty(operator.shape, dtype=np.bool_)
-        changed, all_have_diagonal, dominant = load_operator_kernel(
+        changed, all_have_diagonal, dominant, spread = load_operator_kernel(
             operator.diagonal, operator.weights_x, operator.weights_y,
             self._level(self.diagonal, 0), self._level(self.weights_x, 0),
             self._level(self.weights_y, 0), self._level(self.total, 0),
@@ -88,6 +92,9 @@ class _Hierarchy:
             self.operator = operator
             return self.null_space
         self.null_space = None
+        # A wider interval is still a valid bound; this keeps the recurrence finite for an
+        # operator with no weights at all.
+        self.spread = max(float(spread), 1e-3)
         self._build(dominant)
         self.null_space = _analyse(operator, active, all_have_diagonal)
         self.operator = operator
@@ -97,8 +104,8 @@ class _Hierarchy:
         """Fill the coarse levels from the loaded fine level and factor the coarsest one."""
         levels = len(self.rows)
         # An operator with a strong diagonal (implicit viscosity, I - nu dt lap, up to
-        # nu dt / h^2 = 1) needs no coarse correction: symmetric Gauss-Seidel alone reduces
-        # every error mode by a large factor, at a fraction of a V-cycle's cost and with no
+        # nu dt / h^2 = 1) needs no coarse correction: the Chebyshev iteration reduces every
+        # error mode by a known factor per pass, at a fraction of a V-cycle's cost and with no
         # coarse levels to build.
         self.coarse = levels == 1 or not dominant
         if not self.coarse:
@@ -136,18 +143,20 @@ class PoissonSolverMGPCG:
     preconditioner is therefore symmetric positive definite on the active points, and CG
     converges for every operator of the contract. An operator whose diagonal term is at least a
     quarter of the sum of its weights at every point (implicit viscosity up to
-    ``nu dt / h^2 = 1``) is preconditioned by the fine level's symmetric Gauss-Seidel alone,
-    which is cheaper there. The levels and the component analysis are kept while the same
-    operator (or one with equal values) is solved again.
+    ``nu dt / h^2 = 1``) is solved instead by the Jacobi-preconditioned Chebyshev iteration,
+    whose eigenvalue bounds follow from the Jacobi row sums (Gershgorin), which is cheaper
+    there: one pass per iteration and no coarse levels. The levels and the component analysis
+    are kept while the same operator (or one with equal values) is solved again.
 
     Guarantee: returns when the true relative residual is ``<= rtol`` or after
-    ``max_iterations`` CG iterations; the iteration count is nearly independent of the grid
-    size (6-7 to 1e-6 from 128^2 to 1024^2 on pressure problems). Storage is allocated once
-    per grid shape and reused, so one instance must not solve from several threads at once.
+    ``max_iterations`` iterations; the MGPCG iteration count is nearly independent of the grid
+    size (6-7 to 1e-6 from 128^2 to 1024^2 on pressure problems), the Chebyshev count depends
+    only on the diagonal dominance. Storage is allocated once per grid shape and reused, so
+    one instance must not solve from several threads at once.
 
     Attributes:
         rtol: Relative residual tolerance ``|b - A x| / |b|``.
-        max_iterations: Maximum number of CG iterations.
+        max_iterations: Maximum number of CG (or Chebyshev) iterations.
         smoothing_sweeps: Red-black Gauss-Seidel sweeps before and after each coarse correction.
     """
 
@@ -218,15 +227,27 @@ class PoissonSolverMGPCG:
             hierarchy.x[:] = 0.0
         elif pad_masked_kernel(x0, null_space.active, hierarchy.x)[0]:
             raise ValueError("x0: values must be finite; got NaN or inf")
-        iterations, squared = pcg_kernel(
-            hierarchy.rows, hierarchy.cols, hierarchy.offsets, hierarchy.diagonal,
-            hierarchy.weights_x, hierarchy.weights_y, hierarchy.total, hierarchy.inverse,
-            hierarchy.level_x, hierarchy.level_b, hierarchy.factor, hierarchy.b, hierarchy.x,
-            hierarchy.r, hierarchy.p, hierarchy.q, hierarchy.z, (self.rtol * norm_b) ** 2,
-            self.max_iterations, self.smoothing_sweeps, hierarchy.coarse,
-        )
+        threshold = (self.rtol * norm_b) ** 2
+        solution = hierarchy.x
+        if not hierarchy.coarse:
+            iterations, squared, in_other = chebyshev_kernel(
+                hierarchy.rows, hierarchy.cols, hierarchy.offsets, hierarchy.total,
+                hierarchy.inverse, hierarchy.weights_x, hierarchy.weights_y, hierarchy.b,
+                hierarchy.x, hierarchy.p, hierarchy.q, hierarchy.spread, threshold,
+                self.max_iterations,
+            )
+            if in_other:
+                solution = hierarchy.p
+        else:
+            iterations, squared = pcg_kernel(
+                hierarchy.rows, hierarchy.cols, hierarchy.offsets, hierarchy.diagonal,
+                hierarchy.weights_x, hierarchy.weights_y, hierarchy.total, hierarchy.inverse,
+                hierarchy.level_x, hierarchy.level_b, hierarchy.factor, hierarchy.b,
+                hierarchy.x, hierarchy.r, hierarchy.p, hierarchy.q, hierarchy.z, threshold,
+                self.max_iterations, self.smoothing_sweeps,
+            )
         x = _output(out, operator.shape)
-        unpad_values_kernel(hierarchy.x, x)
+        unpad_values_kernel(solution, x)
         null_space.remove_means(x)
         relative = float(np.sqrt(squared)) / norm_b
         return x, SolveReport(int(iterations), relative, relative <= self.rtol)

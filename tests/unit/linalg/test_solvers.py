@@ -370,3 +370,56 @@ def test_solution_into_out(make_solver) -> None:
         solver.solve(operator, rhs, out=np.empty((10, 8), dtype=np.float32))
     with pytest.raises(ValueError, match="out"):
         solver.solve(operator, rhs, out=np.empty((8, 10)))
+
+
+def dominant_operator(shape: tuple[int, int], seed: int, c: float) -> Operator5Point:
+    """Implicit-viscosity-like ``I - c L``: weights c (x) and in [c/2, c] (y), closed faces,
+    fixed points with a large diagonal (Dirichlet rows, cut-distance terms)."""
+    rng = np.random.default_rng(seed)
+    m, n = shape
+    diagonal = np.ones(shape)
+    diagonal[0, :] = diagonal[-1, :] = 1e3
+    diagonal[rng.random(shape) < 0.03] = 50.0
+    weights_x = np.full((m - 1, n), c)
+    weights_y = rng.uniform(0.5 * c, c, (m, n - 1))
+    weights_x[rng.random(weights_x.shape) < 0.05] = 0.0
+    return Operator5Point(diagonal, weights_x, weights_y)
+
+
+@pytest.mark.parametrize("c", [0.01, 0.085, 0.33, 1.0])
+@pytest.mark.parametrize("warm", [False, True])
+def test_chebyshev_iteration_for_dominant_operators(c: float, warm: bool) -> None:
+    """Diagonal >= a quarter of the weights: the Chebyshev iteration solves it, to the direct
+    solution, within the iteration count that its Gershgorin interval guarantees."""
+    shape = (41, 37)
+    operator = dominant_operator(shape, 41, c)
+    rhs = np.random.default_rng(42).standard_normal(shape)
+    expected, b = reference_solve(operator, rhs)
+    x0 = expected + 0.01 * np.random.default_rng(43).standard_normal(shape) if warm else None
+    solver = PoissonSolverMGPCG(rtol=1e-8)
+    x, report = solver.solve(operator, rhs, x0=x0)
+    assert not solver._hierarchies[shape].coarse, "expected the Chebyshev path"
+    assert report.converged
+    assert true_relative_residual(operator, x, b) == pytest.approx(report.residual, rel=1e-6)
+    np.testing.assert_allclose(x, expected, atol=1e-7 * np.abs(expected).max())
+    # Rate bound: r_k = D^1/2 p_k(D^-1/2 A D^-1/2) D^-1/2 r_0 with |p_k| <= 2 q^k on
+    # [1 - s, 1 + s], s the largest Jacobi row sum.
+    matrix = sparse_matrix(operator)
+    total = matrix.diagonal()
+    spread = float(np.max((abs(matrix).sum(axis=1).A1 - total) / total))
+    kappa = (1.0 + spread) / (1.0 - spread)
+    q = (np.sqrt(kappa) - 1.0) / (np.sqrt(kappa) + 1.0)
+    start = np.zeros(shape) if x0 is None else x0
+    r0 = np.linalg.norm(b.ravel() - matrix @ start.ravel())
+    amplification = 2.0 * np.sqrt(total.max() / total.min())
+    bound = np.log(1e-8 * np.linalg.norm(b) / (amplification * r0)) / np.log(q)
+    assert report.iterations <= int(np.ceil(bound))
+
+
+def test_chebyshev_iteration_without_weights_is_exact() -> None:
+    diagonal = np.random.default_rng(5).uniform(0.5, 4.0, (9, 7))
+    operator = Operator5Point(diagonal, np.zeros((8, 7)), np.zeros((9, 6)))
+    rhs = np.random.default_rng(6).standard_normal((9, 7))
+    x, report = PoissonSolverMGPCG().solve(operator, rhs)
+    assert report.converged and report.iterations <= 1
+    np.testing.assert_allclose(x, rhs / diagonal, rtol=1e-12)
