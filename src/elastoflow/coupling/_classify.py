@@ -1,6 +1,6 @@
 from __future__ import annotations
 
-import weakref
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -126,13 +126,6 @@ def classify_points(
 
 _NO_BODY = np.empty((0, 0), dtype=np.int32)
 
-# Index boxes (i_begin, i_end, j_begin, j_end), shape (K, 4), that the last call wrote into
-# each ``out`` it returned, keyed by the object's id (InteriorBoundary is not hashable); outside
-# them the object holds the empty state, so the next call resets only those boxes. A weak
-# reference drops the entry when the object dies and guards against a reused id.
-_written_boxes: dict[int, tuple[weakref.ref[InteriorBoundary], np.ndarray]] = {}
-
-
 def _touched_boxes(grid: Grid2D, bmap: BoundaryMap) -> np.ndarray:
     """One index box per body that this map's kernels may write, shape (K, 4)."""
     edge_body = bmap.edge_body
@@ -146,26 +139,6 @@ def _touched_boxes(grid: Grid2D, bmap: BoundaryMap) -> np.ndarray:
         bmap.x_offsets, bmap.x_coordinate, bmap.x_sign, bmap.x_edge, bmap.y_offsets,
         bmap.y_coordinate, bmap.y_sign, bmap.y_edge, edge_body, group_count, grid.origin[0],
         grid.origin[1], grid.h, grid.nx, grid.ny)
-
-
-def _written_boxes_of(out: InteriorBoundary, nx: int, ny: int) -> np.ndarray:
-    entry = _written_boxes.get(id(out))
-    if entry is not None and entry[0]() is out:
-        return entry[1]
-    return np.array([[0, nx + 1, 0, ny + 1]], dtype=np.int64)
-
-
-def _remember_written_boxes(out: InteriorBoundary, boxes: np.ndarray) -> None:
-    key = id(out)
-    entry = _written_boxes.get(key)
-    if entry is not None and entry[0]() is out:
-        _written_boxes[key] = (entry[0], boxes)
-        return
-
-    def forget(_: weakref.ref[InteriorBoundary]) -> None:
-        _written_boxes.pop(key, None)
-
-    _written_boxes[key] = (weakref.ref(out, forget), boxes)
 
 
 def _reset(out: InteriorBoundary, boxes: np.ndarray) -> None:
@@ -203,22 +176,32 @@ def interior_boundary_from_map(
       disagree for an edge nearly parallel to a column, the cut is set at the neighbour,
       theta = 1).
 
+    ``regions`` of the result holds one index box per body (and obstacle) of this map, around
+    everything the map's kernels wrote (see ``InteriorBoundary``): outside them every array
+    holds the empty state, which lets the fluid take its plain paths there. With a given
+    ``classification`` it is the whole grid (the caller's flags may be set anywhere).
+
     The work is proportional to the number of crossings, the number of half-grid lines and
     the area of each body's bounding box (plus 2 h): with ``out`` a result of an earlier
-    call, only the boxes that call wrote are reset and only this map's boxes are scanned for
-    the guarantee above. Allocating without ``out``, an ``out`` not returned by this function
-    and a given ``classification`` cost the whole grid.
+    call, only its ``regions`` are reset and only this map's boxes are scanned for the
+    guarantee above. Allocating without ``out``, an ``out`` whose ``regions`` is None and a
+    given ``classification`` cost the whole grid.
 
     Args:
         grid: The MAC grid.
         bmap: The boundary map of that grid.
         classification: The result of ``classify_points`` when the caller already has it.
         out: An interior boundary of this grid to overwrite in place (saves allocating the
-            dense arrays every step). If it was returned by an earlier call, its arrays must
-            not have been written since (outside that call's boxes they are assumed empty).
+            dense arrays every step). Outside its ``regions`` (unless None) its arrays must
+            hold the empty state, as ``InteriorBoundary`` guarantees: only those boxes are
+            reset.
 
     Returns:
-        The interior boundary (``out`` when given).
+        The interior boundary: ``out`` itself when given with a writable ``regions`` array of
+        at least as many rows as this map has boxes (the rows are overwritten, spare ones
+        with the empty box 0, 0, 0, 0); otherwise a new object, sharing the arrays of ``out``
+        when given (the old object's ``regions`` then no longer describe them: use only the
+        result).
     """
     _check_grid(grid, bmap)
     nx, ny, h = grid.nx, grid.ny, grid.h
@@ -234,7 +217,10 @@ def interior_boundary_from_map(
                      "open_fraction_y", "cut_theta_x", "cut_theta_y", "cut_velocity_x",
                      "cut_velocity_y"):
             _check_out(name, getattr(out, name), getattr(out, name).shape, np.float64)
-        _reset(out, _written_boxes_of(out, nx, ny))
+        if out.regions is None:
+            _reset(out, np.array([[0, nx + 1, 0, ny + 1]], dtype=np.int64))
+        else:
+            _reset(out, out.regions)
 
     if classification is None:
         _kernels.classify_lines(bmap.x_offsets, bmap.x_coordinate, bmap.x_sign, bmap.x_edge,
@@ -278,5 +264,10 @@ def interior_boundary_from_map(
                               boxes)
     _kernels.reconcile_cuts_y(out.solid_faces_y, out.velocity_faces_y, theta_y, cut_velocity_y,
                               boxes)
-    _remember_written_boxes(out, boxes)
-    return out
+    regions = out.regions
+    if regions is not None and regions.flags.writeable and regions.shape[0] >= boxes.shape[0]:
+        # Keep ``out`` itself (its old regions would be stale): spare rows get empty boxes.
+        regions[:boxes.shape[0]] = boxes
+        regions[boxes.shape[0]:] = 0
+        return out
+    return dataclasses.replace(out, regions=boxes)

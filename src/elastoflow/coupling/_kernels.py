@@ -797,6 +797,9 @@ def reset_boxes(
 def _fill_box(array: np.ndarray, i_begin: int, i_end: int, j_begin: int, j_end: int,
               value: float) -> None:
     """array[i_begin:i_end, j_begin:j_end] = value, the box clipped to the array."""
+    j_start = max(j_begin, 0)
     j_stop = min(j_end, array.shape[1])
-    for i in range(i_begin, min(i_end, array.shape[0])):
-        array[i, j_begin:j_stop] = value
+    if j_start >= j_stop:
+        return
+    for i in range(max(i_begin, 0), min(i_end, array.shape[0])):
+        array[i, j_start:j_stop] = value

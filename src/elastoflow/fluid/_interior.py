@@ -47,10 +47,15 @@ class InteriorBoundary:
     cut_theta_y: np.ndarray
     cut_velocity_x: np.ndarray
     cut_velocity_y: np.ndarray
+    regions: np.ndarray | None = None
 
     @classmethod
     def empty(cls, grid: Grid2D) -> InteriorBoundary:
-        """No bodies: every point fluid, every face fully open, nothing cut."""
+        """No bodies: every point fluid, every face fully open, nothing cut.
+
+        ``regions`` is None: the result is meant to be filled in place (as
+        ``elastoflow.coupling`` does), so it makes no promise about where bodies will be.
+        """
         fx, fy = grid.shape_faces_x, grid.shape_faces_y
         return cls(
             solid_cells=np.zeros(grid.shape_cells, dtype=np.bool_),
@@ -67,7 +72,7 @@ class InteriorBoundary:
         )
 
     def check(self, grid: Grid2D) -> None:
-        """Raise ValueError if an array's shape or dtype does not match ``grid``."""
+        """Raise ValueError if an array's shape, or ``regions``' shape or dtype, is wrong."""
         fx, fy, c = grid.shape_faces_x, grid.shape_faces_y, grid.shape_cells
         expected = {
             "solid_cells": c,
@@ -87,4 +92,14 @@ class InteriorBoundary:
             if value.shape != shape:
                 raise ValueError(
                     f"InteriorBoundary.{name} shape {value.shape}: must be {shape} for this grid"
+                )
+        if self.regions is not None:
+            regions = self.regions
+            if not (isinstance(regions, np.ndarray) and regions.dtype == np.int64
+                    and regions.ndim == 2 and regions.shape[1] == 4):
+                description = (f"shape {regions.shape}, dtype {regions.dtype}"
+                               if isinstance(regions, np.ndarray) else repr(regions))
+                raise ValueError(
+                    f"InteriorBoundary.regions {description}: must be None or an int64 array "
+                    f"of shape (K, 4)"
                 )

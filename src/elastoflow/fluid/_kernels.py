@@ -165,22 +165,31 @@ def _sample_across_bodies(f, fx, fy, modes, values, solid, theta, cut_velocity):
 
 
 @njit(cache=True, inline="always")
-def _sample_with_bodies(f, fx, fy, modes, values, solid, theta, cut_velocity):
+def _sample_with_bodies(f, fx, fy, modes, values, solid, theta, cut_velocity, regions):
     """Bilinear sample that replaces corners across a body boundary by cut-distance ghosts.
 
-    Fast path: no corner inside a body and no boundary on the cell's four edges (each edge is
-    seen from one of its ends) is plain bilinear interpolation; otherwise
-    `_sample_across_bodies`.
+    Fast path: a cell whose corners lie outside every box of ``regions`` (int64, (K, 4),
+    ``InteriorBoundary.regions``) or, inside one, has no corner inside a body and no boundary
+    on its four edges (each edge is seen from one of its ends) is plain bilinear
+    interpolation; otherwise `_sample_across_bodies`.
     """
     m, n = f.shape
     i0 = int(math.floor(fx))
     j0 = int(math.floor(fy))
-    if (
-        0 <= i0 < m - 1 and 0 <= j0 < n - 1
-        and not (solid[i0, j0] or solid[i0 + 1, j0] or solid[i0, j0 + 1] or solid[i0 + 1, j0 + 1])
-        and theta[1, i0, j0] > 1.0 and theta[3, i0, j0] > 1.0
-        and theta[0, i0 + 1, j0 + 1] > 1.0 and theta[2, i0 + 1, j0 + 1] > 1.0
-    ):
+    plain = 0 <= i0 < m - 1 and 0 <= j0 < n - 1
+    if plain:
+        # The box test reads four numbers per body instead of eight scattered body arrays.
+        for k in range(regions.shape[0]):
+            if (i0 + 1 >= regions[k, 0] and i0 < regions[k, 1]
+                    and j0 + 1 >= regions[k, 2] and j0 < regions[k, 3]):
+                plain = (
+                    not (solid[i0, j0] or solid[i0 + 1, j0] or solid[i0, j0 + 1]
+                         or solid[i0 + 1, j0 + 1])
+                    and theta[1, i0, j0] > 1.0 and theta[3, i0, j0] > 1.0
+                    and theta[0, i0 + 1, j0 + 1] > 1.0 and theta[2, i0 + 1, j0 + 1] > 1.0
+                )
+                break
+    if plain:
         a = fx - i0
         b = fy - j0
         return _lerp(
@@ -190,17 +199,25 @@ def _sample_with_bodies(f, fx, fy, modes, values, solid, theta, cut_velocity):
 
 
 @njit(cache=True)
-def _sample_dye_with_bodies(f, fx, fy, modes, values, solid):
-    """Bilinear sample over the fluid corners only (dye does not enter bodies)."""
+def _sample_dye_with_bodies(f, fx, fy, modes, values, solid, regions):
+    """Bilinear sample over the fluid corners only (dye does not enter bodies).
+
+    Corners outside every box of ``regions`` are fluid without reading ``solid``.
+    """
     m, n = f.shape
     i0 = int(math.floor(fx))
     j0 = int(math.floor(fy))
     a = fx - i0
     b = fy - j0
-    if (
-        0 <= i0 < m - 1 and 0 <= j0 < n - 1
-        and not (solid[i0, j0] or solid[i0 + 1, j0] or solid[i0, j0 + 1] or solid[i0 + 1, j0 + 1])
-    ):
+    plain = 0 <= i0 < m - 1 and 0 <= j0 < n - 1
+    if plain:
+        for k in range(regions.shape[0]):
+            if (i0 + 1 >= regions[k, 0] and i0 < regions[k, 1]
+                    and j0 + 1 >= regions[k, 2] and j0 < regions[k, 3]):
+                plain = not (solid[i0, j0] or solid[i0 + 1, j0] or solid[i0, j0 + 1]
+                             or solid[i0 + 1, j0 + 1])
+                break
+    if plain:
         # Away from bodies and sides (nearly every cell): plain bilinear interpolation.
         return _lerp(
             _lerp(f[i0, j0], f[i0 + 1, j0], a), _lerp(f[i0, j0 + 1], f[i0 + 1, j0 + 1], a), b
@@ -245,20 +262,20 @@ def _trace_back(u, v, x, y, ux, uy, dt, inv_h, lx, ly, modes_u, values_u, modes_
 @njit(cache=True, inline="always")
 def _velocity_at_bodies(
     u, v, x, y, inv_h, modes_u, values_u, modes_v, values_v,
-    solid_x, theta_x, cut_x, solid_y, theta_y, cut_y,
+    solid_x, theta_x, cut_x, solid_y, theta_y, cut_y, regions,
 ):
     return (
         _sample_with_bodies(u, x * inv_h, y * inv_h - 0.5, modes_u, values_u, solid_x, theta_x,
-                            cut_x),
+                            cut_x, regions),
         _sample_with_bodies(v, x * inv_h - 0.5, y * inv_h, modes_v, values_v, solid_y, theta_y,
-                            cut_y),
+                            cut_y, regions),
     )
 
 
 @njit(cache=True, inline="always")
 def _trace_back_bodies(
     u, v, x, y, ux, uy, dt, inv_h, lx, ly, modes_u, values_u, modes_v, values_v,
-    solid_x, theta_x, cut_x, solid_y, theta_y, cut_y,
+    solid_x, theta_x, cut_x, solid_y, theta_y, cut_y, regions,
 ):
     # The trace velocity is sampled with the cut-distance ghosts too, so that it does not
     # leak through thin bodies either.
@@ -266,7 +283,7 @@ def _trace_back_bodies(
     ym = _clamp(y - 0.5 * dt * uy, 0.0, ly)
     um, vm = _velocity_at_bodies(
         u, v, xm, ym, inv_h, modes_u, values_u, modes_v, values_v,
-        solid_x, theta_x, cut_x, solid_y, theta_y, cut_y,
+        solid_x, theta_x, cut_x, solid_y, theta_y, cut_y, regions,
     )
     return _clamp(x - dt * um, 0.0, lx), _clamp(y - dt * vm, 0.0, ly)
 
@@ -292,13 +309,15 @@ def _corner_range(f, fx, fy, modes, values):
 @njit(cache=True, parallel=True)
 def advect_field_x(
     u, v, source, out, dt, h, modes_u, values_u, modes_v, values_v, has_interior,
-    solid_x, theta_x, cut_x, solid_y, theta_y, cut_y, body_velocity, mode, forward, backward,
-    departure_x, departure_y,
+    solid_x, theta_x, cut_x, solid_y, theta_y, cut_y, regions, body_velocity, mode, forward,
+    backward, departure_x, departure_y,
 ):
     """Transport the x-face field ``source`` by (u, v) over ``dt`` into ``out`` (nx+1, ny).
 
     The body arrays (solid flags, cut fractions and cut velocities of the x- and y-faces) are
-    read only with ``has_interior``. ``mode`` 0 samples ``source`` at the departure points;
+    read only with ``has_interior``, and only for samples that touch a box of ``regions``
+    (int64, (K, 4), as ``InteriorBoundary.regions``; a box covering everything when bodies
+    may be anywhere). ``mode`` 0 samples ``source`` at the departure points;
     1 does the same and stores the departure points (index coordinates of ``source``) in
     ``departure_x`` / ``departure_y``; 2 skips the trace and writes the MacCormack correction
     ``forward + (source - backward) / 2`` of this step's semi-Lagrangian result ``forward`` and
@@ -326,10 +345,10 @@ def advect_field_x(
             y = (j + 0.5) * h
             if has_interior:
                 uy = _sample_with_bodies(v, x * inv_h - 0.5, y * inv_h, modes_v, values_v,
-                                         solid_y, theta_y, cut_y)
+                                         solid_y, theta_y, cut_y, regions)
                 xb, yb = _trace_back_bodies(
                     u, v, x, y, u[i, j], uy, dt, inv_h, lx, ly, modes_u, values_u, modes_v,
-                    values_v, solid_x, theta_x, cut_x, solid_y, theta_y, cut_y,
+                    values_v, solid_x, theta_x, cut_x, solid_y, theta_y, cut_y, regions,
                 )
             else:
                 uy = _sample(v, x * inv_h - 0.5, y * inv_h, modes_v, values_v)
@@ -344,7 +363,7 @@ def advect_field_x(
                 departure_y[i, j] = fy
             if has_interior:
                 out[i, j] = _sample_with_bodies(
-                    source, fx, fy, modes_u, values_u, solid_x, theta_x, cut_x
+                    source, fx, fy, modes_u, values_u, solid_x, theta_x, cut_x, regions
                 )
             else:
                 out[i, j] = _sample(source, fx, fy, modes_u, values_u)
@@ -353,8 +372,8 @@ def advect_field_x(
 @njit(cache=True, parallel=True)
 def advect_field_y(
     u, v, source, out, dt, h, modes_u, values_u, modes_v, values_v, has_interior,
-    solid_x, theta_x, cut_x, solid_y, theta_y, cut_y, body_velocity, mode, forward, backward,
-    departure_x, departure_y,
+    solid_x, theta_x, cut_x, solid_y, theta_y, cut_y, regions, body_velocity, mode, forward,
+    backward, departure_x, departure_y,
 ):
     """Transport the y-face field ``source`` by (u, v) over ``dt`` into ``out`` (nx, ny+1).
 
@@ -381,10 +400,10 @@ def advect_field_y(
             y = j * h
             if has_interior:
                 ux = _sample_with_bodies(u, x * inv_h, y * inv_h - 0.5, modes_u, values_u,
-                                         solid_x, theta_x, cut_x)
+                                         solid_x, theta_x, cut_x, regions)
                 xb, yb = _trace_back_bodies(
                     u, v, x, y, ux, v[i, j], dt, inv_h, lx, ly, modes_u, values_u, modes_v,
-                    values_v, solid_x, theta_x, cut_x, solid_y, theta_y, cut_y,
+                    values_v, solid_x, theta_x, cut_x, solid_y, theta_y, cut_y, regions,
                 )
             else:
                 ux = _sample(u, x * inv_h, y * inv_h - 0.5, modes_u, values_u)
@@ -399,7 +418,7 @@ def advect_field_y(
                 departure_y[i, j] = fy
             if has_interior:
                 out[i, j] = _sample_with_bodies(
-                    source, fx, fy, modes_v, values_v, solid_y, theta_y, cut_y
+                    source, fx, fy, modes_v, values_v, solid_y, theta_y, cut_y, regions
                 )
             else:
                 out[i, j] = _sample(source, fx, fy, modes_v, values_v)
@@ -408,8 +427,8 @@ def advect_field_y(
 @njit(cache=True, parallel=True)
 def advect_cells(
     u, v, source, out, dt, h, modes_u, values_u, modes_v, values_v, modes_c, values_c,
-    has_interior, solid_x, theta_x, cut_x, solid_y, theta_y, cut_y, solid_cells, mode,
-    forward, backward, departure_x, departure_y,
+    has_interior, solid_x, theta_x, cut_x, solid_y, theta_y, cut_y, regions, solid_cells,
+    mode, forward, backward, departure_x, departure_y,
 ):
     """Transport a cell-centred scalar by (u, v) over ``dt`` into ``out`` (nx, ny).
 
@@ -437,11 +456,11 @@ def advect_cells(
             if has_interior:
                 ux, uy = _velocity_at_bodies(
                     u, v, x, y, inv_h, modes_u, values_u, modes_v, values_v,
-                    solid_x, theta_x, cut_x, solid_y, theta_y, cut_y,
+                    solid_x, theta_x, cut_x, solid_y, theta_y, cut_y, regions,
                 )
                 xb, yb = _trace_back_bodies(
                     u, v, x, y, ux, uy, dt, inv_h, lx, ly, modes_u, values_u, modes_v, values_v,
-                    solid_x, theta_x, cut_x, solid_y, theta_y, cut_y,
+                    solid_x, theta_x, cut_x, solid_y, theta_y, cut_y, regions,
                 )
             else:
                 ux, uy = _velocity_at(u, v, x, y, inv_h, modes_u, values_u, modes_v, values_v)
@@ -455,7 +474,7 @@ def advect_cells(
                 departure_y[i, j] = fy
             if has_interior:
                 out[i, j] = _sample_dye_with_bodies(
-                    source, fx, fy, modes_c, values_c, solid_cells
+                    source, fx, fy, modes_c, values_c, solid_cells, regions
                 )
             else:
                 out[i, j] = _sample(source, fx, fy, modes_c, values_c)
@@ -487,11 +506,20 @@ def copy_into(source, target):
 
 @njit(cache=True, inline="always")
 def _viscosity_row(f, c, axis, fixed_low, fixed_high, tangential_modes, tangential_values,
-                   has_interior, solid, theta, cut_velocity, assemble_operator, diagonal,
-                   weights_x, weights_y, rhs, i):
+                   has_interior, solid, theta, cut_velocity, regions, assemble_operator,
+                   diagonal, weights_x, weights_y, rhs, i):
     m, n = f.shape
     for j in range(n):
-        if not has_interior and 1 < i < m - 2 and 1 < j < n - 2:
+        plain = 1 < i < m - 2 and 1 < j < n - 2
+        if plain and has_interior:
+            # Inside a box the point or a neighbour may be solid or cut; outside every box
+            # (the 3 x 3 block around the point) nothing is.
+            for k in range(regions.shape[0]):
+                if (i + 1 >= regions[k, 0] and i - 1 < regions[k, 1]
+                        and j + 1 >= regions[k, 2] and j - 1 < regions[k, 3]):
+                    plain = False
+                    break
+        if plain:
             # All four neighbours are free interior points: no boundary terms.
             rhs[i, j] = f[i, j]
             if assemble_operator:
@@ -547,27 +575,29 @@ def _viscosity_row(f, c, axis, fixed_low, fixed_high, tangential_modes, tangenti
 @njit(cache=True, parallel=True)
 def _build_viscosity_system_parallel(f, c, axis, fixed_low, fixed_high, tangential_modes,
                                      tangential_values, has_interior, solid, theta, cut_velocity,
-                                     assemble_operator, diagonal, weights_x, weights_y, rhs):
+                                     regions, assemble_operator, diagonal, weights_x, weights_y,
+                                     rhs):
     for i in prange(f.shape[0]):
         _viscosity_row(f, c, axis, fixed_low, fixed_high, tangential_modes, tangential_values,
-                       has_interior, solid, theta, cut_velocity, assemble_operator, diagonal,
-                       weights_x, weights_y, rhs, i)
+                       has_interior, solid, theta, cut_velocity, regions, assemble_operator,
+                       diagonal, weights_x, weights_y, rhs, i)
 
 
 @njit(cache=True)
 def _build_viscosity_system_serial(f, c, axis, fixed_low, fixed_high, tangential_modes,
                                    tangential_values, has_interior, solid, theta, cut_velocity,
-                                   assemble_operator, diagonal, weights_x, weights_y, rhs):
+                                   regions, assemble_operator, diagonal, weights_x, weights_y,
+                                   rhs):
     for i in range(f.shape[0]):
         _viscosity_row(f, c, axis, fixed_low, fixed_high, tangential_modes, tangential_values,
-                       has_interior, solid, theta, cut_velocity, assemble_operator, diagonal,
-                       weights_x, weights_y, rhs, i)
+                       has_interior, solid, theta, cut_velocity, regions, assemble_operator,
+                       diagonal, weights_x, weights_y, rhs, i)
 
 
 @njit(cache=True)
 def build_viscosity_system(f, c, axis, fixed_low, fixed_high, tangential_modes, tangential_values,
-                           has_interior, solid, theta, cut_velocity, assemble_operator, diagonal,
-                           weights_x, weights_y, rhs):
+                           has_interior, solid, theta, cut_velocity, regions, assemble_operator,
+                           diagonal, weights_x, weights_y, rhs):
     """Assemble ``(I - nu dt lap) f = f*`` for one velocity component as a 5-point operator.
 
     Args:
@@ -577,17 +607,21 @@ def build_viscosity_system(f, c, axis, fixed_low, fixed_high, tangential_modes, 
             normal boundary faces, fixed when ``fixed_low`` / ``fixed_high``.
         tangential_modes: Ghost modes (0 copy, 1 Dirichlet) of the two sides along the other
             axis, low then high; ``tangential_values`` their wall velocities.
+        regions: With ``has_interior``, int64 boxes (K, 4) as ``InteriorBoundary.regions``
+            (one covering everything when bodies may be anywhere): points whose neighbours
+            all lie outside them take the no-body path.
         assemble_operator: False writes only ``rhs`` (the operator is known unchanged).
     """
     if f.size > PARALLEL_MINIMUM:
         return _build_viscosity_system_parallel(f, c, axis, fixed_low, fixed_high,
                                                 tangential_modes, tangential_values, has_interior,
-                                                solid, theta, cut_velocity, assemble_operator,
-                                                diagonal, weights_x, weights_y, rhs)
+                                                solid, theta, cut_velocity, regions,
+                                                assemble_operator, diagonal, weights_x, weights_y,
+                                                rhs)
     return _build_viscosity_system_serial(f, c, axis, fixed_low, fixed_high, tangential_modes,
                                           tangential_values, has_interior, solid, theta,
-                                          cut_velocity, assemble_operator, diagonal, weights_x,
-                                          weights_y, rhs)
+                                          cut_velocity, regions, assemble_operator, diagonal,
+                                          weights_x, weights_y, rhs)
 
 
 @njit(cache=True)
