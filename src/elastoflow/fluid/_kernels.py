@@ -509,11 +509,15 @@ def _viscosity_row(f, c, axis, fixed_low, fixed_high, tangential_modes, tangenti
                    has_interior, solid, theta, cut_velocity, regions, assemble_operator,
                    diagonal, weights_x, weights_y, rhs, i):
     m, n = f.shape
+    # Boxes that rows i-1..i+1 meet: only there may the point or a neighbour be solid or cut.
+    row_near = False
+    if has_interior:
+        for k in range(regions.shape[0]):
+            if i + 1 >= regions[k, 0] and i - 1 < regions[k, 1]:
+                row_near = True
     for j in range(n):
         plain = 1 < i < m - 2 and 1 < j < n - 2
-        if plain and has_interior:
-            # Inside a box the point or a neighbour may be solid or cut; outside every box
-            # (the 3 x 3 block around the point) nothing is.
+        if plain and row_near:
             for k in range(regions.shape[0]):
                 if (i + 1 >= regions[k, 0] and i - 1 < regions[k, 1]
                         and j + 1 >= regions[k, 2] and j - 1 < regions[k, 3]):
@@ -644,11 +648,19 @@ def _open(fraction):
 
 @njit(cache=True, parallel=True)
 def _face_solid_velocity_parallel(solid, body_velocity, open_fraction, theta, cut_velocity,
-                                  across_low, out):
+                                  across_low, regions, out):
     m, n = solid.shape
     for i in prange(m):
+        j_begin = n
+        j_end = 0
+        for k in range(regions.shape[0]):
+            if regions[k, 0] <= i < regions[k, 1]:
+                j_begin = min(j_begin, max(regions[k, 2], 0))
+                j_end = max(j_end, min(regions[k, 3], n))
         for j in range(n):
-            if solid[i, j]:
+            if j < j_begin or j >= j_end:
+                out[i, j] = 0.0
+            elif solid[i, j]:
                 out[i, j] = body_velocity[i, j]
             elif open_fraction[i, j] < 1.0:
                 t_low = theta[across_low, i, j]
@@ -665,11 +677,19 @@ def _face_solid_velocity_parallel(solid, body_velocity, open_fraction, theta, cu
 
 @njit(cache=True)
 def _face_solid_velocity_serial(solid, body_velocity, open_fraction, theta, cut_velocity,
-                                across_low, out):
+                                across_low, regions, out):
     m, n = solid.shape
     for i in range(m):
+        j_begin = n
+        j_end = 0
+        for k in range(regions.shape[0]):
+            if regions[k, 0] <= i < regions[k, 1]:
+                j_begin = min(j_begin, max(regions[k, 2], 0))
+                j_end = max(j_end, min(regions[k, 3], n))
         for j in range(n):
-            if solid[i, j]:
+            if j < j_begin or j >= j_end:
+                out[i, j] = 0.0
+            elif solid[i, j]:
                 out[i, j] = body_velocity[i, j]
             elif open_fraction[i, j] < 1.0:
                 t_low = theta[across_low, i, j]
@@ -686,18 +706,19 @@ def _face_solid_velocity_serial(solid, body_velocity, open_fraction, theta, cut_
 
 @njit(cache=True)
 def face_solid_velocity(solid, body_velocity, open_fraction, theta, cut_velocity, across_low,
-                        out):
+                        regions, out):
     """Body velocity component at every face that is not fully open, 0 elsewhere.
 
     Faces whose point is inside a body take the body velocity there; partly open faces with
     their point in fluid take the velocity at the nearer crossing along the face (directions
-    ``across_low`` and ``across_low + 1``, within half a spacing).
+    ``across_low`` and ``across_low + 1``, within half a spacing). Points outside the boxes
+    ``regions`` (int64, (K, 4), as ``InteriorBoundary.regions``) are fully open: 0 unread.
     """
     if solid.size > PARALLEL_MINIMUM:
         return _face_solid_velocity_parallel(solid, body_velocity, open_fraction, theta,
-                                             cut_velocity, across_low, out)
+                                             cut_velocity, across_low, regions, out)
     return _face_solid_velocity_serial(solid, body_velocity, open_fraction, theta, cut_velocity,
-                                       across_low, out)
+                                       across_low, regions, out)
 
 
 @njit(cache=True, parallel=True)

@@ -512,13 +512,14 @@ class FluidSolver:
         self, interior: InteriorBoundary
     ) -> tuple[np.ndarray, np.ndarray]:
         """Body velocity u_s on faces that are not fully open (buffers, overwritten)."""
+        regions = self._regions(interior)
         kernels.face_solid_velocity(
             interior.solid_faces_x, interior.velocity_faces_x, interior.open_fraction_x,
-            interior.cut_theta_x, interior.cut_velocity_x, 2, self._solid_u,
+            interior.cut_theta_x, interior.cut_velocity_x, 2, regions, self._solid_u,
         )
         kernels.face_solid_velocity(
             interior.solid_faces_y, interior.velocity_faces_y, interior.open_fraction_y,
-            interior.cut_theta_y, interior.cut_velocity_y, 0, self._solid_v,
+            interior.cut_theta_y, interior.cut_velocity_y, 0, regions, self._solid_v,
         )
         return self._solid_u, self._solid_v
 
