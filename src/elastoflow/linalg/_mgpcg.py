@@ -35,7 +35,12 @@ _SMOOTHER_ONLY_DOMINANCE = 0.25
 
 
 class _Hierarchy:
-    """Preallocated padded storage of every level and the CG vectors for one grid shape."""
+    """Padded storage of every level and the iteration vectors for one grid shape.
+
+    The fine level and the vectors the Chebyshev iteration uses are allocated at once; the
+    coarse levels and the CG-only vectors when an operator first needs them, so that a
+    diagonally dominant operator (implicit viscosity) costs 9 instead of 20 grid-sized arrays.
+    """
 
     def __init__(self, shape: tuple[int, int]) -> None:
         rows = [shape[0]]
@@ -47,16 +52,11 @@ class _Hierarchy:
         self.rows = np.array(rows, dtype=np.int64)
         self.cols = np.array(cols, dtype=np.int64)
         self.offsets = np.concatenate(([0], np.cumsum(sizes))).astype(np.int64)
-        total_size = int(self.offsets[-1])
-        self.diagonal = np.zeros(total_size)
-        self.weights_x = np.zeros(total_size)
-        self.weights_y = np.zeros(total_size)
-        self.total = np.zeros(total_size)
-        self.inverse = np.zeros(total_size)
-        self.level_x = np.zeros(total_size)
-        self.level_b = np.zeros(total_size)
         fine_size = sizes[0]
-        self.b, self.x, self.r, self.p, self.q, self.z = (np.zeros(fine_size) for _ in range(6))
+        self.diagonal, self.weights_x, self.weights_y, self.total, self.inverse = (
+            np.zeros(fine_size) for _ in range(5))
+        self.level_x = self.level_b = self.r = self.z = np.zeros(0)
+        self.b, self.x, self.p, self.q = (np.zeros(fine_size) for _ in range(4))
         coarse_size = rows[-1] * cols[-1]
         self.dense = np.zeros((coarse_size, coarse_size))
         self.factor = np.zeros((coarse_size, coarse_size))
@@ -66,6 +66,21 @@ class _Hierarchy:
         self.null_space: _NullSpace | None = None
         # The operator the levels hold; kept alive so that its identity is not reused.
         self.operator: Operator5Point | None = None
+
+    def _allocate_levels(self) -> None:
+        """Grow the level arrays to hold every level (the fine level's values are kept)."""
+        total_size = int(self.offsets[-1])
+        if self.level_x.size == total_size:
+            return
+        for name in ("diagonal", "weights_x", "weights_y", "total", "inverse"):
+            fine = getattr(self, name)
+            grown = np.zeros(total_size)
+            grown[:fine.size] = fine
+            setattr(self, name, grown)
+        self.level_x = np.zeros(total_size)
+        self.level_b = np.zeros(total_size)
+        self.r = np.zeros(self.b.size)
+        self.z = np.zeros(self.b.size)
 
     def _level(self, array: NDArray[np.float64], level: int) -> NDArray[np.float64]:
         return array[self.offsets[level]:self.offsets[level + 1]]
@@ -110,6 +125,7 @@ class _Hierarchy:
         self.coarse = levels == 1 or not dominant
         if not self.coarse:
             return
+        self._allocate_levels()
         for level in range(1, levels):
             m, n = int(self.rows[level]), int(self.cols[level])
             coarsen = coarsen_parallel if m * n > COARSEN_PARALLEL_MINIMUM else coarsen_serial
