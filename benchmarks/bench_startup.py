@@ -3,7 +3,9 @@
 (a) cold: the child's ``NUMBA_CACHE_DIR`` is a new empty folder, so every ``cache=True``
 kernel the first step needs is compiled (as on a fresh install; without the variable Numba
 caches in ``__pycache__`` beside the package's sources); (b) warm: the same command again, the
-kernels now loaded from that cache. The clock starts in the parent just before the child is
+kernels now loaded from that cache; (c) installed: a new empty cache filled by
+``elastoflow warmup`` (what ``make`` runs after installing; its own time is reported as
+``seconds_warmup``), then the same command. The clock starts in the parent just before the child is
 started, and stops in the child at the end of its first step; the child also reports when its
 imports and the scene's build ended. Targets: cold <= 20 s, warm <= 2 s.
 
@@ -63,6 +65,16 @@ def measure(cache: str, env: dict[str, str], scene: str = "bar_in_jet") -> dict[
     return row
 
 
+def measure_warmup(env: dict[str, str]) -> float:
+    """Seconds of ``elastoflow warmup`` in a fresh process with ``env``."""
+    began = time.time()
+    done = subprocess.run([sys.executable, "-m", "elastoflow.cli", "warmup"], env=env,
+                          capture_output=True, text=True, check=False)
+    if done.returncode != 0:
+        raise RuntimeError(f"elastoflow warmup failed:\n{done.stderr[-2000:]}")
+    return time.time() - began
+
+
 def main(argv: list[str] | None = None) -> list[dict[str, Any]]:
     """Run the benchmark, print a Markdown table, write ``results/startup.json``."""
     args = list(sys.argv[1:] if argv is None else argv)
@@ -74,9 +86,15 @@ def main(argv: list[str] | None = None) -> list[dict[str, Any]]:
             env = dict(os.environ, NUMBA_CACHE_DIR=folder)
             rows.append(measure("cold (empty NUMBA_CACHE_DIR)", env))
             rows.append(measure("warm (same NUMBA_CACHE_DIR, 2nd run)", env))
+        with tempfile.TemporaryDirectory(prefix="numba_cache_") as folder:
+            env = dict(os.environ, NUMBA_CACHE_DIR=folder)
+            seconds_warmup = measure_warmup(env)
+            row = measure("installed (empty NUMBA_CACHE_DIR + elastoflow warmup)", env)
+            row["seconds_warmup"] = seconds_warmup
+            rows.append(row)
     print(markdown_table(rows, ["case", "cache", "seconds_to_first_step", "seconds_imports",
                                 "seconds_build", "seconds_first_step", "target_seconds",
-                                "vs_target"]))
+                                "vs_target", "seconds_warmup"]))
     path = write_results("startup", rows)
     print(f"\nwrote {path}")
     return rows

@@ -1,4 +1,4 @@
-"""The ``elastoflow`` command: run, list, validate, dump, view, render, bench.
+"""The ``elastoflow`` command: run, list, validate, dump, view, render, bench, warmup.
 
 Exit codes: 0 success, 2 bad input (one line per problem, no traceback), 1 the run failed
 (the message says at which step, body and element).
@@ -29,7 +29,8 @@ app = typer.Typer(
         "  elastoflow dump windmill -o windmill.toml        # a built-in scene as a starting file\n\n"
         "  elastoflow validate windmill.toml                # check a scene file\n\n"
         "  elastoflow view jet_in_box                       # interactive window\n\n"
-        "  elastoflow render out/bar_in_jet --view vorticity  # new video from saved fields"
+        "  elastoflow render out/bar_in_jet --view vorticity  # new video from saved fields\n\n"
+        "  elastoflow warmup                                # compile the kernels once, ahead"
     ),
     no_args_is_help=True,
     add_completion=False,
@@ -342,6 +343,28 @@ def bench(
                f"{steps / elapsed:.2f} steps/s")
     for phase, seconds in sorted(phases.items(), key=lambda item: -item[1]):
         typer.echo(f"  {phase:<16} {1000 * seconds / steps:8.2f} ms/step")
+
+
+@app.command()
+def warmup(
+    scenes: Annotated[list[str] | None, typer.Argument(help="Built-in scenes (default: all).")]
+    = None,
+) -> None:
+    """Compile the kernels into Numba's disk cache now (~1 min once), so runs start at once."""
+    from elastoflow._warmup import warm_up
+    from elastoflow.scenes import SceneError, list_scenes
+
+    known = list_scenes()
+    unknown = [name for name in scenes or [] if name not in known]
+    if unknown:
+        _fail([f"scene = {name!r}: unknown scene name (built-in scenes: {', '.join(known)})"
+               for name in unknown])
+    try:
+        total = warm_up(scenes or None,
+                        report=lambda name, seconds: typer.echo(f"  {name:<14} {seconds:6.1f} s"))
+    except SceneError as error:
+        _fail(str(error).splitlines())
+    typer.echo(f"kernels compiled and cached in {total:.1f} s")
 
 
 def main() -> None:

@@ -63,7 +63,8 @@ def tiny(tmp_path) -> Path:
 def test_help_lists_commands_and_examples() -> None:
     result, text = _invoke("--help")
     assert result.exit_code == 0
-    for word in ("run", "list", "validate", "view", "render", "bench", "dump", "Examples"):
+    for word in ("run", "list", "validate", "view", "render", "bench", "dump", "warmup",
+                 "Examples"):
         assert word in text
 
 
@@ -180,3 +181,11 @@ def test_bad_options_exit_2(tiny, tmp_path) -> None:
 def test_bench_times_a_scene(tiny) -> None:
     result, text = _invoke("bench", tiny, "--steps", "2")
     assert result.exit_code == 0 and "steps/s" in text
+
+
+def test_warmup_steps_the_named_scene_and_rejects_unknown_ones() -> None:
+    result, text = _invoke("warmup", "cavity")
+    assert result.exit_code == 0, text
+    assert "cavity" in text and "kernels compiled and cached" in text
+    result, text = _invoke("warmup", "no_such_scene")
+    assert result.exit_code == 2 and "no_such_scene" in text and "Traceback" not in text
