@@ -198,11 +198,12 @@ def _sample_with_bodies(f, fx, fy, modes, values, solid, theta, cut_velocity, re
     return _sample_across_bodies(f, fx, fy, modes, values, solid, theta, cut_velocity)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _sample_dye_with_bodies(f, fx, fy, modes, values, solid, regions):
     """Bilinear sample over the fluid corners only (dye does not enter bodies).
 
-    Corners outside every box of ``regions`` are fluid without reading ``solid``.
+    Corners outside every box of ``regions`` are fluid without reading ``solid``. Inlined
+    (one caller): as a call it cost advect_cells ~30 % over the plain sampling.
     """
     m, n = f.shape
     i0 = int(math.floor(fx))
