@@ -318,8 +318,8 @@ def advect_field_x(
     The body arrays (solid flags, cut fractions and cut velocities of the x- and y-faces) are
     read only with ``has_interior``, and only for samples that touch a box of ``regions``
     (int64, (K, 4), as ``InteriorBoundary.regions``; a box covering everything when bodies
-    may be anywhere). ``mode`` 0 samples ``source`` at the departure points;
-    1 does the same and stores the departure points (index coordinates of ``source``) in
+    may be anywhere). ``mode`` 0 samples ``source`` at the departure points; 1 does the same
+    and stores the departure points (index coordinates of ``source``) in
     ``departure_x`` / ``departure_y``; 2 skips the trace and writes the MacCormack correction
     ``forward + (source - backward) / 2`` of this step's semi-Lagrangian result ``forward`` and
     its backward advection ``backward``, clamped to the range of ``source`` around the stored
