@@ -34,6 +34,17 @@ class InteriorBoundary:
             shape (4, nx+1, ny).
         cut_velocity_y: Body y-velocity [m/s] at the crossing of ``cut_theta_y``,
             shape (4, nx, ny+1).
+        regions: Where bodies may be: index boxes ``(i_begin, i_end, j_begin, j_end)``,
+            half-open, int64, shape (K, 4), in the index space that cells, u points and
+            v points share (a box holds cell ``(i, j)``, u point ``(i, j)`` and v point
+            ``(i, j)`` alike); boxes may reach beyond the arrays, and an empty box holds
+            nothing. Guarantee: at every index ``(i, j)`` outside all boxes every array holds
+            the empty state (not solid, body velocity 0, open fraction 1, ``cut_theta`` inf
+            and ``cut_velocity`` 0 in all four directions), so the fluid treats those points
+            as plain fluid without reading the arrays. ``None`` (the default, what hand-built
+            objects get) means bodies may be anywhere. Whoever writes into the arrays outside
+            the boxes, or swaps an array with ``dataclasses.replace``, must keep the guarantee
+            or set ``regions=None``.
     """
 
     solid_cells: np.ndarray
