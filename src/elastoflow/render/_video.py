@@ -4,9 +4,13 @@ from __future__ import annotations
 
 import contextlib
 import os
+import queue
+import subprocess
+import threading
+from fractions import Fraction
 from pathlib import Path
 from types import TracebackType
-from typing import Any, Self
+from typing import Self
 
 import numpy as np
 
@@ -14,6 +18,12 @@ from elastoflow.render._kernels import rgb_to_yuv420
 
 _X264_PRESETS = ("ultrafast", "superfast", "veryfast", "faster", "fast", "medium", "slow",
                  "slower", "veryslow")
+# Converted frames waiting for (or being written to) ffmpeg: enough to ride out the moments
+# when the encoder, which shares the CPU with the simulation, falls behind by a frame or two.
+_QUEUED_FRAMES = 3
+# A pipe that holds whole frames (~0.5 MB at 614x512), so a write rarely waits for ffmpeg to
+# read; Linux's default of 64 kB makes every frame a dozen round trips between the processes.
+_PIPE_BYTES = 1 << 20
 
 
 def _even(frame: np.ndarray) -> np.ndarray:
@@ -32,10 +42,15 @@ class VideoWriter:
     is always a complete video. If ffmpeg cannot be started or fails, the frames go to a GIF
     (``path`` with suffix ``.gif``) instead; `path` then names the file actually written.
 
+    `append` converts a frame to YUV at once and hands it to a background thread that pipes
+    it to ffmpeg, in order, so the run does not wait for the encoder; at most a few frames
+    are in flight, and `close` writes them all before finishing the file. A failure of
+    ffmpeg shows at the next `append` or at `close`; the frames in flight then are lost.
+
     Args:
         path: Output file (``.mp4``; ``.gif`` writes a GIF directly).
         fps: Frames per second.
-        quality: imageio-ffmpeg quality, 0-10.
+        quality: imageio-ffmpeg quality, 1-10 (x264 crf ``int((1 - quality / 10) * 51)``).
         preset: x264 speed preset. The encoder shares the CPU with the simulation, so its CPU
             is what a video costs a run: per 614x512 frame at quality 7 (crf 15), one encoder
             thread, ``"ultrafast"`` takes ~2.1 ms, ``"superfast"`` ~3.5 ms and x264's default
@@ -51,18 +66,19 @@ class VideoWriter:
                  preset: str = "ultrafast") -> None:
         if preset not in _X264_PRESETS:
             raise ValueError(f"preset = {preset!r}: must be one of {_X264_PRESETS}")
+        if not 1.0 <= quality <= 10.0:
+            raise ValueError(f"quality = {quality!r}: must be between 1 and 10")
         self.path = Path(path)
         self.fps = int(fps)
         self.quality = quality
         self.preset = preset
         self.frame_count = 0
         self.fallback_reason: str | None = None
-        self._writer: Any = None
+        self._encoder: _Encoder | None = None
         self._temporary: Path | None = None
         self._frames_for_gif: list[np.ndarray] = []
         self._format = "gif" if self.path.suffix.lower() == ".gif" else "mp4"
         self._size: tuple[int, int] | None = None
-        self._yuv = np.empty(0, dtype=np.uint8)
 
     def __enter__(self) -> Self:
         return self
@@ -72,36 +88,29 @@ class VideoWriter:
         self.close()
 
     def _open_ffmpeg(self) -> None:
-        import imageio_ffmpeg
-
         assert self._size is not None
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self._temporary = self.path.with_name(f".{self.path.stem}.{os.getpid()}.tmp.mp4")
         height, width = self._size
-        self._writer = imageio_ffmpeg.write_frames(
-            str(self._temporary), (width, height), pix_fmt_in="yuv420p", pix_fmt_out="yuv420p",
-            fps=self.fps, codec="libx264", quality=self.quality, macro_block_size=1,
-            # One encoder thread: with ultrafast it keeps far ahead of a simulation, and
-            # threads only add synchronisation CPU taken from the run.
-            output_params=["-preset", self.preset, "-threads", "1"],
-            ffmpeg_log_level="error",
-        )
-        self._writer.send(None)
-        self._yuv = np.empty(height * width * 3 // 2, dtype=np.uint8)
+        self._encoder = _Encoder(self._temporary, width, height, self.fps, self.quality,
+                                 self.preset)
 
     def _fall_back(self, error: Exception) -> None:
         self.fallback_reason = f"ffmpeg failed ({error}); writing a GIF instead"
-        if self._writer is not None:
-            # The writer is broken already; closing it is only a courtesy.
-            with contextlib.suppress(Exception):
-                self._writer.close()
-        self._writer = None
+        if self._encoder is not None:
+            # The encoder is broken already; stopping it is only a courtesy.
+            self._encoder.abort()
+        self._encoder = None
         self._discard_temporary()
         self._format = "gif"
         self.path = self.path.with_suffix(".gif")
 
     def append(self, frame: np.ndarray) -> None:
-        """Add one RGB frame (H, W, 3) uint8; every frame must have the first one's size."""
+        """Add one RGB frame (H, W, 3) uint8; every frame must have the first one's size.
+
+        The frame is converted at once, so the caller may reuse its array afterwards; the
+        encoder receives it in the background, in order.
+        """
         frame = _even(np.ascontiguousarray(frame, dtype=np.uint8))
         size = (frame.shape[0], frame.shape[1])
         if self._size is None:
@@ -110,25 +119,26 @@ class VideoWriter:
             raise ValueError(f"frame size {size}: must match the first frame's {self._size}")
         if self._format == "mp4":
             try:
-                if self._writer is None:
+                if self._encoder is None:
                     self._open_ffmpeg()
-                rgb_to_yuv420(frame, self._yuv)
-                self._writer.send(self._yuv)
+                assert self._encoder is not None
+                self._encoder.send(frame)
             except Exception as error:  # noqa: BLE001 - any ffmpeg failure means: use GIF
                 self._fall_back(error)
         if self._format == "gif":
-            self._frames_for_gif.append(frame)
+            # Copied: callers may draw the next frame into the same array.
+            self._frames_for_gif.append(frame.copy())
         self.frame_count += 1
 
     def close(self) -> Path | None:
         """Finish the file and move it into place; returns its path (None if no frames)."""
-        if self._format == "mp4" and self._writer is not None:
+        if self._format == "mp4" and self._encoder is not None:
             try:
-                self._writer.close()
+                self._encoder.close()
             except Exception as error:  # noqa: BLE001
                 self._fall_back(error)
             else:
-                self._writer = None
+                self._encoder = None
                 os.replace(self._temporary, self.path)  # type: ignore[arg-type]
                 self._temporary = None
                 return self.path
@@ -156,3 +166,104 @@ class VideoWriter:
         if self._temporary is not None and self._temporary.exists():
             self._temporary.unlink()
         self._temporary = None
+
+
+class _Encoder:
+    """An ffmpeg process encoding planar YUV 4:2:0 frames to an h264 mp4, fed from a thread.
+
+    `send` converts a frame into a free buffer and queues it; a writer thread pipes queued
+    buffers to ffmpeg in order (the write releases the GIL, so the simulation goes on) and
+    hands them back. With all buffers in flight `send` waits, so memory stays bounded. A
+    failed write is raised by the next `send` or by `close`.
+
+    The command line is the one ``imageio_ffmpeg.write_frames`` builds for these settings,
+    so the file is the same as before the encoder ran in the background.
+    """
+
+    def __init__(self, path: Path, width: int, height: int, fps: int, quality: float,
+                 preset: str) -> None:
+        import imageio_ffmpeg
+
+        crf = int((1.0 - quality / 10.0) * 51)
+        command = [
+            imageio_ffmpeg.get_ffmpeg_exe(), "-y", "-f", "rawvideo", "-vcodec", "rawvideo",
+            "-s", f"{width}x{height}", "-pix_fmt", "yuv420p",
+            "-r", str(Fraction(fps).limit_denominator()), "-i", "-", "-an",
+            "-vcodec", "libx264", "-pix_fmt", "yuv420p", "-crf", str(crf), "-v", "error",
+            # One encoder thread: with ultrafast it keeps far ahead of a simulation, and
+            # threads only add synchronisation CPU taken from the run.
+            "-preset", preset, "-threads", "1", str(path),
+        ]
+        # Own process group: Ctrl-C stops the run, not the encoder, so `close` still
+        # finishes the file.
+        group = ({"process_group": 0} if os.name == "posix"
+                 else {"creationflags": getattr(subprocess, "CREATE_NEW_PROCESS_GROUP", 0)})
+        self._process = subprocess.Popen(command, stdin=subprocess.PIPE,
+                                         stdout=subprocess.DEVNULL, **group)
+        assert self._process.stdin is not None
+        self._stdin = self._process.stdin
+        with contextlib.suppress(AttributeError, OSError):
+            import fcntl
+
+            fcntl.fcntl(self._stdin.fileno(), fcntl.F_SETPIPE_SZ, _PIPE_BYTES)
+        frame_bytes = height * width * 3 // 2
+        self._free: queue.SimpleQueue[np.ndarray] = queue.SimpleQueue()
+        for _ in range(_QUEUED_FRAMES):
+            self._free.put(np.empty(frame_bytes, dtype=np.uint8))
+        self._queued: queue.SimpleQueue[np.ndarray | None] = queue.SimpleQueue()
+        self._error: BaseException | None = None
+        self._thread = threading.Thread(target=self._write_queued, name="elastoflow-video",
+                                        daemon=True)
+        self._thread.start()
+
+    def _write_queued(self) -> None:
+        descriptor = self._stdin.fileno()
+        try:
+            while (buffer := self._queued.get()) is not None:
+                remaining = memoryview(buffer)
+                while remaining:
+                    remaining = remaining[os.write(descriptor, remaining):]
+                self._free.put(buffer)
+        except BaseException as error:  # noqa: BLE001 - handed to the caller's thread
+            self._error = error
+
+    def _raise_if_failed(self) -> None:
+        if self._error is not None:
+            raise OSError(f"writing a frame to ffmpeg failed: {self._error}") from self._error
+
+    def send(self, frame: np.ndarray) -> None:
+        """Queue one RGB frame (H, W, 3) uint8, H and W even, of the size given at start."""
+        while True:
+            self._raise_if_failed()
+            try:
+                buffer = self._free.get(timeout=0.05)
+                break
+            except queue.Empty:
+                continue
+        rgb_to_yuv420(frame, buffer)
+        self._queued.put(buffer)
+
+    def close(self) -> None:
+        """Write what is queued, end the stream and wait for ffmpeg to finish the file."""
+        try:
+            self._queued.put(None)
+            self._thread.join()
+            self._raise_if_failed()
+            self._stdin.close()
+            status = self._process.wait()
+        except BaseException:
+            self.abort()
+            raise
+        if status != 0:
+            raise OSError(f"ffmpeg exited with status {status}")
+
+    def abort(self) -> None:
+        """Stop ffmpeg and the writer thread without finishing the file."""
+        with contextlib.suppress(OSError):
+            self._process.kill()
+        self._queued.put(None)
+        self._thread.join(timeout=5.0)
+        with contextlib.suppress(OSError, ValueError):
+            self._stdin.close()
+        with contextlib.suppress(subprocess.TimeoutExpired):
+            self._process.wait(timeout=5.0)
