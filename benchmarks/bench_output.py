@@ -2,7 +2,7 @@
 
 The same scene is stepped ``--steps`` times (after warm-up) twice in one process: without
 output, and with a frame drawn by ``render_frame`` (speed view, the colour range of the
-current field) and appended to a ``VideoWriter`` (mp4 through imageio-ffmpeg, GIF if that is
+current field, drawn into the previous frame's array) and appended to a ``VideoWriter`` (mp4 through imageio-ffmpeg, GIF if that is
 missing) after every step, as the CLI's ``OutputSession`` does. Reported: ms per step each way,
 ms per frame split into drawing and encoding, and the added share. Target: < 25 %.
 
@@ -43,18 +43,19 @@ def measure(steps: int, warmup: int, size: int) -> dict[str, Any]:
     with tempfile.TemporaryDirectory() as folder:
         with VideoWriter(Path(folder) / "video.mp4", fps=30) as video:
             # First frame outside the clock: starts the ffmpeg process.
-            video.append(render_frame(simulation.grid, simulation.state, simulation.bodies,
-                                      simulation.obstacles, "speed", simulation.time))
+            frame = render_frame(simulation.grid, simulation.state, simulation.bodies,
+                                 simulation.obstacles, "speed", simulation.time)
+            video.append(frame)
             began = clock()
             for _ in range(steps):
                 simulation.step()
                 t0 = clock()
                 view = "speed"
-                value_range = default_value_range(
-                    view_values(simulation.grid, simulation.state, view), view)
+                values = view_values(simulation.grid, simulation.state, view)
+                value_range = default_value_range(values, view)
                 frame = render_frame(simulation.grid, simulation.state, simulation.bodies,
                                      simulation.obstacles, view, simulation.time,
-                                     value_range=value_range)
+                                     value_range=value_range, values=values, out=frame)
                 t1 = clock()
                 video.append(frame)
                 drawing += t1 - t0

@@ -60,6 +60,7 @@ class OutputSession:
         resume_step = start if resumed else None
         self.written: list[Path] = []
         self._video: Any = None
+        self._frame_image: Any = None
         self._range = RangeTracker()
         if self.outputs.video is not None:
             from elastoflow.render import VideoWriter
@@ -87,7 +88,9 @@ class OutputSession:
         sim, out = self.simulation, self.outputs
         step = sim.step_index
         if video and self._video is not None and self._due(out.video, step, force):
-            self._video.append(self.frame(out.video.view))
+            # Drawn into the previous frame's array: the writer has converted that one already.
+            self._frame_image = self.frame(out.video.view, out=self._frame_image)
+            self._video.append(self._frame_image)
         if self._fields is not None and self._due(out.fields, step, force):
             interior = getattr(sim, "interior", None)
             self._fields.write(snapshot_arrays(
@@ -99,14 +102,18 @@ class OutputSession:
                                   [(b.positions, b.mesh.triangles) for b in sim.bodies],
                                   out.meshes.thickness, out.meshes.format)
 
-    def frame(self, view: str) -> Any:
-        """The current picture (RGB array) in ``view``, colour range widening over the run."""
+    def frame(self, view: str, *, out: Any = None) -> Any:
+        """The current picture (RGB array) in ``view``, colour range widening over the run.
+
+        ``out``: an earlier frame's array to draw into (see `render_frame`).
+        """
         from elastoflow.render import default_value_range, render_frame, view_values
 
         sim = self.simulation
-        low, high = default_value_range(view_values(sim.grid, sim.state, view), view)
+        values = view_values(sim.grid, sim.state, view)
+        low, high = default_value_range(values, view)
         return render_frame(sim.grid, sim.state, sim.bodies, sim.obstacles, view, sim.time,
-                            value_range=self._range.update(low, high))
+                            value_range=self._range.update(low, high), values=values, out=out)
 
     def after_step(self, simulation: Any, report: Any) -> None:
         """The per-step callback: writes whatever is due at this step."""

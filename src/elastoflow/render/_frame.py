@@ -17,6 +17,7 @@ from elastoflow.render._kernels import (
     draw_triangle_edges,
     fill_polygon,
     fill_triangles,
+    finite_range,
 )
 
 VIEWS: tuple[str, ...] = ("speed", "vorticity", "pressure", "dye")
@@ -44,17 +45,16 @@ def view_values(grid: Any, state: Any, view: str) -> np.ndarray:
 
 def default_value_range(values: np.ndarray, view: str) -> tuple[float, float]:
     """Colour range of a view: from 0 for speed and dye, symmetric about 0 for vorticity."""
-    finite = values[np.isfinite(values)]
-    if finite.size == 0:
+    count, low, high, largest = finite_range(np.asarray(values, dtype=np.float64))
+    if count == 0:
         return (0.0, 1.0)
     if view == "speed":
-        return (0.0, max(float(finite.max()), 1e-12))
+        return (0.0, max(high, 1e-12))
     if view == "dye":
-        return (0.0, max(float(finite.max()), 1.0))
+        return (0.0, max(high, 1.0))
     if view == "vorticity":
-        bound = max(float(np.abs(finite).max()), 1e-12)
+        bound = max(largest, 1e-12)
         return (-bound, bound)
-    low, high = float(finite.min()), float(finite.max())
     return (low, high) if high > low else (low - 1.0, low + 1.0)
 
 
@@ -94,6 +94,8 @@ def render_frame(
     value_range: tuple[float, float] | None = None,
     scale: int | None = None,
     colorbar: bool = True,
+    values: np.ndarray | None = None,
+    out: np.ndarray | None = None,
 ) -> np.ndarray:
     """Draw the fluid field with bodies and obstacles on top.
 
@@ -112,11 +114,17 @@ def render_frame(
         value_range: Colour range (low, high); default from this frame's values.
         scale: Pixels per cell (default `default_scale`).
         colorbar: Add the colour bar panel.
+        values: The field ``view_values(grid, state, view)`` (nx, ny), if the caller has it
+            already; computed when None.
+        out: Image to draw into and return, (H, W, 3) uint8 C-contiguous of the result's
+            shape, e.g. the previous frame's, so that a frame per step allocates nothing; a new
+            array when None (or when the shape differs).
 
     Returns:
         RGB image, shape (H, W, 3) uint8, H and W even (video encoders need that).
     """
-    values = view_values(grid, state, view)
+    if values is None:
+        values = view_values(grid, state, view)
     low, high = value_range if value_range is not None else default_value_range(values, view)
     low, high = float(low), float(high)
     scale = default_scale(grid) if scale is None else int(scale)
@@ -127,7 +135,10 @@ def render_frame(
     out_height = height + (height % 2)
     out_width = width + panel_width
     out_width += out_width % 2
-    image = np.empty((out_height, out_width, 3), dtype=np.uint8)
+    shape = (out_height, out_width, 3)
+    reusable = (out is not None and out.shape == shape and out.dtype == np.uint8
+                and out.flags.c_contiguous and out.flags.writeable)
+    image = out if reusable else np.empty(shape, dtype=np.uint8)
     field = image[:height, :width]
     color_field(field, np.asarray(values, dtype=np.float64), low, high, colormap_lut(colormap),
                 scale)

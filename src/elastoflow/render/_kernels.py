@@ -180,6 +180,25 @@ def rgb_to_yuv420(image: np.ndarray, out: np.ndarray) -> None:
             out[v_start + index] = np.uint8(v)
 
 
+@njit(cache=True, parallel=True)
+def finite_range(values: np.ndarray) -> tuple[int, float, float, float]:
+    """(count, min, max, max |value|) of the finite entries of ``values`` (any shape); the
+    extremes are NaN when there are none. One pass, without the masked copy NumPy needs."""
+    flat = values.ravel()
+    count = 0
+    low = math.inf
+    high = -math.inf
+    for k in prange(flat.size):
+        value = flat[k]
+        if math.isfinite(value):
+            count += 1
+            low = min(low, value)
+            high = max(high, value)
+    if count == 0:
+        return 0, math.nan, math.nan, math.nan
+    return count, low, high, max(abs(low), abs(high))
+
+
 @njit(cache=True)
 def speed_from_faces(velocity_x: np.ndarray, velocity_y: np.ndarray, out: np.ndarray) -> None:
     """Velocity magnitude at cell centres from MAC face velocities: ``out`` (nx, ny) from
