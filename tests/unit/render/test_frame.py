@@ -178,3 +178,78 @@ def test_rgb_to_yuv420_gives_bt601_limited_range_values() -> None:
     assert y[0, 0] == 235 and y[0, 3] == 81 and y[3, 0] == 16
     assert (u[0, 0], v[0, 0]) == (128, 128) and (u[0, 1], v[0, 1]) == (90, 240)
     assert (u[1, 0], v[1, 0]) == (128, 128)
+
+
+def test_video_writer_background_frames_arrive_complete_and_in_order(tmp_path) -> None:
+    import imageio.v2 as imageio
+
+    levels = [16 + 18 * k for k in range(12)]
+    # One array redrawn for every frame, as OutputSession does: append must have taken
+    # each frame before the next one overwrites it.
+    frame = np.empty((48, 64, 3), dtype=np.uint8)
+    with VideoWriter(tmp_path / "v.mp4", fps=10) as video:
+        for level in levels:
+            frame[...] = level
+            frame[:, :8] = 255 - level
+            video.append(frame)
+    assert video.fallback_reason is None and video.frame_count == len(levels)
+    reader = imageio.get_reader(tmp_path / "v.mp4")
+    read = [f for f in reader]
+    reader.close()
+    assert len(read) == len(levels)
+    means = np.array([f[:, 16:].mean() for f in read])
+    np.testing.assert_allclose(means, levels, atol=3.0)
+    assert np.all(np.diff(means) > 10.0)
+
+
+def test_video_writer_falls_back_to_gif_when_ffmpeg_dies_mid_run(tmp_path) -> None:
+    with VideoWriter(tmp_path / "v.mp4", fps=10) as video:
+        for k in range(3):
+            video.append(np.full((16, 16, 3), 40 * k, dtype=np.uint8))
+        assert video._encoder is not None
+        video._encoder._process.kill()
+        video._encoder._process.wait()
+        # More frames than the queue holds: one of these appends must see the failure.
+        for k in range(6):
+            video.append(np.full((16, 16, 3), 20 * k, dtype=np.uint8))
+        assert "ffmpeg failed" in (video.fallback_reason or "")
+    assert video.path == tmp_path / "v.gif"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["v.gif"]
+    from PIL import Image
+
+    with Image.open(tmp_path / "v.gif") as gif:
+        assert 1 <= gif.n_frames <= 6
+
+
+def test_video_writer_rejects_quality_out_of_range(tmp_path) -> None:
+    with pytest.raises(ValueError, match="quality = 0"):
+        VideoWriter(tmp_path / "v.mp4", quality=0)
+
+
+def test_default_value_range_skips_non_finite_values() -> None:
+    from elastoflow.render import default_value_range
+
+    values = np.array([[np.nan, -3.0, 2.0], [np.inf, 0.5, -np.inf]])
+    assert default_value_range(values, "pressure") == (-3.0, 2.0)
+    assert default_value_range(values, "vorticity") == (-3.0, 3.0)
+    assert default_value_range(values, "speed") == (0.0, 2.0)
+    assert default_value_range(np.full((2, 2), np.nan), "speed") == (0.0, 1.0)
+    assert default_value_range(np.full((2, 2), 4.0), "pressure") == (3.0, 5.0)
+
+
+def test_render_frame_into_a_reused_array_equals_a_fresh_frame() -> None:
+    grid = Grid2D(16, 12, 1.0 / 16)
+    points = np.array([[0.2, 0.2], [0.6, 0.25], [0.4, 0.6]])
+    body = (points, np.array([[0, 1, 2]]))
+    first = render_frame(grid, _state(grid, 0.3), [body], view="speed", time=0.1)
+    state = _state(grid, 1.0)
+    state.velocity_x[5:9] = 2.0
+    fresh = render_frame(grid, state, [body], view="speed", time=0.2)
+    reused = render_frame(grid, state, [body], view="speed", time=0.2, out=first)
+    assert reused is first
+    np.testing.assert_array_equal(reused, fresh)
+    # A wrong-shaped array is not drawn into.
+    other = np.zeros((4, 4, 3), dtype=np.uint8)
+    np.testing.assert_array_equal(render_frame(grid, state, [body], view="speed", time=0.2,
+                                               out=other), fresh)
+    assert not other.any()
