@@ -164,32 +164,48 @@ def _sample_across_bodies(f, fx, fy, modes, values, solid, theta, cut_velocity):
     return _lerp(_lerp(value_p, value_x, ax), _lerp(value_y, value_d, ax), by)
 
 
+@njit(cache=True)
+def near_regions(regions, near):
+    """Mark the 2 x 2 index blocks that meet a box of ``regions`` (``InteriorBoundary.regions``).
+
+    ``near[i + 1, j + 1]`` (bool, shape (nx+2, ny+2)) becomes True when one of the indices
+    ``{i, i+1} x {j, j+1}`` (i, j >= -1; shared by cells, u and v points) lies in a box: only
+    there may a bilinear stencil with lower corner (i, j) read body data. Cost: the mask plus
+    the boxes' area.
+    """
+    near[:, :] = False
+    m, n = near.shape
+    for k in range(regions.shape[0]):
+        # Lower corners i in [i_begin - 1, i_end - 1] meet [i_begin, i_end): rows i + 1.
+        i_begin = max(regions[k, 0], 0)
+        i_end = min(regions[k, 1] + 1, m)
+        j_begin = max(regions[k, 2], 0)
+        j_end = min(regions[k, 3] + 1, n)
+        if regions[k, 0] < regions[k, 1] and regions[k, 2] < regions[k, 3]:
+            for i in range(i_begin, i_end):
+                for j in range(j_begin, j_end):
+                    near[i, j] = True
+
+
 @njit(cache=True, inline="always")
-def _sample_with_bodies(f, fx, fy, modes, values, solid, theta, cut_velocity, regions):
+def _sample_with_bodies(f, fx, fy, modes, values, solid, theta, cut_velocity, near):
     """Bilinear sample that replaces corners across a body boundary by cut-distance ghosts.
 
-    Fast path: a cell whose corners lie outside every box of ``regions`` (int64, (K, 4),
-    ``InteriorBoundary.regions``) or, inside one, has no corner inside a body and no boundary
-    on its four edges (each edge is seen from one of its ends) is plain bilinear
-    interpolation; otherwise `_sample_across_bodies`.
+    Fast path: a cell away from every region (``near``, see `near_regions`) or, near one,
+    with no corner inside a body and no boundary on its four edges (each edge is seen from
+    one of its ends) is plain bilinear interpolation; otherwise `_sample_across_bodies`.
     """
     m, n = f.shape
     i0 = int(math.floor(fx))
     j0 = int(math.floor(fy))
-    plain = 0 <= i0 < m - 1 and 0 <= j0 < n - 1
-    if plain:
-        # The box test reads four numbers per body instead of eight scattered body arrays.
-        for k in range(regions.shape[0]):
-            if (i0 + 1 >= regions[k, 0] and i0 < regions[k, 1]
-                    and j0 + 1 >= regions[k, 2] and j0 < regions[k, 3]):
-                plain = (
-                    not (solid[i0, j0] or solid[i0 + 1, j0] or solid[i0, j0 + 1]
-                         or solid[i0 + 1, j0 + 1])
-                    and theta[1, i0, j0] > 1.0 and theta[3, i0, j0] > 1.0
-                    and theta[0, i0 + 1, j0 + 1] > 1.0 and theta[2, i0 + 1, j0 + 1] > 1.0
-                )
-                break
-    if plain:
+    if (
+        0 <= i0 < m - 1 and 0 <= j0 < n - 1
+        and (not near[i0 + 1, j0 + 1] or (
+            not (solid[i0, j0] or solid[i0 + 1, j0] or solid[i0, j0 + 1] or solid[i0 + 1, j0 + 1])
+            and theta[1, i0, j0] > 1.0 and theta[3, i0, j0] > 1.0
+            and theta[0, i0 + 1, j0 + 1] > 1.0 and theta[2, i0 + 1, j0 + 1] > 1.0
+        ))
+    ):
         a = fx - i0
         b = fy - j0
         return _lerp(
@@ -199,26 +215,23 @@ def _sample_with_bodies(f, fx, fy, modes, values, solid, theta, cut_velocity, re
 
 
 @njit(cache=True, inline="always")
-def _sample_dye_with_bodies(f, fx, fy, modes, values, solid, regions):
+def _sample_dye_with_bodies(f, fx, fy, modes, values, solid, near):
     """Bilinear sample over the fluid corners only (dye does not enter bodies).
 
-    Corners outside every box of ``regions`` are fluid without reading ``solid``. Inlined
-    (one caller): as a call it cost advect_cells ~30 % over the plain sampling.
+    Corners away from every region (``near``, see `near_regions`) are fluid without reading
+    ``solid``. Inlined (one caller): as a call it cost advect_cells ~30 % over the plain
+    sampling.
     """
     m, n = f.shape
     i0 = int(math.floor(fx))
     j0 = int(math.floor(fy))
     a = fx - i0
     b = fy - j0
-    plain = 0 <= i0 < m - 1 and 0 <= j0 < n - 1
-    if plain:
-        for k in range(regions.shape[0]):
-            if (i0 + 1 >= regions[k, 0] and i0 < regions[k, 1]
-                    and j0 + 1 >= regions[k, 2] and j0 < regions[k, 3]):
-                plain = not (solid[i0, j0] or solid[i0 + 1, j0] or solid[i0, j0 + 1]
-                             or solid[i0 + 1, j0 + 1])
-                break
-    if plain:
+    if (
+        0 <= i0 < m - 1 and 0 <= j0 < n - 1
+        and (not near[i0 + 1, j0 + 1] or not (
+            solid[i0, j0] or solid[i0 + 1, j0] or solid[i0, j0 + 1] or solid[i0 + 1, j0 + 1]))
+    ):
         # Away from bodies and sides (nearly every cell): plain bilinear interpolation.
         return _lerp(
             _lerp(f[i0, j0], f[i0 + 1, j0], a), _lerp(f[i0, j0 + 1], f[i0 + 1, j0 + 1], a), b
@@ -263,20 +276,20 @@ def _trace_back(u, v, x, y, ux, uy, dt, inv_h, lx, ly, modes_u, values_u, modes_
 @njit(cache=True, inline="always")
 def _velocity_at_bodies(
     u, v, x, y, inv_h, modes_u, values_u, modes_v, values_v,
-    solid_x, theta_x, cut_x, solid_y, theta_y, cut_y, regions,
+    solid_x, theta_x, cut_x, solid_y, theta_y, cut_y, near,
 ):
     return (
         _sample_with_bodies(u, x * inv_h, y * inv_h - 0.5, modes_u, values_u, solid_x, theta_x,
-                            cut_x, regions),
+                            cut_x, near),
         _sample_with_bodies(v, x * inv_h - 0.5, y * inv_h, modes_v, values_v, solid_y, theta_y,
-                            cut_y, regions),
+                            cut_y, near),
     )
 
 
 @njit(cache=True, inline="always")
 def _trace_back_bodies(
     u, v, x, y, ux, uy, dt, inv_h, lx, ly, modes_u, values_u, modes_v, values_v,
-    solid_x, theta_x, cut_x, solid_y, theta_y, cut_y, regions,
+    solid_x, theta_x, cut_x, solid_y, theta_y, cut_y, near,
 ):
     # The trace velocity is sampled with the cut-distance ghosts too, so that it does not
     # leak through thin bodies either.
@@ -284,7 +297,7 @@ def _trace_back_bodies(
     ym = _clamp(y - 0.5 * dt * uy, 0.0, ly)
     um, vm = _velocity_at_bodies(
         u, v, xm, ym, inv_h, modes_u, values_u, modes_v, values_v,
-        solid_x, theta_x, cut_x, solid_y, theta_y, cut_y, regions,
+        solid_x, theta_x, cut_x, solid_y, theta_y, cut_y, near,
     )
     return _clamp(x - dt * um, 0.0, lx), _clamp(y - dt * vm, 0.0, ly)
 
@@ -310,19 +323,18 @@ def _corner_range(f, fx, fy, modes, values):
 @njit(cache=True, parallel=True)
 def advect_field_x(
     u, v, source, out, dt, h, modes_u, values_u, modes_v, values_v, has_interior,
-    solid_x, theta_x, cut_x, solid_y, theta_y, cut_y, regions, body_velocity, mode, forward,
+    solid_x, theta_x, cut_x, solid_y, theta_y, cut_y, near, body_velocity, mode, forward,
     backward, departure_x, departure_y,
 ):
     """Transport the x-face field ``source`` by (u, v) over ``dt`` into ``out`` (nx+1, ny).
 
     The body arrays (solid flags, cut fractions and cut velocities of the x- and y-faces) are
-    read only with ``has_interior``, and only for samples that touch a box of ``regions``
-    (int64, (K, 4), as ``InteriorBoundary.regions``; a box covering everything when bodies
-    may be anywhere). ``mode`` 0 samples ``source`` at the departure points; 1 does the same
-    and stores the departure points (index coordinates of ``source``) in
-    ``departure_x`` / ``departure_y``; 2 skips the trace and writes the MacCormack correction
-    ``forward + (source - backward) / 2`` of this step's semi-Lagrangian result ``forward`` and
-    its backward advection ``backward``, clamped to the range of ``source`` around the stored
+    read only with ``has_interior``, and only for samples whose stencil is marked in ``near``
+    (`near_regions`; all True when bodies may be anywhere). ``mode`` 0 samples ``source`` at
+    the departure points; 1 does the same and stores the departure points (index coordinates
+    of ``source``) in ``departure_x`` / ``departure_y``; 2 skips the trace and writes the
+    MacCormack correction ``forward + (source - backward) / 2`` of this step's
+    semi-Lagrangian result ``forward`` and its backward advection ``backward``, clamped to the range of ``source`` around the stored
     departure point (Selle et al. 2008), so that no new extrema appear.
     """
     nx1, ny = u.shape
@@ -346,10 +358,10 @@ def advect_field_x(
             y = (j + 0.5) * h
             if has_interior:
                 uy = _sample_with_bodies(v, x * inv_h - 0.5, y * inv_h, modes_v, values_v,
-                                         solid_y, theta_y, cut_y, regions)
+                                         solid_y, theta_y, cut_y, near)
                 xb, yb = _trace_back_bodies(
                     u, v, x, y, u[i, j], uy, dt, inv_h, lx, ly, modes_u, values_u, modes_v,
-                    values_v, solid_x, theta_x, cut_x, solid_y, theta_y, cut_y, regions,
+                    values_v, solid_x, theta_x, cut_x, solid_y, theta_y, cut_y, near,
                 )
             else:
                 uy = _sample(v, x * inv_h - 0.5, y * inv_h, modes_v, values_v)
@@ -364,7 +376,7 @@ def advect_field_x(
                 departure_y[i, j] = fy
             if has_interior:
                 out[i, j] = _sample_with_bodies(
-                    source, fx, fy, modes_u, values_u, solid_x, theta_x, cut_x, regions
+                    source, fx, fy, modes_u, values_u, solid_x, theta_x, cut_x, near
                 )
             else:
                 out[i, j] = _sample(source, fx, fy, modes_u, values_u)
@@ -373,7 +385,7 @@ def advect_field_x(
 @njit(cache=True, parallel=True)
 def advect_field_y(
     u, v, source, out, dt, h, modes_u, values_u, modes_v, values_v, has_interior,
-    solid_x, theta_x, cut_x, solid_y, theta_y, cut_y, regions, body_velocity, mode, forward,
+    solid_x, theta_x, cut_x, solid_y, theta_y, cut_y, near, body_velocity, mode, forward,
     backward, departure_x, departure_y,
 ):
     """Transport the y-face field ``source`` by (u, v) over ``dt`` into ``out`` (nx, ny+1).
@@ -401,10 +413,10 @@ def advect_field_y(
             y = j * h
             if has_interior:
                 ux = _sample_with_bodies(u, x * inv_h, y * inv_h - 0.5, modes_u, values_u,
-                                         solid_x, theta_x, cut_x, regions)
+                                         solid_x, theta_x, cut_x, near)
                 xb, yb = _trace_back_bodies(
                     u, v, x, y, ux, v[i, j], dt, inv_h, lx, ly, modes_u, values_u, modes_v,
-                    values_v, solid_x, theta_x, cut_x, solid_y, theta_y, cut_y, regions,
+                    values_v, solid_x, theta_x, cut_x, solid_y, theta_y, cut_y, near,
                 )
             else:
                 ux = _sample(u, x * inv_h, y * inv_h - 0.5, modes_u, values_u)
@@ -419,7 +431,7 @@ def advect_field_y(
                 departure_y[i, j] = fy
             if has_interior:
                 out[i, j] = _sample_with_bodies(
-                    source, fx, fy, modes_v, values_v, solid_y, theta_y, cut_y, regions
+                    source, fx, fy, modes_v, values_v, solid_y, theta_y, cut_y, near
                 )
             else:
                 out[i, j] = _sample(source, fx, fy, modes_v, values_v)
@@ -428,7 +440,7 @@ def advect_field_y(
 @njit(cache=True, parallel=True)
 def advect_cells(
     u, v, source, out, dt, h, modes_u, values_u, modes_v, values_v, modes_c, values_c,
-    has_interior, solid_x, theta_x, cut_x, solid_y, theta_y, cut_y, regions, solid_cells,
+    has_interior, solid_x, theta_x, cut_x, solid_y, theta_y, cut_y, near, solid_cells,
     mode, forward, backward, departure_x, departure_y,
 ):
     """Transport a cell-centred scalar by (u, v) over ``dt`` into ``out`` (nx, ny).
@@ -457,11 +469,11 @@ def advect_cells(
             if has_interior:
                 ux, uy = _velocity_at_bodies(
                     u, v, x, y, inv_h, modes_u, values_u, modes_v, values_v,
-                    solid_x, theta_x, cut_x, solid_y, theta_y, cut_y, regions,
+                    solid_x, theta_x, cut_x, solid_y, theta_y, cut_y, near,
                 )
                 xb, yb = _trace_back_bodies(
                     u, v, x, y, ux, uy, dt, inv_h, lx, ly, modes_u, values_u, modes_v, values_v,
-                    solid_x, theta_x, cut_x, solid_y, theta_y, cut_y, regions,
+                    solid_x, theta_x, cut_x, solid_y, theta_y, cut_y, near,
                 )
             else:
                 ux, uy = _velocity_at(u, v, x, y, inv_h, modes_u, values_u, modes_v, values_v)
@@ -475,7 +487,7 @@ def advect_cells(
                 departure_y[i, j] = fy
             if has_interior:
                 out[i, j] = _sample_dye_with_bodies(
-                    source, fx, fy, modes_c, values_c, solid_cells, regions
+                    source, fx, fy, modes_c, values_c, solid_cells, near
                 )
             else:
                 out[i, j] = _sample(source, fx, fy, modes_c, values_c)
@@ -507,23 +519,15 @@ def copy_into(source, target):
 
 @njit(cache=True, inline="always")
 def _viscosity_row(f, c, axis, fixed_low, fixed_high, tangential_modes, tangential_values,
-                   has_interior, solid, theta, cut_velocity, regions, assemble_operator,
+                   has_interior, solid, theta, cut_velocity, near, assemble_operator,
                    diagonal, weights_x, weights_y, rhs, i):
     m, n = f.shape
-    # Boxes that rows i-1..i+1 meet: only there may the point or a neighbour be solid or cut.
-    row_near = False
-    if has_interior:
-        for k in range(regions.shape[0]):
-            if i + 1 >= regions[k, 0] and i - 1 < regions[k, 1]:
-                row_near = True
     for j in range(n):
         plain = 1 < i < m - 2 and 1 < j < n - 2
-        if plain and row_near:
-            for k in range(regions.shape[0]):
-                if (i + 1 >= regions[k, 0] and i - 1 < regions[k, 1]
-                        and j + 1 >= regions[k, 2] and j - 1 < regions[k, 3]):
-                    plain = False
-                    break
+        if plain and has_interior:
+            # The blocks {i, i+1} x {j-1, j} and {i-1, i} x {j, j+1} hold the point and its four
+            # neighbours: away from every region none of them is solid or cut.
+            plain = not (near[i + 1, j] or near[i, j + 1])
         if plain:
             # All four neighbours are free interior points: no boundary terms.
             rhs[i, j] = f[i, j]
@@ -580,28 +584,28 @@ def _viscosity_row(f, c, axis, fixed_low, fixed_high, tangential_modes, tangenti
 @njit(cache=True, parallel=True)
 def _build_viscosity_system_parallel(f, c, axis, fixed_low, fixed_high, tangential_modes,
                                      tangential_values, has_interior, solid, theta, cut_velocity,
-                                     regions, assemble_operator, diagonal, weights_x, weights_y,
+                                     near, assemble_operator, diagonal, weights_x, weights_y,
                                      rhs):
     for i in prange(f.shape[0]):
         _viscosity_row(f, c, axis, fixed_low, fixed_high, tangential_modes, tangential_values,
-                       has_interior, solid, theta, cut_velocity, regions, assemble_operator,
+                       has_interior, solid, theta, cut_velocity, near, assemble_operator,
                        diagonal, weights_x, weights_y, rhs, i)
 
 
 @njit(cache=True)
 def _build_viscosity_system_serial(f, c, axis, fixed_low, fixed_high, tangential_modes,
                                    tangential_values, has_interior, solid, theta, cut_velocity,
-                                   regions, assemble_operator, diagonal, weights_x, weights_y,
+                                   near, assemble_operator, diagonal, weights_x, weights_y,
                                    rhs):
     for i in range(f.shape[0]):
         _viscosity_row(f, c, axis, fixed_low, fixed_high, tangential_modes, tangential_values,
-                       has_interior, solid, theta, cut_velocity, regions, assemble_operator,
+                       has_interior, solid, theta, cut_velocity, near, assemble_operator,
                        diagonal, weights_x, weights_y, rhs, i)
 
 
 @njit(cache=True)
 def build_viscosity_system(f, c, axis, fixed_low, fixed_high, tangential_modes, tangential_values,
-                           has_interior, solid, theta, cut_velocity, regions, assemble_operator,
+                           has_interior, solid, theta, cut_velocity, near, assemble_operator,
                            diagonal, weights_x, weights_y, rhs):
     """Assemble ``(I - nu dt lap) f = f*`` for one velocity component as a 5-point operator.
 
@@ -612,7 +616,7 @@ def build_viscosity_system(f, c, axis, fixed_low, fixed_high, tangential_modes, 
             normal boundary faces, fixed when ``fixed_low`` / ``fixed_high``.
         tangential_modes: Ghost modes (0 copy, 1 Dirichlet) of the two sides along the other
             axis, low then high; ``tangential_values`` their wall velocities.
-        regions: With ``has_interior``, int64 boxes (K, 4) as ``InteriorBoundary.regions``
+        near: With ``has_interior``, the mask of `near_regions`
             (one covering everything when bodies may be anywhere): points whose neighbours
             all lie outside them take the no-body path.
         assemble_operator: False writes only ``rhs`` (the operator is known unchanged).
@@ -620,12 +624,12 @@ def build_viscosity_system(f, c, axis, fixed_low, fixed_high, tangential_modes, 
     if f.size > PARALLEL_MINIMUM:
         return _build_viscosity_system_parallel(f, c, axis, fixed_low, fixed_high,
                                                 tangential_modes, tangential_values, has_interior,
-                                                solid, theta, cut_velocity, regions,
+                                                solid, theta, cut_velocity, near,
                                                 assemble_operator, diagonal, weights_x, weights_y,
                                                 rhs)
     return _build_viscosity_system_serial(f, c, axis, fixed_low, fixed_high, tangential_modes,
                                           tangential_values, has_interior, solid, theta,
-                                          cut_velocity, regions, assemble_operator, diagonal,
+                                          cut_velocity, near, assemble_operator, diagonal,
                                           weights_x, weights_y, rhs)
 
 
@@ -649,17 +653,11 @@ def _open(fraction):
 
 @njit(cache=True, parallel=True)
 def _face_solid_velocity_parallel(solid, body_velocity, open_fraction, theta, cut_velocity,
-                                  across_low, regions, out):
+                                  across_low, near, out):
     m, n = solid.shape
     for i in prange(m):
-        j_begin = n
-        j_end = 0
-        for k in range(regions.shape[0]):
-            if regions[k, 0] <= i < regions[k, 1]:
-                j_begin = min(j_begin, max(regions[k, 2], 0))
-                j_end = max(j_end, min(regions[k, 3], n))
         for j in range(n):
-            if j < j_begin or j >= j_end:
+            if not near[i + 1, j + 1]:
                 out[i, j] = 0.0
             elif solid[i, j]:
                 out[i, j] = body_velocity[i, j]
@@ -678,17 +676,11 @@ def _face_solid_velocity_parallel(solid, body_velocity, open_fraction, theta, cu
 
 @njit(cache=True)
 def _face_solid_velocity_serial(solid, body_velocity, open_fraction, theta, cut_velocity,
-                                across_low, regions, out):
+                                across_low, near, out):
     m, n = solid.shape
     for i in range(m):
-        j_begin = n
-        j_end = 0
-        for k in range(regions.shape[0]):
-            if regions[k, 0] <= i < regions[k, 1]:
-                j_begin = min(j_begin, max(regions[k, 2], 0))
-                j_end = max(j_end, min(regions[k, 3], n))
         for j in range(n):
-            if j < j_begin or j >= j_end:
+            if not near[i + 1, j + 1]:
                 out[i, j] = 0.0
             elif solid[i, j]:
                 out[i, j] = body_velocity[i, j]
@@ -707,19 +699,19 @@ def _face_solid_velocity_serial(solid, body_velocity, open_fraction, theta, cut_
 
 @njit(cache=True)
 def face_solid_velocity(solid, body_velocity, open_fraction, theta, cut_velocity, across_low,
-                        regions, out):
+                        near, out):
     """Body velocity component at every face that is not fully open, 0 elsewhere.
 
     Faces whose point is inside a body take the body velocity there; partly open faces with
     their point in fluid take the velocity at the nearer crossing along the face (directions
-    ``across_low`` and ``across_low + 1``, within half a spacing). Points outside the boxes
-    ``regions`` (int64, (K, 4), as ``InteriorBoundary.regions``) are fully open: 0 unread.
+    ``across_low`` and ``across_low + 1``, within half a spacing). A point whose block
+    ``near[i + 1, j + 1]`` (`near_regions`) is False is fully open: 0, body arrays unread.
     """
     if solid.size > PARALLEL_MINIMUM:
         return _face_solid_velocity_parallel(solid, body_velocity, open_fraction, theta,
-                                             cut_velocity, across_low, regions, out)
+                                             cut_velocity, across_low, near, out)
     return _face_solid_velocity_serial(solid, body_velocity, open_fraction, theta, cut_velocity,
-                                       across_low, regions, out)
+                                       across_low, near, out)
 
 
 @njit(cache=True, parallel=True)

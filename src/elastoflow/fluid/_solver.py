@@ -256,10 +256,10 @@ class FluidSolver:
         self._no_theta = np.full((4, 1, 1), np.inf)
         self._no_values = np.zeros((1, 1))
         self._no_cut = np.zeros((4, 1, 1))
-        # ``regions`` stand-in when bodies may be anywhere: one box over every index a stencil
-        # can reach (side ghosts included).
-        self._everywhere = np.array([[-2, max(fx[0], fy[0]) + 2, -2, max(fx[1], fy[1]) + 2]],
-                                    dtype=np.int64)
+        # Stencil blocks that may meet a body (`kernels.near_regions`): all when bodies may be
+        # anywhere, else marked from ``InteriorBoundary.regions``.
+        self._near = np.empty((grid.nx + 2, grid.ny + 2), dtype=np.bool_)
+        self._near_everywhere = np.ones((grid.nx + 2, grid.ny + 2), dtype=np.bool_)
         ones_x, ones_y = np.ones(fx), np.ones(fy)
         self._pressure_operator_open = self._assemble_pressure_operator(ones_x, ones_y)
         self._viscosity_operators: dict[tuple[int, float], Operator5Point] = {}
@@ -299,10 +299,11 @@ class FluidSolver:
         return (True, interior.solid_faces_y, interior.cut_theta_y, interior.cut_velocity_y,
                 interior.velocity_faces_y)
 
-    def _regions(self, interior: InteriorBoundary | None) -> np.ndarray:
+    def _near_regions(self, interior: InteriorBoundary | None) -> np.ndarray:
         if interior is None or interior.regions is None:
-            return self._everywhere
-        return np.ascontiguousarray(interior.regions)
+            return self._near_everywhere
+        kernels.near_regions(np.ascontiguousarray(interior.regions), self._near)
+        return self._near
 
     def _check_step_input(
         self, state: FluidState, dt: float, interior: InteriorBoundary | None
@@ -328,23 +329,23 @@ class FluidSolver:
         _, solid_y, theta_y, cut_y, body_y = self._interior_arrays(interior, 1)
         forwards = forwards if forwards is not None else sources
         backwards = backwards if backwards is not None else sources
-        regions = self._regions(interior)
+        near = self._near_regions(interior)
         departures = self._departures
         kernels.advect_field_x(
             u, v, sources[0], outs[0], dt, h, self._modes_u, self._values_u, self._modes_v,
-            self._values_v, has, solid_x, theta_x, cut_x, solid_y, theta_y, cut_y, regions,
+            self._values_v, has, solid_x, theta_x, cut_x, solid_y, theta_y, cut_y, near,
             body_x, mode, forwards[0], backwards[0], departures[0], departures[1],
         )
         kernels.advect_field_y(
             u, v, sources[1], outs[1], dt, h, self._modes_u, self._values_u, self._modes_v,
-            self._values_v, has, solid_x, theta_x, cut_x, solid_y, theta_y, cut_y, regions,
+            self._values_v, has, solid_x, theta_x, cut_x, solid_y, theta_y, cut_y, near,
             body_y, mode, forwards[1], backwards[1], departures[2], departures[3],
         )
         solid_cells = interior.solid_cells if interior is not None else self._no_solid
         kernels.advect_cells(
             u, v, sources[2], outs[2], dt, h, self._modes_u, self._values_u, self._modes_v,
             self._values_v, self._modes_dye, self._values_dye, has, solid_x, theta_x, cut_x,
-            solid_y, theta_y, cut_y, regions, solid_cells, mode, forwards[2], backwards[2],
+            solid_y, theta_y, cut_y, near, solid_cells, mode, forwards[2], backwards[2],
             departures[4], departures[5],
         )
 
@@ -392,7 +393,7 @@ class FluidSolver:
         cached = self._viscosity_operators.get((axis, dt)) if interior is None else None
         kernels.build_viscosity_system(
             f, c, axis, fixed_low, fixed_high, modes, values, has, solid, theta, cut,
-            self._regions(interior), cached is None, diagonal, weights_x, weights_y, rhs,
+            self._near_regions(interior), cached is None, diagonal, weights_x, weights_y, rhs,
         )
         if interior is None:
             if cached is None:
@@ -512,14 +513,14 @@ class FluidSolver:
         self, interior: InteriorBoundary
     ) -> tuple[np.ndarray, np.ndarray]:
         """Body velocity u_s on faces that are not fully open (buffers, overwritten)."""
-        regions = self._regions(interior)
+        near = self._near_regions(interior)
         kernels.face_solid_velocity(
             interior.solid_faces_x, interior.velocity_faces_x, interior.open_fraction_x,
-            interior.cut_theta_x, interior.cut_velocity_x, 2, regions, self._solid_u,
+            interior.cut_theta_x, interior.cut_velocity_x, 2, near, self._solid_u,
         )
         kernels.face_solid_velocity(
             interior.solid_faces_y, interior.velocity_faces_y, interior.open_fraction_y,
-            interior.cut_theta_y, interior.cut_velocity_y, 0, regions, self._solid_v,
+            interior.cut_theta_y, interior.cut_velocity_y, 0, near, self._solid_v,
         )
         return self._solid_u, self._solid_v
 
