@@ -277,27 +277,42 @@ def _time_box(time: float, height: int) -> tuple[str, int, tuple[float, float, f
     return text, size, (2, 2, 4 + size * len(text) * 0.6, 4 + size * 1.2)
 
 
+@lru_cache(maxsize=16)
+def _time_box_mask(rows: int, cols: int, box: tuple[float, float, float, float]) -> np.ndarray:
+    """The pixels the time label's black box covers, as Pillow fills it: (rows, cols, 1)
+    bool, read-only."""
+    from PIL import Image, ImageDraw
+
+    covered = Image.new("L", (cols, rows), 0)
+    ImageDraw.Draw(covered).rectangle(box, fill=255)
+    inside = (np.asarray(covered) > 0)[:, :, None]
+    inside.flags.writeable = False
+    return inside
+
+
 @lru_cache(maxsize=1024)
 def _time_patch(text: str, size: int, box: tuple[float, float, float, float]
                 ) -> tuple[np.ndarray, np.ndarray] | None:
-    """The time label as Pillow draws it at the top-left corner: (covered (h, w) bool,
+    """The time label as Pillow draws it at the top-left corner: (covered (h, w, 1) bool,
     pixels (h, w, 3) uint8), or None when the text overhangs its black box (then the field
-    shows through the glyphs' edges and the label is drawn in place)."""
+    shows through the glyphs' edges and the label is drawn in place).
+
+    The label changes every frame or two, so this runs about once per frame: only the text
+    is drawn here, the box's pixels come from a cache of their own.
+    """
     from PIL import Image, ImageDraw
 
     font = _font(size)
     x0, y0, x1, y1 = font.getbbox(text)
     rows, cols = math.ceil(box[3]) + 2, math.ceil(box[2]) + 2
-    covered = Image.new("L", (cols, rows), 0)
-    ImageDraw.Draw(covered).rectangle(box, fill=255)
-    inside = np.asarray(covered) > 0
+    inside = _time_box_mask(rows, cols, box)
     text_rows, text_cols = slice(3 + y0, 3 + y1), slice(4 + x0, 4 + x1)
     if 3 + y0 < 0 or 4 + x0 < 0 or 3 + y1 > rows or 4 + x1 > cols or not np.all(
             inside[text_rows, text_cols]):
         return None
     picture = Image.new("RGB", (cols, rows), (0, 0, 0))
     ImageDraw.Draw(picture).text((4, 3), text, fill=(255, 255, 255), font=font)
-    return inside, np.asarray(picture).copy()
+    return inside, np.asarray(picture)
 
 
 def _draw_time(image: np.ndarray, time: float, height: int) -> None:
@@ -306,8 +321,7 @@ def _draw_time(image: np.ndarray, time: float, height: int) -> None:
     if cached is not None:
         inside, pixels = cached
         rows, cols = min(inside.shape[0], image.shape[0]), min(inside.shape[1], image.shape[1])
-        inside, pixels = inside[:rows, :cols], pixels[:rows, :cols]
-        image[:rows, :cols][inside] = pixels[inside]
+        np.copyto(image[:rows, :cols], pixels[:rows, :cols], where=inside[:rows, :cols])
         return
     from PIL import Image, ImageDraw
 
