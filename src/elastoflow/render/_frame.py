@@ -140,7 +140,9 @@ def render_frame(
                 and out.flags.c_contiguous and out.flags.writeable)
     image = out if reusable else np.empty(shape, dtype=np.uint8)
     field = image[:height, :width]
-    color_field(field, np.asarray(values, dtype=np.float64), low, high, colormap_lut(colormap),
+    # The whole (contiguous) image: the kernel fills only its top-left, and indexes a
+    # C-contiguous array ~1.5x faster than the strided field view.
+    color_field(image, np.asarray(values, dtype=np.float64), low, high, colormap_lut(colormap),
                 scale)
     if out_height > height:
         image[height:] = PANEL_COLOR

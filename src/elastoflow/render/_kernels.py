@@ -156,39 +156,48 @@ def rgb_to_yuv420(image: np.ndarray, out: np.ndarray) -> None:
     u_start = height * width
     v_start = u_start + (height // 2) * half_width
     for pair in prange(height // 2):
-        top = 2 * pair
+        # Row views and plain loops: Numba compiles these ~20 % faster than 2x2 blocks with
+        # computed flat indices.
+        top = image[2 * pair]
+        bottom = image[2 * pair + 1]
+        y_top = out[2 * pair * width:(2 * pair + 1) * width]
+        y_bottom = out[(2 * pair + 1) * width:(2 * pair + 2) * width]
+        u_row = out[u_start + pair * half_width:u_start + (pair + 1) * half_width]
+        v_row = out[v_start + pair * half_width:v_start + (pair + 1) * half_width]
+        for col in range(width):
+            y_top[col] = np.uint8(((16829 * np.int32(top[col, 0]) + 33039 * np.int32(top[col, 1])
+                                    + 6416 * np.int32(top[col, 2]) + 32768) >> 16) + 16)
+            y_bottom[col] = np.uint8(((16829 * np.int32(bottom[col, 0])
+                                       + 33039 * np.int32(bottom[col, 1])
+                                       + 6416 * np.int32(bottom[col, 2]) + 32768) >> 16) + 16)
         for half_col in range(half_width):
-            r_sum = 0
-            g_sum = 0
-            b_sum = 0
-            for dr in range(2):
-                for dc in range(2):
-                    row, col = top + dr, 2 * half_col + dc
-                    r = np.int32(image[row, col, 0])
-                    g = np.int32(image[row, col, 1])
-                    b = np.int32(image[row, col, 2])
-                    out[row * width + col] = np.uint8(
-                        ((16829 * r + 33039 * g + 6416 * b + 32768) >> 16) + 16)
-                    r_sum += r
-                    g_sum += g
-                    b_sum += b
+            col = 2 * half_col
+            r_sum = (np.int32(top[col, 0]) + np.int32(top[col + 1, 0])
+                     + np.int32(bottom[col, 0]) + np.int32(bottom[col + 1, 0]))
+            g_sum = (np.int32(top[col, 1]) + np.int32(top[col + 1, 1])
+                     + np.int32(bottom[col, 1]) + np.int32(bottom[col + 1, 1]))
+            b_sum = (np.int32(top[col, 2]) + np.int32(top[col + 1, 2])
+                     + np.int32(bottom[col, 2]) + np.int32(bottom[col + 1, 2]))
             # Sums of four pixels: the extra factor 4 goes into the shift (16 + 2).
-            u = ((-9714 * r_sum - 19070 * g_sum + 28784 * b_sum + 131072) >> 18) + 128
-            v = ((28784 * r_sum - 24103 * g_sum - 4681 * b_sum + 131072) >> 18) + 128
-            index = pair * half_width + half_col
-            out[u_start + index] = np.uint8(u)
-            out[v_start + index] = np.uint8(v)
+            u_row[half_col] = np.uint8(
+                ((-9714 * r_sum - 19070 * g_sum + 28784 * b_sum + 131072) >> 18) + 128)
+            v_row[half_col] = np.uint8(
+                ((28784 * r_sum - 24103 * g_sum - 4681 * b_sum + 131072) >> 18) + 128)
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True)
 def finite_range(values: np.ndarray) -> tuple[int, float, float, float]:
     """(count, min, max, max |value|) of the finite entries of ``values`` (any shape); the
-    extremes are NaN when there are none. One pass, without the masked copy NumPy needs."""
+    extremes are NaN when there are none. One pass, without the masked copy NumPy needs.
+
+    Serial: ~40 us at 256^2, and a threaded region waits for a thread that ffmpeg (which
+    runs beside a run writing video) has descheduled; measured slower threaded in that case.
+    """
     flat = values.ravel()
     count = 0
     low = math.inf
     high = -math.inf
-    for k in prange(flat.size):
+    for k in range(flat.size):
         value = flat[k]
         if math.isfinite(value):
             count += 1
