@@ -136,9 +136,11 @@ def render_frame(
     out_width = width + panel_width
     out_width += out_width % 2
     shape = (out_height, out_width, 3)
-    reusable = (out is not None and out.shape == shape and out.dtype == np.uint8
-                and out.flags.c_contiguous and out.flags.writeable)
-    image = out if reusable else np.empty(shape, dtype=np.uint8)
+    if (out is not None and out.shape == shape and out.dtype == np.uint8
+            and out.flags.c_contiguous and out.flags.writeable):
+        image = out
+    else:
+        image = np.empty(shape, dtype=np.uint8)
     field = image[:height, :width]
     # The whole (contiguous) image: the kernel fills only its top-left, and indexes a
     # C-contiguous array ~1.5x faster than the strided field view.

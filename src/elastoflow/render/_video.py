@@ -220,7 +220,7 @@ class _Encoder:
         descriptor = self._stdin.fileno()
         try:
             while (buffer := self._queued.get()) is not None:
-                remaining = memoryview(buffer)
+                remaining = memoryview(buffer.data)
                 while remaining:
                     remaining = remaining[os.write(descriptor, remaining):]
                 self._free.put(buffer)
