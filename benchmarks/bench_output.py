@@ -6,6 +6,10 @@ current field, drawn into the previous frame's array) and appended to a ``VideoW
 missing) after every step, as the CLI's ``OutputSession`` does. Reported: ms per step each way,
 ms per frame split into drawing and encoding, and the added share. Target: < 25 %.
 
+"Encoding" is the ``append`` call: the YUV conversion and queueing the frame; ffmpeg encodes
+in its own process, fed by a background thread, so its CPU (~1.3 ms per frame, on the same
+cores) shows only in the step time with video.
+
 Usage: ``python -m benchmarks output [--steps N] [--size N] [--quick]``.
 """
 
