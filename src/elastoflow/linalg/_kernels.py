@@ -216,9 +216,9 @@ def jacobi_kernel(diagonal, weights_x, weights_y, rhs, x, x_next, omega, thresho
 # limit was 300^2. bar_in_jet at 256^2, ms per step with the fluid and solver limits at
 # 300^2 / 128^2 / 96^2 / 64^2: 12.4 / 9.4-9.8 / 9.2 / 9.4-9.5.
 PARALLEL_MINIMUM = 96 * 96
-# Coarsening pays for threads much earlier (the serial loop does not vectorise: 128^2
-# 0.10 / 0.80 ms, 32^2 0.04 / 0.05 ms).
-COARSEN_PARALLEL_MINIMUM = 32 * 32
+# Coarsening pays for threads much earlier (the serial loop does not vectorise; ms per level
+# threaded / serial with spinning threads: 32^2 0.0075 / 0.055, 16^2 0.0046 / 0.016).
+COARSEN_PARALLEL_MINIMUM = 12 * 12
 
 
 
