@@ -7,8 +7,8 @@ several steps; reported per step: total ms, ms per phase, pressure CG iterations
 iterations. Both advection schemes are timed.
 
 Usage: ``python -m benchmarks fluid [--quick]`` or ``python benchmarks/bench_fluid.py``.
-Set ``OMP_WAIT_POLICY=passive`` on machines where Numba's OpenMP threads spin-wait slowly
-(see docs/validation_fluid.md).
+Run it with nothing else on the cores: the package lets idle threads spin briefly between
+parallel regions (see docs/benchmarks.md), which is fastest alone and slower when shared.
 """
 
 from __future__ import annotations

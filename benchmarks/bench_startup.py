@@ -59,7 +59,7 @@ def measure(cache: str, env: dict[str, str], scene: str = "bar_in_jet") -> dict[
         "seconds_build": marks["built"] - marks["imported"],
         "seconds_first_step": marks["stepped"] - marks["built"],
     }
-    target = TARGET_SECONDS["cold" if cache.startswith("cold") else "warm"]
+    target = TARGET_SECONDS["warm" if cache.startswith("warm") else "cold"]
     row["target_seconds"] = target
     row["vs_target"] = versus_target(row["seconds_to_first_step"], target, at_most=True)
     return row
