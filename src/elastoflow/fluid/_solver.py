@@ -260,6 +260,7 @@ class FluidSolver:
         # anywhere, else marked from ``InteriorBoundary.regions``.
         self._near = np.empty((grid.nx + 2, grid.ny + 2), dtype=np.bool_)
         self._near_everywhere = np.ones((grid.nx + 2, grid.ny + 2), dtype=np.bool_)
+        self._pressure_buffers: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
         ones_x, ones_y = np.ones(fx), np.ones(fy)
         self._pressure_operator_open = self._assemble_pressure_operator(ones_x, ones_y)
         self._viscosity_operators: dict[tuple[int, float], Operator5Point] = {}
@@ -271,12 +272,21 @@ class FluidSolver:
             )
 
     def _assemble_pressure_operator(
-        self, open_x: np.ndarray, open_y: np.ndarray
+        self, open_x: np.ndarray, open_y: np.ndarray, reuse: bool = False
     ) -> Operator5Point:
+        """The pressure operator for these open fractions; ``reuse`` assembles it into the
+        solver's own buffers (for `project`, whose solver recognises a changed operator by
+        comparing values, not arrays), sparing three grid-sized allocations per step."""
         nx, ny = self.grid.shape_cells
-        diagonal = np.empty((nx, ny))
-        weights_x = np.empty((nx - 1, ny))
-        weights_y = np.empty((nx, ny - 1))
+        if reuse:
+            if self._pressure_buffers is None:
+                self._pressure_buffers = (np.empty((nx, ny)), np.empty((nx - 1, ny)),
+                                          np.empty((nx, ny - 1)))
+            diagonal, weights_x, weights_y = self._pressure_buffers
+        else:
+            diagonal = np.empty((nx, ny))
+            weights_x = np.empty((nx - 1, ny))
+            weights_y = np.empty((nx, ny - 1))
         kernels.build_pressure_operator(
             open_x, open_y, self._outflow, diagonal, weights_x, weights_y
         )
@@ -487,7 +497,7 @@ class FluidSolver:
             has = True
             open_x, open_y = interior.open_fraction_x, interior.open_fraction_y
             solid_u, solid_v = self._solid_face_velocities(interior)
-            operator = self._assemble_pressure_operator(open_x, open_y)
+            operator = self._assemble_pressure_operator(open_x, open_y, reuse=True)
         kernels.pressure_rhs(
             u, v, self.density * h / dt, has, open_x, open_y, solid_u, solid_v,
             self._rhs_pressure,
