@@ -334,8 +334,9 @@ def advect_field_x(
     the departure points; 1 does the same and stores the departure points (index coordinates
     of ``source``) in ``departure_x`` / ``departure_y``; 2 skips the trace and writes the
     MacCormack correction ``forward + (source - backward) / 2`` of this step's
-    semi-Lagrangian result ``forward`` and its backward advection ``backward``, clamped to the range of ``source`` around the stored
-    departure point (Selle et al. 2008), so that no new extrema appear.
+    semi-Lagrangian result ``forward`` and its backward advection ``backward``, clamped to
+    the range of ``source`` around the stored departure point (Selle et al. 2008), so that no
+    new extrema appear.
     """
     nx1, ny = u.shape
     inv_h = 1.0 / h

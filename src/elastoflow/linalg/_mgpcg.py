@@ -9,9 +9,9 @@ from numpy.typing import NDArray
 
 from elastoflow.linalg._kernels import (
     COARSEN_PARALLEL_MINIMUM,
+    chebyshev_kernel,
     coarsen_parallel,
     coarsen_serial,
-    chebyshev_kernel,
     dense_matrix_kernel,
     load_operator_kernel,
     pad_masked_kernel,
