@@ -240,11 +240,10 @@ class FluidSolver:
         self._buffer_u = np.zeros(fx)
         self._buffer_v = np.zeros(fy)
         self._buffer_dye = np.zeros(c)
-        self._backward_u = np.zeros(fx)
-        self._backward_v = np.zeros(fy)
-        self._backward_dye = np.zeros(c)
-        # Departure points (index coordinates) of the forward MacCormack pass, two per field.
+        # MacCormack's backward pass and the departure points (index coordinates) of its
+        # forward pass, two per field; semi-Lagrangian advection needs neither.
         if self.advection == "maccormack":
+            self._backward = (np.zeros(fx), np.zeros(fy), np.zeros(c))
             self._departures = tuple(np.zeros(shape) for shape in (fx, fx, fy, fy, c, c))
         else:
             self._departures = (np.zeros((1, 1)),) * 6
@@ -261,8 +260,8 @@ class FluidSolver:
         self._near = np.empty((grid.nx + 2, grid.ny + 2), dtype=np.bool_)
         self._near_everywhere = np.ones((grid.nx + 2, grid.ny + 2), dtype=np.bool_)
         self._pressure_buffers: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
-        ones_x, ones_y = np.ones(fx), np.ones(fy)
-        self._pressure_operator_open = self._assemble_pressure_operator(ones_x, ones_y)
+        # Assembled on first use: with bodies the operator is assembled every step instead.
+        self._pressure_operator_open: Operator5Point | None = None
         self._viscosity_operators: dict[tuple[int, float], Operator5Point] = {}
         self._viscosity_scratch = []
         for shape in (fx, fy):
@@ -295,8 +294,15 @@ class FluidSolver:
     def pressure_operator(self, interior: InteriorBoundary | None = None) -> Operator5Point:
         """The operator ``A p = -h^2 div(A grad p)`` of the pressure equation (for tests)."""
         if interior is None:
-            return self._pressure_operator_open
+            return self._open_pressure_operator()
         return self._assemble_pressure_operator(interior.open_fraction_x, interior.open_fraction_y)
+
+    def _open_pressure_operator(self) -> Operator5Point:
+        if self._pressure_operator_open is None:
+            grid = self.grid
+            self._pressure_operator_open = self._assemble_pressure_operator(
+                np.ones(grid.shape_faces_x), np.ones(grid.shape_faces_y))
+        return self._pressure_operator_open
 
     # -- phases ------------------------------------------------------------------------------
 
@@ -376,7 +382,7 @@ class FluidSolver:
         forward = (self._buffer_u, self._buffer_v, self._buffer_dye)
         if self.advection == "maccormack":
             self._advect_once(state, fields, forward, dt, interior, mode=1)
-            backward = (self._backward_u, self._backward_v, self._backward_dye)
+            backward = self._backward
             self._advect_once(state, forward, backward, -dt, interior)
             # The correction reads backward[i, j] before writing it, so it can work in place.
             self._advect_once(state, fields, backward, dt, interior, 2, forward, backward)
@@ -492,7 +498,7 @@ class FluidSolver:
             has = False
             open_x = open_y = self._no_values
             solid_u, solid_v = self._no_values, self._no_values
-            operator = self._pressure_operator_open
+            operator = self._open_pressure_operator()
         else:
             has = True
             open_x, open_y = interior.open_fraction_x, interior.open_fraction_y
