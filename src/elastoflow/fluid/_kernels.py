@@ -13,6 +13,8 @@ import math
 import numpy as np
 from numba import njit, prange
 
+from elastoflow._numba import serial_and_parallel
+
 THETA_MIN = 1e-3
 # Faces open by less than this count as closed: a sliver of a face would couple a cell that is
 # practically inside a body to the fluid through a vanishing weight (ill-conditioned). Under a
@@ -494,20 +496,16 @@ def advect_cells(
                 out[i, j] = _sample(source, fx, fy, modes_c, values_c)
 
 
-@njit(cache=True, parallel=True)
-def _copy_into_parallel(source, target):
-    m, n = source.shape
-    for i in prange(m):
-        for j in range(n):
-            target[i, j] = source[i, j]
+def _make_copy_into(loop):
+    def kernel(source, target):
+        m, n = source.shape
+        for i in loop(m):
+            for j in range(n):
+                target[i, j] = source[i, j]
+    return kernel
 
 
-@njit(cache=True)
-def _copy_into_serial(source, target):
-    m, n = source.shape
-    for i in range(m):
-        for j in range(n):
-            target[i, j] = source[i, j]
+_copy_into_serial, _copy_into_parallel = serial_and_parallel(_make_copy_into)
 
 
 @njit(cache=True)
@@ -582,26 +580,19 @@ def _viscosity_row(f, c, axis, fixed_low, fixed_high, tangential_modes, tangenti
         rhs[i, j] = r
 
 
-@njit(cache=True, parallel=True)
-def _build_viscosity_system_parallel(f, c, axis, fixed_low, fixed_high, tangential_modes,
-                                     tangential_values, has_interior, solid, theta, cut_velocity,
-                                     near, assemble_operator, diagonal, weights_x, weights_y,
-                                     rhs):
-    for i in prange(f.shape[0]):
-        _viscosity_row(f, c, axis, fixed_low, fixed_high, tangential_modes, tangential_values,
-                       has_interior, solid, theta, cut_velocity, near, assemble_operator,
-                       diagonal, weights_x, weights_y, rhs, i)
+def _make_build_viscosity_system(loop):
+    def kernel(f, c, axis, fixed_low, fixed_high, tangential_modes, tangential_values, has_interior,
+               solid, theta, cut_velocity, near, assemble_operator, diagonal, weights_x, weights_y,
+               rhs):
+        for i in loop(f.shape[0]):
+            _viscosity_row(f, c, axis, fixed_low, fixed_high, tangential_modes, tangential_values,
+                           has_interior, solid, theta, cut_velocity, near, assemble_operator,
+                           diagonal, weights_x, weights_y, rhs, i)
+    return kernel
 
 
-@njit(cache=True)
-def _build_viscosity_system_serial(f, c, axis, fixed_low, fixed_high, tangential_modes,
-                                   tangential_values, has_interior, solid, theta, cut_velocity,
-                                   near, assemble_operator, diagonal, weights_x, weights_y,
-                                   rhs):
-    for i in range(f.shape[0]):
-        _viscosity_row(f, c, axis, fixed_low, fixed_high, tangential_modes, tangential_values,
-                       has_interior, solid, theta, cut_velocity, near, assemble_operator,
-                       diagonal, weights_x, weights_y, rhs, i)
+(_build_viscosity_system_serial,
+ _build_viscosity_system_parallel) = serial_and_parallel(_make_build_viscosity_system)
 
 
 @njit(cache=True)
@@ -652,50 +643,31 @@ def _open(fraction):
     return min(fraction, 1.0)
 
 
-@njit(cache=True, parallel=True)
-def _face_solid_velocity_parallel(solid, body_velocity, open_fraction, theta, cut_velocity,
-                                  across_low, near, out):
-    m, n = solid.shape
-    for i in prange(m):
-        for j in range(n):
-            if not near[i + 1, j + 1]:
-                out[i, j] = 0.0
-            elif solid[i, j]:
-                out[i, j] = body_velocity[i, j]
-            elif open_fraction[i, j] < 1.0:
-                t_low = theta[across_low, i, j]
-                t_high = theta[across_low + 1, i, j]
-                if t_low <= t_high and t_low <= 0.5:
-                    out[i, j] = cut_velocity[across_low, i, j]
-                elif t_high <= 0.5:
-                    out[i, j] = cut_velocity[across_low + 1, i, j]
+def _make_face_solid_velocity(loop):
+    def kernel(solid, body_velocity, open_fraction, theta, cut_velocity, across_low, near, out):
+        m, n = solid.shape
+        for i in loop(m):
+            for j in range(n):
+                if not near[i + 1, j + 1]:
+                    out[i, j] = 0.0
+                elif solid[i, j]:
+                    out[i, j] = body_velocity[i, j]
+                elif open_fraction[i, j] < 1.0:
+                    t_low = theta[across_low, i, j]
+                    t_high = theta[across_low + 1, i, j]
+                    if t_low <= t_high and t_low <= 0.5:
+                        out[i, j] = cut_velocity[across_low, i, j]
+                    elif t_high <= 0.5:
+                        out[i, j] = cut_velocity[across_low + 1, i, j]
+                    else:
+                        out[i, j] = 0.0
                 else:
                     out[i, j] = 0.0
-            else:
-                out[i, j] = 0.0
+    return kernel
 
 
-@njit(cache=True)
-def _face_solid_velocity_serial(solid, body_velocity, open_fraction, theta, cut_velocity,
-                                across_low, near, out):
-    m, n = solid.shape
-    for i in range(m):
-        for j in range(n):
-            if not near[i + 1, j + 1]:
-                out[i, j] = 0.0
-            elif solid[i, j]:
-                out[i, j] = body_velocity[i, j]
-            elif open_fraction[i, j] < 1.0:
-                t_low = theta[across_low, i, j]
-                t_high = theta[across_low + 1, i, j]
-                if t_low <= t_high and t_low <= 0.5:
-                    out[i, j] = cut_velocity[across_low, i, j]
-                elif t_high <= 0.5:
-                    out[i, j] = cut_velocity[across_low + 1, i, j]
-                else:
-                    out[i, j] = 0.0
-            else:
-                out[i, j] = 0.0
+(_face_solid_velocity_serial,
+ _face_solid_velocity_parallel) = serial_and_parallel(_make_face_solid_velocity)
 
 
 @njit(cache=True)
@@ -715,46 +687,29 @@ def face_solid_velocity(solid, body_velocity, open_fraction, theta, cut_velocity
                                        across_low, near, out)
 
 
-@njit(cache=True, parallel=True)
-def _pressure_rhs_parallel(u, v, scale, has_interior, open_x, open_y, solid_u, solid_v, rhs):
-    nx, ny = rhs.shape
-    for i in prange(nx):
-        for j in range(ny):
-            if has_interior:
-                a_east = _open(open_x[i + 1, j])
-                a_west = _open(open_x[i, j])
-                a_north = _open(open_y[i, j + 1])
-                a_south = _open(open_y[i, j])
-                flux = (
-                    a_east * u[i + 1, j] + (1.0 - a_east) * solid_u[i + 1, j]
-                    - a_west * u[i, j] - (1.0 - a_west) * solid_u[i, j]
-                    + a_north * v[i, j + 1] + (1.0 - a_north) * solid_v[i, j + 1]
-                    - a_south * v[i, j] - (1.0 - a_south) * solid_v[i, j]
-                )
-            else:
-                flux = u[i + 1, j] - u[i, j] + v[i, j + 1] - v[i, j]
-            rhs[i, j] = -scale * flux
+def _make_pressure_rhs(loop):
+    def kernel(u, v, scale, has_interior, open_x, open_y, solid_u, solid_v, rhs):
+        nx, ny = rhs.shape
+        for i in loop(nx):
+            for j in range(ny):
+                if has_interior:
+                    a_east = _open(open_x[i + 1, j])
+                    a_west = _open(open_x[i, j])
+                    a_north = _open(open_y[i, j + 1])
+                    a_south = _open(open_y[i, j])
+                    flux = (
+                        a_east * u[i + 1, j] + (1.0 - a_east) * solid_u[i + 1, j]
+                        - a_west * u[i, j] - (1.0 - a_west) * solid_u[i, j]
+                        + a_north * v[i, j + 1] + (1.0 - a_north) * solid_v[i, j + 1]
+                        - a_south * v[i, j] - (1.0 - a_south) * solid_v[i, j]
+                    )
+                else:
+                    flux = u[i + 1, j] - u[i, j] + v[i, j + 1] - v[i, j]
+                rhs[i, j] = -scale * flux
+    return kernel
 
 
-@njit(cache=True)
-def _pressure_rhs_serial(u, v, scale, has_interior, open_x, open_y, solid_u, solid_v, rhs):
-    nx, ny = rhs.shape
-    for i in range(nx):
-        for j in range(ny):
-            if has_interior:
-                a_east = _open(open_x[i + 1, j])
-                a_west = _open(open_x[i, j])
-                a_north = _open(open_y[i, j + 1])
-                a_south = _open(open_y[i, j])
-                flux = (
-                    a_east * u[i + 1, j] + (1.0 - a_east) * solid_u[i + 1, j]
-                    - a_west * u[i, j] - (1.0 - a_west) * solid_u[i, j]
-                    + a_north * v[i, j + 1] + (1.0 - a_north) * solid_v[i, j + 1]
-                    - a_south * v[i, j] - (1.0 - a_south) * solid_v[i, j]
-                )
-            else:
-                flux = u[i + 1, j] - u[i, j] + v[i, j + 1] - v[i, j]
-            rhs[i, j] = -scale * flux
+_pressure_rhs_serial, _pressure_rhs_parallel = serial_and_parallel(_make_pressure_rhs)
 
 
 @njit(cache=True)
@@ -770,46 +725,30 @@ def pressure_rhs(u, v, scale, has_interior, open_x, open_y, solid_u, solid_v, rh
     return _pressure_rhs_serial(u, v, scale, has_interior, open_x, open_y, solid_u, solid_v, rhs)
 
 
-@njit(cache=True, parallel=True)
-def _build_pressure_operator_parallel(open_x, open_y, outflow, diagonal, weights_x, weights_y):
-    nx, ny = diagonal.shape
-    for i in prange(nx):
-        for j in range(ny):
-            d = 0.0
-            if i == 0 and outflow[0]:
-                d += 2.0 * _open(open_x[0, j])
-            if i == nx - 1 and outflow[1]:
-                d += 2.0 * _open(open_x[nx, j])
-            if j == 0 and outflow[2]:
-                d += 2.0 * _open(open_y[i, 0])
-            if j == ny - 1 and outflow[3]:
-                d += 2.0 * _open(open_y[i, ny])
-            diagonal[i, j] = d
-            if i + 1 < nx:
-                weights_x[i, j] = _open(open_x[i + 1, j])
-            if j + 1 < ny:
-                weights_y[i, j] = _open(open_y[i, j + 1])
+def _make_build_pressure_operator(loop):
+    def kernel(open_x, open_y, outflow, diagonal, weights_x, weights_y):
+        nx, ny = diagonal.shape
+        for i in loop(nx):
+            for j in range(ny):
+                d = 0.0
+                if i == 0 and outflow[0]:
+                    d += 2.0 * _open(open_x[0, j])
+                if i == nx - 1 and outflow[1]:
+                    d += 2.0 * _open(open_x[nx, j])
+                if j == 0 and outflow[2]:
+                    d += 2.0 * _open(open_y[i, 0])
+                if j == ny - 1 and outflow[3]:
+                    d += 2.0 * _open(open_y[i, ny])
+                diagonal[i, j] = d
+                if i + 1 < nx:
+                    weights_x[i, j] = _open(open_x[i + 1, j])
+                if j + 1 < ny:
+                    weights_y[i, j] = _open(open_y[i, j + 1])
+    return kernel
 
 
-@njit(cache=True)
-def _build_pressure_operator_serial(open_x, open_y, outflow, diagonal, weights_x, weights_y):
-    nx, ny = diagonal.shape
-    for i in range(nx):
-        for j in range(ny):
-            d = 0.0
-            if i == 0 and outflow[0]:
-                d += 2.0 * _open(open_x[0, j])
-            if i == nx - 1 and outflow[1]:
-                d += 2.0 * _open(open_x[nx, j])
-            if j == 0 and outflow[2]:
-                d += 2.0 * _open(open_y[i, 0])
-            if j == ny - 1 and outflow[3]:
-                d += 2.0 * _open(open_y[i, ny])
-            diagonal[i, j] = d
-            if i + 1 < nx:
-                weights_x[i, j] = _open(open_x[i + 1, j])
-            if j + 1 < ny:
-                weights_y[i, j] = _open(open_y[i, j + 1])
+(_build_pressure_operator_serial,
+ _build_pressure_operator_parallel) = serial_and_parallel(_make_build_pressure_operator)
 
 
 @njit(cache=True)
@@ -821,80 +760,46 @@ def build_pressure_operator(open_x, open_y, outflow, diagonal, weights_x, weight
     return _build_pressure_operator_serial(open_x, open_y, outflow, diagonal, weights_x, weights_y)
 
 
-@njit(cache=True, parallel=True)
-def _subtract_pressure_gradient_parallel(u, v, p, k, outflow, has_interior, open_x, open_y,
-                                         solid_u, solid_v):
-    nx, ny = p.shape
-    for i in prange(nx + 1):
-        for j in range(ny):
-            if i == 0:
-                if not outflow[0]:
-                    continue
-                gradient = 2.0 * p[0, j]
-            elif i == nx:
-                if not outflow[1]:
-                    continue
-                gradient = -p[nx - 1, j] - p[nx - 1, j]
-            else:
-                gradient = p[i, j] - p[i - 1, j]
-            if has_interior and _open(open_x[i, j]) == 0.0:
-                u[i, j] = solid_u[i, j]
-            else:
-                u[i, j] -= k * gradient
-    for i in prange(nx):
-        for j in range(ny + 1):
-            if j == 0:
-                if not outflow[2]:
-                    continue
-                gradient = 2.0 * p[i, 0]
-            elif j == ny:
-                if not outflow[3]:
-                    continue
-                gradient = -2.0 * p[i, ny - 1]
-            else:
-                gradient = p[i, j] - p[i, j - 1]
-            if has_interior and _open(open_y[i, j]) == 0.0:
-                v[i, j] = solid_v[i, j]
-            else:
-                v[i, j] -= k * gradient
+def _make_subtract_pressure_gradient(loop):
+    def kernel(u, v, p, k, outflow, has_interior, open_x, open_y, solid_u, solid_v):
+        nx, ny = p.shape
+        for i in loop(nx + 1):
+            for j in range(ny):
+                if i == 0:
+                    if not outflow[0]:
+                        continue
+                    gradient = 2.0 * p[0, j]
+                elif i == nx:
+                    if not outflow[1]:
+                        continue
+                    gradient = -p[nx - 1, j] - p[nx - 1, j]
+                else:
+                    gradient = p[i, j] - p[i - 1, j]
+                if has_interior and _open(open_x[i, j]) == 0.0:
+                    u[i, j] = solid_u[i, j]
+                else:
+                    u[i, j] -= k * gradient
+        for i in loop(nx):
+            for j in range(ny + 1):
+                if j == 0:
+                    if not outflow[2]:
+                        continue
+                    gradient = 2.0 * p[i, 0]
+                elif j == ny:
+                    if not outflow[3]:
+                        continue
+                    gradient = -2.0 * p[i, ny - 1]
+                else:
+                    gradient = p[i, j] - p[i, j - 1]
+                if has_interior and _open(open_y[i, j]) == 0.0:
+                    v[i, j] = solid_v[i, j]
+                else:
+                    v[i, j] -= k * gradient
+    return kernel
 
 
-@njit(cache=True)
-def _subtract_pressure_gradient_serial(u, v, p, k, outflow, has_interior, open_x, open_y, solid_u,
-                                       solid_v):
-    nx, ny = p.shape
-    for i in range(nx + 1):
-        for j in range(ny):
-            if i == 0:
-                if not outflow[0]:
-                    continue
-                gradient = 2.0 * p[0, j]
-            elif i == nx:
-                if not outflow[1]:
-                    continue
-                gradient = -p[nx - 1, j] - p[nx - 1, j]
-            else:
-                gradient = p[i, j] - p[i - 1, j]
-            if has_interior and _open(open_x[i, j]) == 0.0:
-                u[i, j] = solid_u[i, j]
-            else:
-                u[i, j] -= k * gradient
-    for i in range(nx):
-        for j in range(ny + 1):
-            if j == 0:
-                if not outflow[2]:
-                    continue
-                gradient = 2.0 * p[i, 0]
-            elif j == ny:
-                if not outflow[3]:
-                    continue
-                gradient = -2.0 * p[i, ny - 1]
-            else:
-                gradient = p[i, j] - p[i, j - 1]
-            if has_interior and _open(open_y[i, j]) == 0.0:
-                v[i, j] = solid_v[i, j]
-            else:
-                v[i, j] -= k * gradient
+(_subtract_pressure_gradient_serial,
+ _subtract_pressure_gradient_parallel) = serial_and_parallel(_make_subtract_pressure_gradient)
 
 
 @njit(cache=True)

@@ -6,6 +6,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange, uint64
 
+from elastoflow._numba import serial_and_parallel
+
 
 @njit(cache=True, inline="always")
 def _neighbour_sum(diagonal, weights_x, weights_y, x, i, j, m, n):
@@ -159,22 +161,17 @@ def _jacobi_row(diagonal, weights_x, weights_y, rhs, x, x_next, omega, i, m, n):
     return squared
 
 
-@njit(cache=True, parallel=True)
-def _jacobi_sweep_parallel(diagonal, weights_x, weights_y, rhs, x, x_next, omega):
-    m, n = x.shape
-    squared = 0.0
-    for i in prange(m):
-        squared += _jacobi_row(diagonal, weights_x, weights_y, rhs, x, x_next, omega, i, m, n)
-    return squared
+def _make_jacobi_sweep(loop):
+    def kernel(diagonal, weights_x, weights_y, rhs, x, x_next, omega):
+        m, n = x.shape
+        squared = 0.0
+        for i in loop(m):
+            squared += _jacobi_row(diagonal, weights_x, weights_y, rhs, x, x_next, omega, i, m, n)
+        return squared
+    return kernel
 
 
-@njit(cache=True)
-def _jacobi_sweep_serial(diagonal, weights_x, weights_y, rhs, x, x_next, omega):
-    m, n = x.shape
-    squared = 0.0
-    for i in range(m):
-        squared += _jacobi_row(diagonal, weights_x, weights_y, rhs, x, x_next, omega, i, m, n)
-    return squared
+_jacobi_sweep_serial, _jacobi_sweep_parallel = serial_and_parallel(_make_jacobi_sweep)
 
 
 @njit(cache=True)
@@ -224,24 +221,19 @@ COARSEN_PARALLEL_MINIMUM = 12 * 12
 
 
 
-@njit(cache=True, parallel=True)
-def _pad_values_kernel_parallel(values, flat):
-    m, n = values.shape
-    stride = n + 2
-    for i in prange(m):
-        row = (i + 1) * stride + 1
-        for j in range(n):
-            flat[row + j] = values[i, j]
+def _make_pad_values_kernel(loop):
+    def kernel(values, flat):
+        m, n = values.shape
+        stride = n + 2
+        for i in loop(m):
+            row = (i + 1) * stride + 1
+            for j in range(n):
+                flat[row + j] = values[i, j]
+    return kernel
 
 
-@njit(cache=True)
-def _pad_values_kernel_serial(values, flat):
-    m, n = values.shape
-    stride = n + 2
-    for i in range(m):
-        row = (i + 1) * stride + 1
-        for j in range(n):
-            flat[row + j] = values[i, j]
+(_pad_values_kernel_serial,
+ _pad_values_kernel_parallel) = serial_and_parallel(_make_pad_values_kernel)
 
 
 @njit(cache=True)
@@ -251,24 +243,19 @@ def pad_values_kernel(values, flat):
     return _pad_values_kernel_serial(values, flat)
 
 
-@njit(cache=True, parallel=True)
-def _unpad_values_kernel_parallel(flat, values):
-    m, n = values.shape
-    stride = n + 2
-    for i in prange(m):
-        row = (i + 1) * stride + 1
-        for j in range(n):
-            values[i, j] = flat[row + j]
+def _make_unpad_values_kernel(loop):
+    def kernel(flat, values):
+        m, n = values.shape
+        stride = n + 2
+        for i in loop(m):
+            row = (i + 1) * stride + 1
+            for j in range(n):
+                values[i, j] = flat[row + j]
+    return kernel
 
 
-@njit(cache=True)
-def _unpad_values_kernel_serial(flat, values):
-    m, n = values.shape
-    stride = n + 2
-    for i in range(m):
-        row = (i + 1) * stride + 1
-        for j in range(n):
-            values[i, j] = flat[row + j]
+(_unpad_values_kernel_serial,
+ _unpad_values_kernel_parallel) = serial_and_parallel(_make_unpad_values_kernel)
 
 
 @njit(cache=True)
@@ -329,30 +316,20 @@ def _coarsen_row(fine_diagonal, fine_weights_x, fine_weights_y, fine_total, coar
         coarse_inverse[kc + jc] = 1.0 / value if value > 0.0 else 0.0
 
 
-@njit(cache=True, parallel=True)
-def coarsen_parallel(fine_diagonal, fine_weights_x, fine_weights_y, fine_total,
-                     coarse_diagonal, coarse_weights_x, coarse_weights_y, coarse_total,
-                     coarse_inverse, n_f, m_c, n_c):
-    """Coarse level (diagonal, weights, totals, inverses) from the fine one."""
-    stride_f = n_f + 2
-    stride_c = n_c + 2
-    for ic in prange(m_c):
-        _coarsen_row(fine_diagonal, fine_weights_x, fine_weights_y, fine_total, coarse_diagonal,
-                     coarse_weights_x, coarse_weights_y, coarse_total, coarse_inverse, ic, n_c,
-                     (2 * ic + 1) * stride_f + 1, stride_f, stride_c)
+def _make_coarsen(loop):
+    def kernel(fine_diagonal, fine_weights_x, fine_weights_y, fine_total, coarse_diagonal,
+               coarse_weights_x, coarse_weights_y, coarse_total, coarse_inverse, n_f, m_c, n_c):
+        """Coarse level (diagonal, weights, totals, inverses) from the fine one."""
+        stride_f = n_f + 2
+        stride_c = n_c + 2
+        for ic in loop(m_c):
+            _coarsen_row(fine_diagonal, fine_weights_x, fine_weights_y, fine_total, coarse_diagonal,
+                         coarse_weights_x, coarse_weights_y, coarse_total, coarse_inverse, ic, n_c,
+                         (2 * ic + 1) * stride_f + 1, stride_f, stride_c)
+    return kernel
 
 
-@njit(cache=True)
-def coarsen_serial(fine_diagonal, fine_weights_x, fine_weights_y, fine_total,
-                   coarse_diagonal, coarse_weights_x, coarse_weights_y, coarse_total,
-                   coarse_inverse, n_f, m_c, n_c):
-    """Coarse level (diagonal, weights, totals, inverses) from the fine one."""
-    stride_f = n_f + 2
-    stride_c = n_c + 2
-    for ic in range(m_c):
-        _coarsen_row(fine_diagonal, fine_weights_x, fine_weights_y, fine_total, coarse_diagonal,
-                     coarse_weights_x, coarse_weights_y, coarse_total, coarse_inverse, ic, n_c,
-                     (2 * ic + 1) * stride_f + 1, stride_f, stride_c)
+coarsen_serial, coarsen_parallel = serial_and_parallel(_make_coarsen)
 
 
 @njit(cache=True, inline="always")
@@ -473,16 +450,14 @@ def _restrict_row(x, b, total, inverse, weights_x, weights_y, coarse_b, m, n, ic
             coarse_b[kc + jc] += value
 
 
-@njit(cache=True, parallel=True)
-def restrict_parallel(x, b, total, inverse, weights_x, weights_y, coarse_b, m, n, m_c, n_c):
-    for ic in prange(m_c):
-        _restrict_row(x, b, total, inverse, weights_x, weights_y, coarse_b, m, n, ic, n_c)
+def _make_restrict(loop):
+    def kernel(x, b, total, inverse, weights_x, weights_y, coarse_b, m, n, m_c, n_c):
+        for ic in loop(m_c):
+            _restrict_row(x, b, total, inverse, weights_x, weights_y, coarse_b, m, n, ic, n_c)
+    return kernel
 
 
-@njit(cache=True)
-def restrict_serial(x, b, total, inverse, weights_x, weights_y, coarse_b, m, n, m_c, n_c):
-    for ic in range(m_c):
-        _restrict_row(x, b, total, inverse, weights_x, weights_y, coarse_b, m, n, ic, n_c)
+restrict_serial, restrict_parallel = serial_and_parallel(_make_restrict)
 
 
 @njit(cache=True, inline="always")
@@ -500,16 +475,14 @@ def _prolong_row(coarse_x, x, i, n, n_c):
         x[row] += coarse_x[kc]
 
 
-@njit(cache=True, parallel=True)
-def prolong_parallel(coarse_x, x, m, n, n_c):
-    for i in prange(m):
-        _prolong_row(coarse_x, x, i, n, n_c)
+def _make_prolong(loop):
+    def kernel(coarse_x, x, m, n, n_c):
+        for i in loop(m):
+            _prolong_row(coarse_x, x, i, n, n_c)
+    return kernel
 
 
-@njit(cache=True)
-def prolong_serial(coarse_x, x, m, n, n_c):
-    for i in range(m):
-        _prolong_row(coarse_x, x, i, n, n_c)
+prolong_serial, prolong_parallel = serial_and_parallel(_make_prolong)
 
 
 @njit(cache=True)
@@ -698,71 +671,55 @@ def _step_row(x, r, p, q, alpha, i, n):
     return squared
 
 
-@njit(cache=True, parallel=True)
-def residual_norm_parallel(x, b, total, weights_x, weights_y, r, m, n):
-    """``r = b - A x``; return ``|r|^2``."""
-    squared = 0.0
-    for i in prange(m):
-        squared += _residual_norm_row(x, b, total, weights_x, weights_y, r, i, n)
-    return squared
+def _make_residual_norm(loop):
+    def kernel(x, b, total, weights_x, weights_y, r, m, n):
+        """``r = b - A x``; return ``|r|^2``."""
+        squared = 0.0
+        for i in loop(m):
+            squared += _residual_norm_row(x, b, total, weights_x, weights_y, r, i, n)
+        return squared
+    return kernel
 
 
-@njit(cache=True)
-def residual_norm_serial(x, b, total, weights_x, weights_y, r, m, n):
-    squared = 0.0
-    for i in range(m):
-        squared += _residual_norm_row(x, b, total, weights_x, weights_y, r, i, n)
-    return squared
+residual_norm_serial, residual_norm_parallel = serial_and_parallel(_make_residual_norm)
 
 
-@njit(cache=True, parallel=True)
-def dot_parallel(a, b, m, n):
-    total = 0.0
-    for i in prange(m):
-        total += _dot_row(a, b, i, n)
-    return total
+def _make_dot(loop):
+    def kernel(a, b, m, n):
+        total = 0.0
+        for i in loop(m):
+            total += _dot_row(a, b, i, n)
+        return total
+    return kernel
 
 
-@njit(cache=True)
-def dot_serial(a, b, m, n):
-    total = 0.0
-    for i in range(m):
-        total += _dot_row(a, b, i, n)
-    return total
+dot_serial, dot_parallel = serial_and_parallel(_make_dot)
 
 
-@njit(cache=True, parallel=True)
-def search_direction_parallel(z, p, q, total, weights_x, weights_y, beta, m, n):
-    """``p = z + beta p`` and ``q = A z + beta q`` (= ``A p``) in one pass; return ``p . q``."""
-    product = 0.0
-    for i in prange(m):
-        product += _search_direction_row(z, p, q, total, weights_x, weights_y, beta, i, n)
-    return product
+def _make_search_direction(loop):
+    def kernel(z, p, q, total, weights_x, weights_y, beta, m, n):
+        """``p = z + beta p`` and ``q = A z + beta q`` (= ``A p``) in one pass; return ``p . q``."""
+        product = 0.0
+        for i in loop(m):
+            product += _search_direction_row(z, p, q, total, weights_x, weights_y, beta, i, n)
+        return product
+    return kernel
 
 
-@njit(cache=True)
-def search_direction_serial(z, p, q, total, weights_x, weights_y, beta, m, n):
-    product = 0.0
-    for i in range(m):
-        product += _search_direction_row(z, p, q, total, weights_x, weights_y, beta, i, n)
-    return product
+search_direction_serial, search_direction_parallel = serial_and_parallel(_make_search_direction)
 
 
-@njit(cache=True, parallel=True)
-def step_parallel(x, r, p, q, alpha, m, n):
-    """``x += alpha p``, ``r -= alpha q``; return ``|r|^2``."""
-    squared = 0.0
-    for i in prange(m):
-        squared += _step_row(x, r, p, q, alpha, i, n)
-    return squared
+def _make_step(loop):
+    def kernel(x, r, p, q, alpha, m, n):
+        """``x += alpha p``, ``r -= alpha q``; return ``|r|^2``."""
+        squared = 0.0
+        for i in loop(m):
+            squared += _step_row(x, r, p, q, alpha, i, n)
+        return squared
+    return kernel
 
 
-@njit(cache=True)
-def step_serial(x, r, p, q, alpha, m, n):
-    squared = 0.0
-    for i in range(m):
-        squared += _step_row(x, r, p, q, alpha, i, n)
-    return squared
+step_serial, step_parallel = serial_and_parallel(_make_step)
 
 
 @njit(cache=True)
@@ -861,24 +818,18 @@ def _chebyshev_row(x, x_next, direction, b, total, inverse, weights_x, weights_y
     return squared
 
 
-@njit(cache=True, parallel=True)
-def _chebyshev_sweep_parallel(x, x_next, direction, b, total, inverse, weights_x, weights_y,
-                              scale_old, scale_new, m, n):
-    squared = 0.0
-    for i in prange(m):
-        squared += _chebyshev_row(x, x_next, direction, b, total, inverse, weights_x,
-                                  weights_y, scale_old, scale_new, i, n)
-    return squared
+def _make_chebyshev_sweep(loop):
+    def kernel(x, x_next, direction, b, total, inverse, weights_x, weights_y, scale_old, scale_new,
+               m, n):
+        squared = 0.0
+        for i in loop(m):
+            squared += _chebyshev_row(x, x_next, direction, b, total, inverse, weights_x,
+                                      weights_y, scale_old, scale_new, i, n)
+        return squared
+    return kernel
 
 
-@njit(cache=True)
-def _chebyshev_sweep_serial(x, x_next, direction, b, total, inverse, weights_x, weights_y,
-                            scale_old, scale_new, m, n):
-    squared = 0.0
-    for i in range(m):
-        squared += _chebyshev_row(x, x_next, direction, b, total, inverse, weights_x,
-                                  weights_y, scale_old, scale_new, i, n)
-    return squared
+_chebyshev_sweep_serial, _chebyshev_sweep_parallel = serial_and_parallel(_make_chebyshev_sweep)
 
 
 @njit(cache=True)
@@ -954,24 +905,19 @@ def dense_matrix_kernel(diagonal, weights_x, weights_y, m, n, matrix):
                 matrix[a + 1, a] -= w
 
 
-@njit(cache=True, parallel=True)
-def _sum_of_squares_kernel_parallel(values):
-    m, n = values.shape
-    total = 0.0
-    for i in prange(m):
-        for j in range(n):
-            total += values[i, j] * values[i, j]
-    return total
+def _make_sum_of_squares_kernel(loop):
+    def kernel(values):
+        m, n = values.shape
+        total = 0.0
+        for i in loop(m):
+            for j in range(n):
+                total += values[i, j] * values[i, j]
+        return total
+    return kernel
 
 
-@njit(cache=True)
-def _sum_of_squares_kernel_serial(values):
-    m, n = values.shape
-    total = 0.0
-    for i in range(m):
-        for j in range(n):
-            total += values[i, j] * values[i, j]
-    return total
+(_sum_of_squares_kernel_serial,
+ _sum_of_squares_kernel_parallel) = serial_and_parallel(_make_sum_of_squares_kernel)
 
 
 @njit(cache=True)
@@ -987,38 +933,26 @@ def sum_of_squares_kernel(values):
 _REDUCTION_MATH = {"reassoc", "nsz"}
 
 
-@njit(cache=True, parallel=True, fastmath=_REDUCTION_MATH)
-def _probe_minimum_parallel(values):
-    m, n = values.shape
-    probe = 0.0
-    smallest = np.inf
-    for i in prange(m):
-        row_probe = 0.0
-        row_smallest = np.inf
-        for j in range(n):
-            value = values[i, j]
-            row_probe += value * 0.0
-            row_smallest = min(row_smallest, value)
-        probe += row_probe
-        smallest = min(smallest, row_smallest)
-    return probe, smallest
+def _make_probe_minimum(loop):
+    def kernel(values):
+        m, n = values.shape
+        probe = 0.0
+        smallest = np.inf
+        for i in loop(m):
+            row_probe = 0.0
+            row_smallest = np.inf
+            for j in range(n):
+                value = values[i, j]
+                row_probe += value * 0.0
+                row_smallest = min(row_smallest, value)
+            probe += row_probe
+            smallest = min(smallest, row_smallest)
+        return probe, smallest
+    return kernel
 
 
-@njit(cache=True, fastmath=_REDUCTION_MATH)
-def _probe_minimum_serial(values):
-    m, n = values.shape
-    probe = 0.0
-    smallest = np.inf
-    for i in range(m):
-        row_probe = 0.0
-        row_smallest = np.inf
-        for j in range(n):
-            value = values[i, j]
-            row_probe += value * 0.0
-            row_smallest = min(row_smallest, value)
-        probe += row_probe
-        smallest = min(smallest, row_smallest)
-    return probe, smallest
+(_probe_minimum_serial,
+ _probe_minimum_parallel) = serial_and_parallel(_make_probe_minimum, fastmath=_REDUCTION_MATH)
 
 
 @njit(cache=True)
@@ -1060,46 +994,30 @@ def finite_minimum_kernel(values):
 
 
 
-@njit(cache=True, parallel=True, fastmath=_REDUCTION_MATH)
-def _pad_masked_kernel_parallel(values, active, flat):
-    m, n = values.shape
-    stride = n + 2
-    probe = 0.0
-    squared = 0.0
-    for i in prange(m):
-        row = (i + 1) * stride + 1
-        row_probe = 0.0
-        row_squared = 0.0
-        for j in range(n):
-            value = values[i, j]
-            row_probe += value * 0.0
-            value = value if active[i, j] else 0.0
-            flat[row + j] = value
-            row_squared += value * value
-        probe += row_probe
-        squared += row_squared
-    return probe != 0.0, squared
+def _make_pad_masked_kernel(loop):
+    def kernel(values, active, flat):
+        m, n = values.shape
+        stride = n + 2
+        probe = 0.0
+        squared = 0.0
+        for i in loop(m):
+            row = (i + 1) * stride + 1
+            row_probe = 0.0
+            row_squared = 0.0
+            for j in range(n):
+                value = values[i, j]
+                row_probe += value * 0.0
+                value = value if active[i, j] else 0.0
+                flat[row + j] = value
+                row_squared += value * value
+            probe += row_probe
+            squared += row_squared
+        return probe != 0.0, squared
+    return kernel
 
 
-@njit(cache=True, fastmath=_REDUCTION_MATH)
-def _pad_masked_kernel_serial(values, active, flat):
-    m, n = values.shape
-    stride = n + 2
-    probe = 0.0
-    squared = 0.0
-    for i in range(m):
-        row = (i + 1) * stride + 1
-        row_probe = 0.0
-        row_squared = 0.0
-        for j in range(n):
-            value = values[i, j]
-            row_probe += value * 0.0
-            value = value if active[i, j] else 0.0
-            flat[row + j] = value
-            row_squared += value * value
-        probe += row_probe
-        squared += row_squared
-    return probe != 0.0, squared
+_pad_masked_kernel_serial, _pad_masked_kernel_parallel = serial_and_parallel(
+    _make_pad_masked_kernel, fastmath=_REDUCTION_MATH)
 
 
 @njit(cache=True)
@@ -1164,44 +1082,29 @@ def _load_operator_row(diagonal, weights_x, weights_y, diagonal_flat, weights_x_
     return changed, missing, weak, spread
 
 
-@njit(cache=True, parallel=True)
-def _load_operator_kernel_parallel(diagonal, weights_x, weights_y, diagonal_flat, weights_x_flat,
-                                   weights_y_flat, total_flat, inverse_flat, active, ratio):
-    m, n = diagonal.shape
-    changed = 0
-    missing = 0
-    weak = 0
-    spreads = np.empty(m)
-    for i in prange(m):
-        row_changed, row_missing, row_weak, row_spread = _load_operator_row(
-            diagonal, weights_x, weights_y, diagonal_flat, weights_x_flat, weights_y_flat,
-            total_flat, inverse_flat, active, ratio, i, m, n,
-        )
-        spreads[i] = row_spread
-        changed += row_changed
-        missing += row_missing
-        weak += row_weak
-    return changed > 0, missing == 0, weak == 0, spreads.max()
+def _make_load_operator_kernel(loop):
+    def kernel(diagonal, weights_x, weights_y, diagonal_flat, weights_x_flat, weights_y_flat,
+               total_flat, inverse_flat, active, ratio):
+        m, n = diagonal.shape
+        changed = 0
+        missing = 0
+        weak = 0
+        spreads = np.empty(m)
+        for i in loop(m):
+            row_changed, row_missing, row_weak, row_spread = _load_operator_row(
+                diagonal, weights_x, weights_y, diagonal_flat, weights_x_flat, weights_y_flat,
+                total_flat, inverse_flat, active, ratio, i, m, n,
+            )
+            spreads[i] = row_spread
+            changed += row_changed
+            missing += row_missing
+            weak += row_weak
+        return changed > 0, missing == 0, weak == 0, spreads.max()
+    return kernel
 
 
-@njit(cache=True)
-def _load_operator_kernel_serial(diagonal, weights_x, weights_y, diagonal_flat, weights_x_flat,
-                                 weights_y_flat, total_flat, inverse_flat, active, ratio):
-    m, n = diagonal.shape
-    changed = 0
-    missing = 0
-    weak = 0
-    spreads = np.empty(m)
-    for i in range(m):
-        row_changed, row_missing, row_weak, row_spread = _load_operator_row(
-            diagonal, weights_x, weights_y, diagonal_flat, weights_x_flat, weights_y_flat,
-            total_flat, inverse_flat, active, ratio, i, m, n,
-        )
-        spreads[i] = row_spread
-        changed += row_changed
-        missing += row_missing
-        weak += row_weak
-    return changed > 0, missing == 0, weak == 0, spreads.max()
+(_load_operator_kernel_serial,
+ _load_operator_kernel_parallel) = serial_and_parallel(_make_load_operator_kernel)
 
 
 @njit(cache=True)
