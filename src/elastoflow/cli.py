@@ -53,6 +53,37 @@ def _scene(name_or_path: str) -> Any:
         _fail(str(error).splitlines())
 
 
+def _build(scene: Any, steps: int | None = None) -> Any:
+    """The scene's `Simulation`, built and checked as for a run (memory, meshes, constraints,
+    geometry); problems exit 2, warnings are printed."""
+    from elastoflow.scenes import SceneError, build_simulation
+
+    warnings: list[str] = []
+    try:
+        simulation = build_simulation(scene, steps=steps, warnings=warnings)
+    except SceneError as error:
+        _fail(str(error).splitlines())
+    prefix = f"{scene.source}: " if scene.source else ""
+    for line in warnings:
+        typer.echo(f"warning: {prefix}{line}", err=True)
+    return simulation
+
+
+def _output_folder(out: Path, option: str) -> None:
+    """Exit 2 unless ``out`` is (or can be made) a folder this process can write in."""
+    import tempfile
+
+    if out.exists() and not out.is_dir():
+        _fail(f"{option} = {str(out)!r}: is a file; must be a folder (created if missing)")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryFile(dir=out):
+            pass
+    except OSError as error:
+        _fail(f"{option} = {str(out)!r}: cannot write there ({error.strerror or error}); choose "
+              "a writable folder")
+
+
 def _parse_formats(text: str | None) -> list[str] | None:
     from elastoflow.io import FIELD_FORMATS
 
@@ -118,13 +149,14 @@ def run(
     finished, a checkpoint saved) and prints how to resume.
     """
     from elastoflow.io import (
+        CheckpointError,
         OutputSession,
         apply_output_overrides,
         find_resume_checkpoint,
         load_checkpoint,
     )
     from elastoflow.render import VIEWS
-    from elastoflow.scenes import SceneError, build_simulation, step_count
+    from elastoflow.scenes import SceneError, step_count
 
     chosen = _scene(scene)
     if view is not None and view not in VIEWS:
@@ -135,12 +167,13 @@ def run(
     )
     out_dir = out if out is not None else Path("out") / chosen.name
     try:
-        total = steps if steps is not None else step_count(chosen)
-        simulation = build_simulation(chosen)
+        # The scene's own length is checked even when --steps replaces it.
+        scene_steps = step_count(chosen)
+        total = steps if steps is not None else scene_steps
     except SceneError as error:
         _fail(str(error).splitlines())
-    except ValueError as error:
-        _fail(f"cannot build scene {chosen.name!r}: {error}")
+    simulation = _build(chosen, total)
+    _output_folder(out_dir, "--out" if out is not None else "output folder")
 
     resumed = False
     if resume:
@@ -149,8 +182,11 @@ def run(
             _fail(f"--resume: no checkpoint in {out_dir / 'checkpoints'}")
         try:
             load_checkpoint(checkpoint, simulation)
-        except (ValueError, KeyError, OSError) as error:
-            _fail(f"--resume: checkpoint {checkpoint} does not fit this scene: {error}")
+        except CheckpointError as error:
+            older = sorted((out_dir / "checkpoints").glob("checkpoint_*.npz"))[:-1]
+            advice = (f"; move it away to resume from {older[-1].name}" if older else
+                      "; run again without --resume to start over")
+            _fail(f"--resume: {error}{advice}")
         resumed = True
         typer.echo(f"resuming from {checkpoint} (step {simulation.step_index}, "
                    f"t = {simulation.time:.4g} s)")
@@ -158,7 +194,11 @@ def run(
         typer.echo(f"nothing to do: already at step {simulation.step_index} of {total}")
         return
 
-    session = OutputSession(chosen, simulation, out_dir, resumed=resumed)
+    try:
+        session = OutputSession(chosen, simulation, out_dir, resumed=resumed)
+    except OSError as error:
+        _fail(f"--out = {str(out_dir)!r}: cannot write the outputs there "
+              f"({error.strerror or error}: {error.filename or ''})")
     failure: BaseException | None = None
     stopped = False
     mid_step = False
@@ -236,17 +276,23 @@ def list_command() -> None:
 def validate(
     scene: Annotated[str, typer.Argument(help="Scene TOML file (or built-in name).")],
 ) -> None:
-    """Check a scene file: prints one line per problem (exit 2) or a summary (exit 0)."""
-    from elastoflow.scenes import SceneError, step_count, time_step
+    """Check a scene: builds everything a run builds (memory estimate, meshes, obstacles,
+    constraints, geometry checks) short of stepping. Prints one line per problem (exit 2) or a
+    summary (exit 0); warnings go to stderr."""
+    from elastoflow.scenes import SceneError, memory_estimate, step_count, time_step
 
     chosen = _scene(scene)
     try:
         dt, steps = time_step(chosen), step_count(chosen)
     except SceneError as error:
         _fail(str(error).splitlines())
+    simulation = _build(chosen, steps)
     nx, ny = chosen.domain.cells
-    typer.echo(f"ok: {chosen.name}: {nx}x{ny} cells, {len(chosen.bodies)} bodies, "
-               f"{len(chosen.obstacles)} obstacles, dt = {dt:.4g} s, {steps} steps")
+    elements = sum(body.mesh.triangle_count for body in simulation.bodies)
+    memory = memory_estimate(chosen)[0] / 2**20
+    typer.echo(f"ok: {chosen.name}: {nx}x{ny} cells, {len(chosen.bodies)} bodies "
+               f"({elements} elements), {len(chosen.obstacles)} obstacles, dt = {dt:.4g} s, "
+               f"{steps} steps, about {memory:.0f} MB of memory")
 
 
 @app.command()
@@ -263,7 +309,12 @@ def dump(
     if output is None:
         typer.echo(text, nl=False)
     else:
-        write_text_atomic(output, text)
+        if output.is_dir():
+            _fail(f"--output = {str(output)!r}: is a folder; must name a file")
+        try:
+            write_text_atomic(output, text)
+        except OSError as error:
+            _fail(f"--output = {str(output)!r}: cannot write it ({error.strerror or error})")
         typer.echo(f"wrote {output}")
 
 
@@ -307,7 +358,14 @@ def render(
     if not any(folder.glob("step_*.npz")):
         _fail(f"{folder}: no step_*.npz snapshots (run with --fields npz)")
     target = output if output is not None else out_dir / f"render_{view}.mp4"
-    written, count = render_saved_frames(folder, target, view=view, fps=fps)
+    if target.is_dir():
+        _fail(f"--output = {str(target)!r}: is a folder; must name a video file")
+    try:
+        written, count = render_saved_frames(folder, target, view=view, fps=fps)
+    except ValueError as error:
+        _fail(str(error))
+    except OSError as error:
+        _fail(f"cannot write {target} ({error.strerror or error})")
     typer.echo(f"wrote {written} ({count} frames)")
 
 
@@ -323,13 +381,8 @@ def bench(
 
     if scene is None and importlib.util.find_spec("benchmarks") is not None:
         raise typer.Exit(subprocess.call([sys.executable, "-m", "benchmarks"]))
-    from elastoflow.scenes import SceneError, build_simulation
-
     chosen = _scene(scene or "bar_in_jet")
-    try:
-        simulation = build_simulation(chosen)
-    except SceneError as error:
-        _fail(str(error).splitlines())
+    simulation = _build(chosen, steps + 1)
     simulation.step()  # compile the kernels outside the timing
     began = _time.perf_counter()
     phases: dict[str, float] = {}

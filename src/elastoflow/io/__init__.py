@@ -8,9 +8,11 @@ this package.
 
 from elastoflow.io._atomic import atomic_path, write_bytes_atomic, write_text_atomic
 from elastoflow.io._checkpoint import (
+    CheckpointError,
     checkpoint_path,
     latest_checkpoint,
     load_checkpoint,
+    read_checkpoint,
     save_checkpoint,
 )
 from elastoflow.io._fields import FIELD_FORMATS, FieldWriter, saved_frames, snapshot_arrays
@@ -31,6 +33,7 @@ from elastoflow.io._session import (
 
 __all__ = [
     "FIELD_FORMATS",
+    "CheckpointError",
     "FieldWriter",
     "OutputSession",
     "ProbeRecorder",
@@ -44,6 +47,7 @@ __all__ = [
     "latest_checkpoint",
     "load_checkpoint",
     "plot_probes",
+    "read_checkpoint",
     "read_probes",
     "save_checkpoint",
     "saved_frames",

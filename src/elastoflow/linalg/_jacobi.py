@@ -60,13 +60,13 @@ class PoissonSolverJacobi:
             the report.
         """
         _output(out, operator.shape)
-        b, null_space = _compatible_rhs(operator, rhs)
+        b, null_space, incompatible = _compatible_rhs(operator, rhs)
         x = _initial_guess(operator, x0, null_space.active)
         norm_b = float(np.sqrt(sum_of_squares_kernel(b)))
         if norm_b == 0.0:
             x = _output(out, operator.shape)
             x[...] = 0.0
-            return x, SolveReport(0, 0.0, True)
+            return x, SolveReport(0, 0.0, incompatible <= self.rtol, incompatible)
         iterations, squared = jacobi_kernel(
             operator.diagonal, operator.weights_x, operator.weights_y, b, x, np.empty_like(x),
             self.omega, (self.rtol * norm_b) ** 2, self.max_iterations,
@@ -76,5 +76,6 @@ class PoissonSolverJacobi:
             out[...] = x
             x = out
         relative = float(np.sqrt(squared)) / norm_b
-        return x, SolveReport(iterations, relative, relative <= self.rtol)
+        return x, SolveReport(iterations, relative,
+                              relative <= self.rtol and incompatible <= self.rtol, incompatible)
 

@@ -127,7 +127,8 @@ def label_components_kernel(diagonal, weights_x, weights_y, active, labels):
 
 @njit(cache=True)
 def remove_component_means_kernel(x, labels, singular, count):
-    """Subtract, on every singular component, the mean of ``x`` over that component."""
+    """Subtract, on every singular component, the mean of ``x`` over that component; returns
+    the squared 2-norm of what was removed (``sum over components of size * mean^2``)."""
     m, n = x.shape
     sums = np.zeros(count)
     sizes = np.zeros(count)
@@ -137,14 +138,17 @@ def remove_component_means_kernel(x, labels, singular, count):
             if c >= 0 and singular[c]:
                 sums[c] += x[i, j]
                 sizes[c] += 1.0
+    removed = 0.0
     for c in range(count):
         if sizes[c] > 0.0:
             sums[c] /= sizes[c]
+            removed += sizes[c] * sums[c] * sums[c]
     for i in range(m):
         for j in range(n):
             c = labels[i, j]
             if c >= 0 and singular[c]:
                 x[i, j] -= sums[c]
+    return removed
 
 
 @njit(cache=True, inline="always")

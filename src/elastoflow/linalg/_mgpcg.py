@@ -22,7 +22,7 @@ from elastoflow.linalg._kernels import (
     unpad_values_kernel,
 )
 from elastoflow.linalg._operator import Operator5Point, SolveReport
-from elastoflow.linalg._problem import _analyse, _NullSpace, _output
+from elastoflow.linalg._problem import _analyse, _NullSpace, _output, incompatibility
 
 _COARSEST_SIZE = 32
 # Smallest ratio of diagonal term to sum of weights, over all points, for which the
@@ -229,16 +229,18 @@ class PoissonSolverMGPCG:
         bad, squared_b = pad_masked_kernel(rhs, null_space.active, hierarchy.b)
         if bad:
             raise ValueError("rhs: values must be finite; got NaN or inf")
+        incompatible = 0.0
         if null_space.has_singular:
             unpad_values_kernel(hierarchy.b, hierarchy.values)
-            null_space.remove_means(hierarchy.values)
+            removed = null_space.remove_means(hierarchy.values)
+            incompatible = incompatibility(removed, float(np.sqrt(squared_b)))
             pad_values_kernel(hierarchy.values, hierarchy.b)
             squared_b = sum_of_squares_kernel(hierarchy.values)
         norm_b = float(np.sqrt(squared_b))
         if norm_b == 0.0:
             x = _output(out, operator.shape)
             x[...] = 0.0
-            return x, SolveReport(0, 0.0, True)
+            return x, SolveReport(0, 0.0, incompatible <= self.rtol, incompatible)
         if x0 is None:
             hierarchy.x[:] = 0.0
         elif pad_masked_kernel(x0, null_space.active, hierarchy.x)[0]:
@@ -266,4 +268,5 @@ class PoissonSolverMGPCG:
         unpad_values_kernel(solution, x)
         null_space.remove_means(x)
         relative = float(np.sqrt(squared)) / norm_b
-        return x, SolveReport(int(iterations), relative, relative <= self.rtol)
+        return x, SolveReport(int(iterations), relative,
+                              relative <= self.rtol and incompatible <= self.rtol, incompatible)

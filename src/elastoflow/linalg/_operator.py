@@ -19,12 +19,19 @@ class SolveReport:
         residual: Final true relative residual ``|b - A x| / |b|`` (2-norm), where ``b`` is the
             right-hand side after inactive points are zeroed and singular components are made
             compatible. 0 when ``b`` is 0.
-        converged: Whether ``residual <= rtol``.
+        converged: Whether ``residual <= rtol`` and ``incompatibility <= rtol``: the returned
+            ``x`` solves the system as given to within ``rtol``, not only its compatible part.
+        incompatibility: ``|b0 - b| / |b0|``, the share of the given right-hand side ``b0``
+            (on the active points) that lay in the null space of a singular component and was
+            removed: round-off size for a consistent problem (a closed box with zero net flux),
+            large for an ill-posed one (net inflow into a closed box), whose solution then
+            does not satisfy the system as given. 0 for a non-singular operator.
     """
 
     iterations: int
     residual: float
     converged: bool
+    incompatibility: float = 0.0
 
 
 @dataclass(frozen=True)

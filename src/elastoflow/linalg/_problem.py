@@ -29,11 +29,14 @@ class _NullSpace:
     def has_singular(self) -> bool:
         return self.singular is not None and bool(self.singular.any())
 
-    def remove_means(self, x: NDArray[np.float64]) -> None:
-        """Make ``x`` zero-mean on every singular component (in place)."""
+    def remove_means(self, x: NDArray[np.float64]) -> float:
+        """Make ``x`` zero-mean on every singular component (in place); returns the 2-norm of
+        what was removed."""
         if self.has_singular:
             assert self.labels is not None and self.singular is not None
-            remove_component_means_kernel(x, self.labels, self.singular, self.count)
+            removed = remove_component_means_kernel(x, self.labels, self.singular, self.count)
+            return float(np.sqrt(removed))
+        return 0.0
 
 
 def _analyse(
@@ -62,8 +65,9 @@ def _analyse(
 
 def _compatible_rhs(
     operator: Operator5Point, rhs: NDArray[np.float64]
-) -> tuple[NDArray[np.float64], _NullSpace]:
-    """Copy of ``rhs`` zeroed at inactive points and zero-mean on singular components."""
+) -> tuple[NDArray[np.float64], _NullSpace, float]:
+    """Copy of ``rhs`` zeroed at inactive points and zero-mean on singular components, and its
+    incompatibility (see `incompatibility`)."""
     rhs = np.asarray(rhs, dtype=np.float64)
     if rhs.shape != operator.shape:
         raise ValueError(f"rhs: shape {rhs.shape} is not allowed; expected {operator.shape}")
@@ -71,8 +75,16 @@ def _compatible_rhs(
         raise ValueError("rhs: values must be finite; got NaN or inf")
     null_space = _analyse(operator)
     b = np.where(null_space.active, rhs, 0.0)
-    null_space.remove_means(b)
-    return b, null_space
+    norm = float(np.linalg.norm(b))
+    removed = null_space.remove_means(b)
+    return b, null_space, incompatibility(removed, norm)
+
+
+def incompatibility(removed: float, norm: float) -> float:
+    """``|removed| / |b|``: the share of the right-hand side ``b`` (2-norm, on the active
+    points) that lay in the null space of a singular operator and was removed to solve; 0 when
+    ``b`` is 0."""
+    return removed / norm if norm > 0.0 else 0.0
 
 
 def _initial_guess(

@@ -24,10 +24,12 @@ def render_saved_frames(folder: str | Path, output: str | Path, *, view: str = "
     low, high = np.inf, -np.inf
     snapshots = []
     for path in paths:
-        with np.load(path) as archive:
-            data = {key: archive[key] for key in archive.files}
+        data = _read_snapshot(path)
         nx, ny = data["pressure"].shape
-        grid = Grid2D(nx=nx, ny=ny, h=float(data["h"]), origin=tuple(data["origin"]))
+        try:
+            grid = Grid2D(nx=nx, ny=ny, h=float(data["h"]), origin=tuple(data["origin"]))
+        except (ValueError, TypeError) as error:
+            raise ValueError(f"field snapshot {path} is damaged: {error}") from None
         state = SimpleNamespace(velocity_x=data["velocity_x"], velocity_y=data["velocity_y"],
                                 pressure=data["pressure"], dye=data["dye"])
         a, b = default_value_range(view_values(grid, state, view), view)
@@ -42,3 +44,26 @@ def render_saved_frames(folder: str | Path, output: str | Path, *, view: str = "
             video.append(render_frame(grid, state, bodies, obstacles, view, float(data["time"]),
                                       value_range=(low, high)))
     return video.path, len(snapshots)
+
+
+_SNAPSHOT_KEYS = ("velocity_x", "velocity_y", "pressure", "dye", "h", "origin", "time")
+
+
+def _read_snapshot(path: Path) -> dict[str, np.ndarray]:
+    """Every array of one saved ``step_*.npz``, read in full.
+
+    Raises:
+        ValueError: The file is empty, truncated, corrupt or not a field snapshot (the message
+            names it).
+    """
+    try:
+        with np.load(path, allow_pickle=False) as archive:
+            data = {key: np.array(archive[key]) for key in archive.files}
+    except Exception as error:  # noqa: BLE001 - numpy/zipfile fail with many exception types
+        raise ValueError(f"field snapshot {path} is damaged (truncated or corrupt: "
+                         f"{type(error).__name__}: {error}); delete it and render again") from None
+    missing = [key for key in _SNAPSHOT_KEYS if key not in data]
+    if missing or data["pressure"].ndim != 2:
+        raise ValueError(f"field snapshot {path} is not a complete elastoflow snapshot (missing "
+                         f"{', '.join(missing) or 'a 2D pressure'})")
+    return data

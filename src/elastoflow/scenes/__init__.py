@@ -7,6 +7,7 @@ A scene file is TOML with one table per model (``[domain]``, ``[fluid]``, ``[bou
 """
 
 from elastoflow.scenes._build import (
+    SceneWarning,
     build_fluid_solver,
     build_grid,
     build_simulation,
@@ -16,6 +17,7 @@ from elastoflow.scenes._build import (
     step_count,
     time_step,
 )
+from elastoflow.scenes._checks import available_memory, memory_estimate
 from elastoflow.scenes._errors import SceneError
 from elastoflow.scenes._library import get_scene, list_scenes
 from elastoflow.scenes._schema import (
@@ -56,8 +58,10 @@ __all__ = [
     "RigidMotionSpec",
     "Scene",
     "SceneError",
+    "SceneWarning",
     "TimeSpec",
     "VideoSpec",
+    "available_memory",
     "build_fluid_solver",
     "build_grid",
     "build_simulation",
@@ -65,6 +69,7 @@ __all__ = [
     "get_scene",
     "list_scenes",
     "load_scene",
+    "memory_estimate",
     "obstacle_polygon",
     "parse_scene",
     "resolve_scene",

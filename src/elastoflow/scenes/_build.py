@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import contextlib
+import io
 import math
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -53,15 +55,37 @@ def time_step(scene: Scene) -> float:
         raise SceneError([(
             f"time.cfl = {scene.time.cfl}: needs a characteristic speed (inflow, moving wall or "
             "jet); this scene has none, give time.dt instead"
-        )])
-    return float(scene.time.cfl) * scene.domain.cell_size / speed  # type: ignore[arg-type]
+        )], scene.source)
+    dt = float(scene.time.cfl) * scene.domain.cell_size / speed  # type: ignore[arg-type]
+    if not (dt > 0.0 and math.isfinite(dt)):
+        raise SceneError([(f"time.cfl = {scene.time.cfl}: gives dt = {dt!r} s with cell side "
+                          f"{scene.domain.cell_size:g} m and speed {speed:g} m/s; the time step "
+                          "must be a finite positive number, give time.dt instead")], scene.source)
+    return dt
+
+
+MAX_STEPS = 10**12
+"""Most fluid steps of one run (a million years at a million steps per second)."""
 
 
 def step_count(scene: Scene) -> int:
-    """Number of fluid steps of the whole run: ``time.steps`` or ``ceil(duration / dt)``."""
+    """Number of fluid steps of the whole run: ``time.steps`` or ``ceil(duration / dt)``.
+
+    Raises:
+        SceneError: More than `MAX_STEPS` steps.
+    """
+    if scene.time.steps is not None:
+        count = float(scene.time.steps)
+        key = f"time.steps = {scene.time.steps}"
+    else:
+        count = float(scene.time.duration) / time_step(scene)  # type: ignore[arg-type]
+        key = f"time.duration = {scene.time.duration:g}"
+    if not count <= MAX_STEPS:
+        raise SceneError([(f"{key}: makes {count:.3g} steps of dt = {time_step(scene):.3g} s, "
+                          f"more than {MAX_STEPS:.0e}")], scene.source)
     if scene.time.steps is not None:
         return scene.time.steps
-    return max(1, math.ceil(float(scene.time.duration) / time_step(scene) - 1e-9))  # type: ignore[arg-type]
+    return max(1, math.ceil(count - 1e-9))
 
 
 def build_grid(scene: Scene) -> Grid2D:
@@ -121,6 +145,8 @@ def obstacle_polygon(spec: Any) -> np.ndarray:
         return np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]], dtype=np.float64)
     if isinstance(spec, PolygonObstacleSpec):
         polygon = np.asarray(spec.points, dtype=np.float64)
+        if len(polygon) > 3 and np.array_equal(polygon[0], polygon[-1]):
+            polygon = polygon[:-1]
         x, y = polygon[:, 0], polygon[:, 1]
         if np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y) < 0.0:
             polygon = polygon[::-1].copy()
@@ -129,18 +155,26 @@ def obstacle_polygon(spec: Any) -> np.ndarray:
 
 
 def build_obstacles(scene: Scene) -> list[Any]:
+    """The scene's obstacles (`elastoflow.coupling.Obstacle`), in order.
+
+    Raises:
+        SceneError: An outline the coupling layer refuses (named by its key path).
+    """
     from elastoflow import coupling
 
     obstacles = []
-    for spec in scene.obstacles:
+    for index, spec in enumerate(scene.obstacles):
         motion = None
-        if spec.motion is not None:
-            motion = coupling.RigidMotion(
-                velocity=spec.motion.velocity,
-                angular_velocity=spec.motion.angular_velocity,
-                center=spec.motion.center,
-            )
-        obstacles.append(coupling.Obstacle(obstacle_polygon(spec), motion=motion))
+        try:
+            if spec.motion is not None:
+                motion = coupling.RigidMotion(
+                    velocity=spec.motion.velocity,
+                    angular_velocity=spec.motion.angular_velocity,
+                    center=spec.motion.center,
+                )
+            obstacles.append(coupling.Obstacle(obstacle_polygon(spec), motion=motion))
+        except ValueError as error:
+            raise SceneError([f"obstacles.{index}: {error}"], scene.source) from None
     return obstacles
 
 
@@ -160,18 +194,59 @@ def build_mesh(body: BodySpec, base_dir: str | None = None) -> Any:
     if isinstance(shape, PolygonShapeSpec):
         return solid.mesh_from_polygon(np.asarray(shape.points, float), element_size=shape.element_size)
     if isinstance(shape, MeshFileShapeSpec):
-        path = Path(shape.path)
-        if not path.is_absolute() and base_dir is not None:
-            path = Path(base_dir) / path
-        if not path.exists():
-            raise SceneError([f"shape.path = {shape.path!r}: mesh file not found ({path})"])
-        mesh = solid.read_mesh(path)
-        points = mesh.points * shape.scale + np.asarray(shape.offset, float)
-        return solid.TriangleMesh(points, mesh.triangles)
+        return _read_mesh_file(shape, base_dir)
     raise TypeError(f"unknown body shape {type(shape).__name__}")
 
 
+def _read_mesh_file(shape: MeshFileShapeSpec, base_dir: str | None) -> Any:
+    """The mesh of a ``type = "mesh"`` shape, scaled and moved; every failure of the file (not
+    there, a folder, an unknown format, damaged, not a valid triangle mesh) as a SceneError
+    naming ``shape.path``."""
+    import meshio
+
+    from elastoflow import solid
+
+    path = Path(shape.path)
+    if not path.is_absolute() and base_dir is not None:
+        path = Path(base_dir) / path
+    key = f"shape.path = {shape.path!r}"
+    if not path.exists():
+        raise SceneError([f"{key}: mesh file not found ({path})"])
+    if not path.is_file():
+        raise SceneError([f"{key}: {path} is not a file (a folder?); must name a mesh file"])
+    known = meshio.extension_to_filetypes
+    suffixes = "".join(path.suffixes[-2:]).lower()
+    if path.suffix.lower() not in known and suffixes not in known:
+        raise SceneError([(f"{key}: unknown mesh format {path.suffix or '(no extension)'!r}; "
+                          "allowed: a file meshio reads, e.g. .msh, .vtu, .vtk, .obj, .ply, "
+                          ".off, .stl, .xdmf")])
+    chatter = io.StringIO()
+    try:
+        # Some meshio readers print their complaint and call sys.exit.
+        with contextlib.redirect_stdout(chatter), contextlib.redirect_stderr(chatter):
+            mesh = solid.read_mesh(path)
+    except ValueError as error:
+        raise SceneError([f"{key}: not a valid triangle mesh: {error}"]) from None
+    except (Exception, SystemExit) as error:  # noqa: BLE001 - meshio fails with any type
+        detail = " ".join(chatter.getvalue().split()) or str(error) or type(error).__name__
+        raise SceneError([(f"{key}: cannot read the mesh file ({type(error).__name__}: "
+                           f"{detail}); it may be damaged or not in the format its extension "
+                           "says")]) from None
+    points = mesh.points * shape.scale + np.asarray(shape.offset, float)
+    try:
+        return solid.TriangleMesh(points, mesh.triangles)
+    except ValueError as error:
+        raise SceneError([(f"shape.scale = {shape.scale:g}: the scaled mesh is not valid: "
+                          f"{error}")]) from None
+
+
 def build_bodies(scene: Scene) -> list[Any]:
+    """The scene's elastic bodies (`elastoflow.solid.ElasticBody`), in order, at rest.
+
+    Raises:
+        SceneError: A shape that cannot be meshed or read, a constraint that selects no node or
+            a node the mesh does not have (named by its key path).
+    """
     from elastoflow import solid
 
     bodies = []
@@ -179,14 +254,19 @@ def build_bodies(scene: Scene) -> list[Any]:
         try:
             mesh = build_mesh(spec, scene.base_dir)
         except SceneError as error:
-            raise SceneError([f"bodies.{index}.{p}" for p in error.problems]) from None
+            raise SceneError([f"bodies.{index}.{p}" for p in error.problems],
+                             scene.source) from None
         except ValueError as error:
-            raise SceneError([f"bodies.{index}.shape: cannot mesh: {error}"]) from None
+            raise SceneError([(f"bodies.{index}.shape = {spec.shape.type}: cannot mesh it: "
+                              f"{error}")], scene.source) from None
         m = spec.material
-        material = solid.MaterialStVK(
-            density=m.density, young_modulus=m.young_modulus, poisson_ratio=m.poisson_ratio,
-            damping_lambda=m.damping_lambda, damping_mu=m.damping_mu, plane=m.plane,
-        )
+        try:
+            material = solid.MaterialStVK(
+                density=m.density, young_modulus=m.young_modulus, poisson_ratio=m.poisson_ratio,
+                damping_lambda=m.damping_lambda, damping_mu=m.damping_mu, plane=m.plane,
+            )
+        except ValueError as error:
+            raise SceneError([f"bodies.{index}.material: {error}"], scene.source) from None
         fixed: np.ndarray = np.zeros(0, dtype=np.int64)
         if spec.fixed is not None:
             parts = [np.asarray(spec.fixed.nodes, dtype=np.int64)]
@@ -194,41 +274,89 @@ def build_bodies(scene: Scene) -> list[Any]:
                 in_box = solid.nodes_in_box(mesh, spec.fixed.box)
                 if in_box.size == 0:
                     raise SceneError([(f"bodies.{index}.fixed.box = {list(spec.fixed.box)}: "
-                                       "contains no node of the body's mesh")])
+                                       "contains no node of the body's mesh")], scene.source)
                 parts.append(in_box)
             fixed = np.unique(np.concatenate(parts))
             if fixed.size and fixed.max() >= mesh.points.shape[0]:
                 raise SceneError([(f"bodies.{index}.fixed.nodes = {spec.fixed.nodes}: the mesh "
-                                   f"has nodes 0..{mesh.points.shape[0] - 1}")])
+                                   f"has nodes 0..{mesh.points.shape[0] - 1}")], scene.source)
         pivot = None if spec.pivot is None else solid.nearest_node(mesh, spec.pivot)
-        bodies.append(solid.ElasticBody(
-            mesh, material, fixed_nodes=fixed, pivot_node=pivot, gravity=scene.fluid.gravity,
-        ))
+        try:
+            bodies.append(solid.ElasticBody(
+                mesh, material, fixed_nodes=fixed, pivot_node=pivot, gravity=scene.fluid.gravity,
+            ))
+        except ValueError as error:
+            raise SceneError([f"bodies.{index}: {error}"], scene.source) from None
     return bodies
 
 
-def build_simulation(scene: Scene) -> Simulation:
+def build_simulation(scene: Scene, *, steps: int | None = None,
+                     warnings: list[str] | None = None) -> Simulation:
     """The ready-to-step `Simulation` of ``scene`` (fluid at rest, bodies at their rest shape).
 
+    Everything a run needs is built and checked here, so that a scene that builds only fails
+    later by its physics: first the memory the run needs against the memory available (before
+    anything large is allocated), then the meshes, obstacles and constraints, then the
+    geometry (`elastoflow.scenes._checks.check_built`: bodies and obstacles inside the domain
+    and apart, bodies resolved by the grid, jets in the fluid, pivots and probes on their
+    bodies, moving obstacles inside the domain for the whole run).
+
+    Args:
+        scene: The scene.
+        steps: Fluid steps the run will take (default: the scene's); moving obstacles must stay
+            inside the domain until then.
+        warnings: A list that receives one line per warning (a body only a few cells across);
+            None issues them as `SceneWarning`.
+
     Raises:
-        SceneError: Something only visible when building (a mesh file that is missing, a
-            fixed box that holds no node, a cfl without a characteristic speed).
+        SceneError: Everything found, one line per problem naming the key path, the value and
+            what is allowed.
     """
+    from elastoflow.scenes._checks import check_built, check_memory
     from elastoflow.simulation import Simulation
 
+    problems = check_memory(scene)
+    if problems:
+        raise SceneError(problems, scene.source)
+    dt = time_step(scene)
+    total = step_count(scene) if steps is None else steps
     grid = build_grid(scene)
-    return Simulation(
-        grid,
-        build_fluid_solver(scene, grid),
-        bodies=build_bodies(scene),
-        obstacles=build_obstacles(scene),
-        dt=time_step(scene),
-        substeps=scene.time.substeps,
-        force_model=scene.coupling.force_model,
-        alpha=scene.coupling.alpha,
-        force_relaxation=scene.coupling.force_relaxation,
-        added_mass=scene.coupling.added_mass,
-    )
+    bodies = build_bodies(scene)
+    obstacles = build_obstacles(scene)
+    problems, found = check_built(scene, grid, [b.mesh for b in bodies], obstacles,
+                                  steps=total, dt=dt)
+    if problems:
+        raise SceneError(problems, scene.source)
+    if warnings is not None:
+        warnings.extend(found)
+    else:
+        import warnings as _warnings
+
+        for line in found:
+            _warnings.warn(line, SceneWarning, stacklevel=2)
+    try:
+        fluid_solver = build_fluid_solver(scene, grid)
+    except ValueError as error:
+        raise SceneError([f"fluid: {error}"], scene.source) from None
+    try:
+        return Simulation(
+            grid,
+            fluid_solver,
+            bodies=bodies,
+            obstacles=obstacles,
+            dt=dt,
+            substeps=scene.time.substeps,
+            force_model=scene.coupling.force_model,
+            alpha=scene.coupling.alpha,
+            force_relaxation=scene.coupling.force_relaxation,
+            added_mass=scene.coupling.added_mass,
+        )
+    except ValueError as error:
+        raise SceneError([f"time or coupling: {error}"], scene.source) from None
+
+
+class SceneWarning(UserWarning):
+    """A scene that runs but may give poor results (a body only a few cells across)."""
 
 
 def resolve_scene(name_or_path: str) -> Scene:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import types
 import typing
 from collections.abc import Sequence
@@ -69,38 +70,112 @@ def _tag(model: type[BaseModel]) -> str | None:
     return None
 
 
+def _is_key(loc: tuple[Any, ...], position: int) -> bool:
+    """Whether ``loc[position]`` is a key of the file, not a label pydantic adds: the tag of a
+    discriminated union (``circle``) or the member of a plain union (``constrained-int``,
+    ``literal['auto']``)."""
+    key = loc[position]
+    if not isinstance(key, str):
+        return True
+    models = [t for t in _types_at(loc[:position])
+              if isinstance(t, type) and issubclass(t, BaseModel)]
+    return bool(models) and not any(_tag(m) == key for m in models)
+
+
 def _path(loc: tuple[Any, ...]) -> str:
-    """Dotted key path as the user wrote it: discriminated unions add their tag to pydantic's
-    location, which is not a key in the file."""
-    kept: list[str] = []
-    for position, key in enumerate(loc):
-        if isinstance(key, str):
-            candidates = _types_at(loc[:position])
-            if any(isinstance(t, type) and issubclass(t, BaseModel) and _tag(t) == key
-                   for t in candidates):
-                continue
-        kept.append(str(key))
+    """Dotted key path as the user wrote it (pydantic's labels for union members left out)."""
+    kept = [str(key) for position, key in enumerate(loc) if _is_key(loc, position)]
     return ".".join(kept) or "(scene)"
 
 
+def _member(loc: tuple[Any, ...]) -> str | None:
+    """The label of the plain-union member an error belongs to, if any."""
+    labels = [key for position, key in enumerate(loc) if not _is_key(loc, position)
+              and isinstance(key, str) and not any(
+                  _tag(t) == key for t in _types_at(loc[:position])
+                  if isinstance(t, type) and issubclass(t, BaseModel))]
+    return labels[-1] if labels else None
+
+
 def _show(value: Any) -> str:
-    text = repr(value)
+    """The value as it is spelled in TOML (shortened)."""
+    text = _toml_spelling(value)
     return text if len(text) <= 60 else text[:57] + "..."
 
 
+def _toml_spelling(value: Any) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, float):
+        return "nan" if math.isnan(value) else repr(value)
+    if isinstance(value, list | tuple):
+        return "[" + ", ".join(_toml_spelling(v) for v in value) + "]"
+    if isinstance(value, dict):
+        return "{ " + ", ".join(f"{k} = {_toml_spelling(v)}" for k, v in value.items()) + " }"
+    return repr(value)
+
+
+# What pydantic's type errors mean in the words of a TOML file.
+_TYPE_WORDS = {
+    "int_type": "an integer",
+    "int_from_float": "an integer",
+    "float_type": "a number",
+    "string_type": "a string",
+    "bool_type": "true or false",
+    "model_type": "a table",
+    "model_attributes_type": "a table",
+    "dict_type": "a table",
+    "list_type": "an array",
+    "tuple_type": "an array",
+    "finite_number": "a finite number",
+}
+
+
+def _allowed(item: Any, member: str | None) -> str:
+    """What is allowed, as the tail of ``must be ...``."""
+    kind = item["type"]
+    if kind in _TYPE_WORDS:
+        return _TYPE_WORDS[kind]
+    message = item["msg"].removeprefix("Value error, ")
+    if kind == "too_short":
+        return message.split(" after validation")[0].replace("List should", "must").replace(
+            "Tuple should", "must")
+    phrase = message.removeprefix("Input should be ")
+    if phrase == message:
+        return message
+    if member is not None and member.startswith("constrained-int"):
+        phrase = f"an integer {phrase}"
+    return phrase
+
+
 def format_validation_error(error: ValidationError) -> list[str]:
-    """One line per pydantic error: ``key.path = value: what is allowed``."""
-    lines = []
+    """One line per problem: ``key.path = value: what is allowed``.
+
+    The alternatives of a union (``substeps``: an integer or "auto") make one line.
+    """
+    lines: list[str] = []
+    union: dict[str, tuple[Any, list[str]]] = {}
     for item in error.errors(include_url=False):
         loc = tuple(item["loc"])
         path = _path(loc)
         kind = item["type"]
-        if kind == "extra_forbidden":
+        member = _member(loc)
+        if member is not None:
+            if path not in union:
+                union[path] = (item.get("input"), [])
+                lines.append(path)  # placeholder, filled below
+            union[path][1].append(_allowed(item, member))
+        elif kind == "extra_forbidden":
             parent = _model_at(loc[:-1])
             allowed = ", ".join(parent.model_fields) if parent else "see the documentation"
             lines.append(f"{path}: unknown key (allowed keys: {allowed})")
+        elif kind == "missing" and loc and isinstance(loc[-1], int):
+            parent_path = _path(loc[:-1])
+            lines.append(f"{parent_path}: too few items (item {loc[-1]} is missing)")
         elif kind == "missing":
             lines.append(f"{path}: missing (required)")
+        elif kind == "too_long":
+            lines.append(f"{path} = {_show(item.get('input'))}: too many items")
         elif kind == "union_tag_invalid":
             ctx = item.get("ctx", {})
             lines.append(
@@ -111,9 +186,15 @@ def format_validation_error(error: ValidationError) -> list[str]:
             ctx = item.get("ctx", {})
             lines.append(f"{path}: missing key {ctx.get('discriminator', 'type')}")
         else:
-            message = item["msg"]
-            message = message.removeprefix("Value error, ").replace("Input should be", "must be")
-            lines.append(f"{path} = {_show(item.get('input'))}: {message}")
+            allowed = _allowed(item, None)
+            if kind in _TYPE_WORDS or item["msg"].startswith("Input should be "):
+                allowed = f"must be {allowed}"
+            lines.append(f"{path} = {_show(item.get('input'))}: {allowed}")
+    for index, line in enumerate(lines):
+        if line in union:
+            value, alternatives = union[line]
+            unique = list(dict.fromkeys(alternatives))
+            lines[index] = f"{line} = {_show(value)}: must be {' or '.join(unique)}"
     return lines
 
 
@@ -128,8 +209,11 @@ def _inside(bounds: tuple[float, float, float, float], lx: float, ly: float) -> 
 
 
 def check_scene(scene: Scene) -> list[str]:
-    """Cross-field problems pydantic cannot see: geometry outside the domain, bad references."""
-    problems: list[str] = []
+    """Cross-field problems pydantic cannot see: geometry outside the domain, bad references,
+    polygons that are not simple, a closed domain whose inflows do not balance."""
+    from elastoflow.scenes._checks import check_flow, check_outlines
+
+    problems: list[str] = check_flow(scene) + check_outlines(scene)
     lx, ly = scene.domain.lx, scene.domain.ly
     allowed = f"must lie inside the domain [0, {lx:g}] x [0, {ly:g}]"
     for index, obstacle in enumerate(scene.obstacles):

@@ -1,11 +1,15 @@
 """The scene description: pydantic models, one per TOML table.
 
 Every model forbids unknown keys, so a typo is an error rather than a silently ignored setting.
-Lengths in metres, times in seconds, densities in kg/m^3, moduli in Pa.
+Values are taken as written, never converted: a number must be a TOML number (``nx = "256"``
+and ``lx = true`` are refused; an integer is accepted where a float is expected), and every
+float must be finite (``inf`` and ``nan`` are refused). Lengths in metres, times in seconds,
+densities in kg/m^3, moduli in Pa.
 """
 
 from __future__ import annotations
 
+import math
 from typing import Annotated, Any, Literal
 
 from pydantic import (
@@ -15,21 +19,33 @@ from pydantic import (
     NonNegativeFloat,
     PositiveFloat,
     PositiveInt,
+    Strict,
+    field_validator,
     model_validator,
 )
 
-Point = tuple[float, float]
-Box = tuple[float, float, float, float]
+# Models are strict (no str -> number, bool -> number coercion), but TOML arrays arrive as
+# lists: tuples and lists accept either, their items stay strict.
+Point = Annotated[tuple[float, float], Strict(False)]
+Box = Annotated[tuple[float, float, float, float], Strict(False)]
 """Axis-aligned box ``(x0, y0, x1, y1)`` [m]."""
+
+MAX_SEGMENTS = 100_000
+"""Most outline vertices of a circle obstacle. More only add cost (the overlap checks compare
+outline edges pairwise) and no accuracy: the fluid sees the outline through the grid cells."""
+
+
+MAX_POLYGON_POINTS = 10_000
+"""Most vertices of a polygon written in a scene (body or obstacle outline)."""
 
 
 class _Spec(BaseModel):
-    model_config = ConfigDict(extra="forbid")
+    model_config = ConfigDict(extra="forbid", strict=True, allow_inf_nan=False)
 
 
-def _check_box(box: Box, name: str) -> Box:
+def _check_box(box: Box) -> Box:
     if not (box[2] > box[0] and box[3] > box[1]):
-        raise ValueError(f"{name} {list(box)}: must be (x0, y0, x1, y1) with x1 > x0 and y1 > y0")
+        raise ValueError("must be [x0, y0, x1, y1] with x1 > x0 and y1 > y0")
     return box
 
 
@@ -53,9 +69,13 @@ class DomainSpec(_Spec):
     def _one_resolution(self) -> DomainSpec:
         if (self.nx is None) == (self.h is None):
             raise ValueError("give exactly one of nx (cells along x) or h (cell side)")
+        if not self.cell_size > 0.0:
+            raise ValueError(f"cell side lx / nx = {self.cell_size!r}: must be a positive length")
         cells_x = self.lx / self.cell_size
         cells_y = self.ly / self.cell_size
         for label, cells in (("lx", cells_x), ("ly", cells_y)):
+            if not math.isfinite(cells):
+                raise ValueError(f"{label} / h = {cells}: must be a finite number of cells")
             if abs(cells - round(cells)) > 1e-6 or round(cells) < 2:
                 raise ValueError(
                     f"{label} must be a whole number (>= 2) of cells of side {self.cell_size:g}, "
@@ -84,7 +104,8 @@ class FluidSpec(_Spec):
     gravity: Point = (0.0, 0.0)
     """Gravity [m/s^2], also applied to the elastic bodies."""
     pressure_solver: Literal["mgpcg", "jacobi"] = "mgpcg"
-    pressure_rtol: PositiveFloat = 1e-6
+    pressure_rtol: Annotated[float, Field(gt=0.0, lt=1.0)] = 1e-6
+    """Relative residual the pressure solve must reach; 1 or more would skip the solve."""
 
 
 # --------------------------------------------------------------------------------------------
@@ -146,10 +167,7 @@ class JetSpec(_Spec):
     velocity: Point
     dye: NonNegativeFloat = 1.0
 
-    @model_validator(mode="after")
-    def _box(self) -> JetSpec:
-        _check_box(self.region, "region")
-        return self
+    _region = field_validator("region")(_check_box)
 
 
 # --------------------------------------------------------------------------------------------
@@ -170,7 +188,7 @@ class CircleObstacleSpec(_Spec):
     shape: Literal["circle"] = "circle"
     center: Point
     radius: PositiveFloat
-    segments: Annotated[int, Field(ge=8)] = 64
+    segments: Annotated[int, Field(ge=8, le=MAX_SEGMENTS)] = 64
     motion: RigidMotionSpec | None = None
 
     def bounds(self) -> Box:
@@ -183,10 +201,7 @@ class RectangleObstacleSpec(_Spec):
     box: Box
     motion: RigidMotionSpec | None = None
 
-    @model_validator(mode="after")
-    def _box(self) -> RectangleObstacleSpec:
-        _check_box(self.box, "box")
-        return self
+    _box = field_validator("box")(_check_box)
 
     def bounds(self) -> Box:
         return self.box
@@ -194,8 +209,9 @@ class RectangleObstacleSpec(_Spec):
 
 class PolygonObstacleSpec(_Spec):
     shape: Literal["polygon"] = "polygon"
-    points: Annotated[list[Point], Field(min_length=3)]
-    """Closed polygon, counter-clockwise [m]."""
+    points: Annotated[list[Point], Field(min_length=3, max_length=MAX_POLYGON_POINTS),
+                      Strict(False)]
+    """Closed polygon [m], either orientation, each vertex once."""
     motion: RigidMotionSpec | None = None
 
     def bounds(self) -> Box:
@@ -219,12 +235,9 @@ class RectangleShapeSpec(_Spec):
 
     type: Literal["rectangle"] = "rectangle"
     box: Box
-    divisions: tuple[PositiveInt, PositiveInt]
+    divisions: Annotated[tuple[PositiveInt, PositiveInt], Strict(False)]
 
-    @model_validator(mode="after")
-    def _box(self) -> RectangleShapeSpec:
-        _check_box(self.box, "box")
-        return self
+    _box = field_validator("box")(_check_box)
 
     def bounds(self) -> Box | None:
         return self.box
@@ -260,7 +273,8 @@ class PolygonShapeSpec(_Spec):
     """A polygon (counter-clockwise) meshed with Triangle."""
 
     type: Literal["polygon"] = "polygon"
-    points: Annotated[list[Point], Field(min_length=3)]
+    points: Annotated[list[Point], Field(min_length=3, max_length=MAX_POLYGON_POINTS),
+                      Strict(False)]
     element_size: PositiveFloat | None = None
     """Target edge length [m]; None lets the mesher pick."""
 
@@ -306,13 +320,13 @@ class FixedSpec(_Spec):
     """Nodes held at their rest position: those inside ``box`` and those listed in ``nodes``."""
 
     box: Box | None = None
-    nodes: list[Annotated[int, Field(ge=0)]] = Field(default_factory=list)
+    nodes: Annotated[list[Annotated[int, Field(ge=0)]], Strict(False)] = Field(
+        default_factory=list)
 
-    @model_validator(mode="after")
-    def _box(self) -> FixedSpec:
-        if self.box is not None:
-            _check_box(self.box, "box")
-        return self
+    @field_validator("box")
+    @classmethod
+    def _box(cls, box: Box | None) -> Box | None:
+        return None if box is None else _check_box(box)
 
 
 class BodySpec(_Spec):
@@ -380,7 +394,7 @@ def _default_field_formats() -> list[FieldFormat]:
 
 
 class FieldsSpec(_Spec):
-    formats: Annotated[list[FieldFormat], Field(min_length=1)] = Field(
+    formats: Annotated[list[FieldFormat], Field(min_length=1), Strict(False)] = Field(
         default_factory=_default_field_formats
     )
     every: PositiveInt = 10
@@ -421,7 +435,7 @@ class OutputsSpec(_Spec):
     video: VideoSpec | None = None
     fields: FieldsSpec | None = None
     meshes: MeshesSpec | None = None
-    probes: list[ProbeSpec] = Field(default_factory=list)
+    probes: Annotated[list[ProbeSpec], Strict(False)] = Field(default_factory=list)
     probes_every: PositiveInt = 1
     checkpoint: CheckpointSpec | None = None
 
@@ -438,11 +452,14 @@ class Scene(_Spec):
     domain: DomainSpec
     fluid: FluidSpec = Field(default_factory=FluidSpec)
     boundaries: BoundariesSpec = Field(default_factory=BoundariesSpec)
-    jets: list[JetSpec] = Field(default_factory=list)
-    obstacles: list[ObstacleSpec] = Field(default_factory=list)
-    bodies: list[BodySpec] = Field(default_factory=list)
+    jets: Annotated[list[JetSpec], Strict(False)] = Field(default_factory=list)
+    obstacles: Annotated[list[ObstacleSpec], Strict(False)] = Field(default_factory=list)
+    bodies: Annotated[list[BodySpec], Strict(False)] = Field(default_factory=list)
     time: TimeSpec
     coupling: CouplingSpec = Field(default_factory=CouplingSpec)
     outputs: OutputsSpec = Field(default_factory=OutputsSpec)
     base_dir: str | None = Field(default=None, exclude=True)
     """Folder that relative mesh paths are taken from (the scene file's folder); not saved."""
+    source: str | None = Field(default=None, exclude=True)
+    """Where the scene came from (its file, or "built-in scene 'NAME'"), for messages; not
+    saved."""

@@ -31,6 +31,7 @@ def parse_scene(
         raise SceneError(problems, source)
     if base_dir is not None:
         scene.base_dir = str(base_dir)
+    scene.source = source
     return scene
 
 
@@ -42,9 +43,20 @@ def load_scene(path: str | Path) -> Scene:
     """
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8")
+        raw = path.read_bytes()
     except OSError as error:
-        raise SceneError([f"cannot read scene file: {error.strerror}"], str(path)) from None
+        raise SceneError([f"cannot read scene file: {error.strerror or error}"], str(path)) from None
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as error:
+        line = raw[:error.start].count(b"\n") + 1
+        raise SceneError([(f"not a text file in UTF-8 (byte 0x{raw[error.start]:02x} at line "
+                          f"{line}, offset {error.start}); a scene file is UTF-8 TOML")],
+                         str(path)) from None
+    if "\x00" in text:
+        line = text[:text.index("\x00")].count("\n") + 1
+        raise SceneError([(f"not a text file (a NUL byte at line {line}); a scene file is UTF-8 "
+                          "TOML")], str(path)) from None
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as error:

@@ -121,7 +121,18 @@ def test_solver_matches_direct_solve(make_solver, shape, seed, dirichlet) -> Non
     expected, b = reference_solve(operator, rhs)
     x, report = make_solver(1e-10).solve(operator, rhs)
     assert isinstance(report, SolveReport)
-    assert report.converged and report.residual <= 1e-10
+    assert report.residual <= 1e-10
+    # Random right-hand sides on pure Neumann components are incompatible: the part removed
+    # is reported, and such a solve is not "converged" for the system as given.
+    coupled = operator.diagonal > 0.0
+    coupled[:-1, :] |= operator.weights_x > 0.0
+    coupled[1:, :] |= operator.weights_x > 0.0
+    coupled[:, :-1] |= operator.weights_y > 0.0
+    coupled[:, 1:] |= operator.weights_y > 0.0
+    given = np.where(coupled, rhs, 0.0)
+    removed = np.linalg.norm(given - b) / np.linalg.norm(given)
+    assert report.incompatibility == pytest.approx(removed, rel=1e-6, abs=1e-14)
+    assert report.converged == (removed <= 1e-10)
     np.testing.assert_allclose(x, expected, atol=1e-7 * np.abs(expected).max())
     assert report.residual == pytest.approx(true_relative_residual(operator, x, b), rel=1e-3,
                                             abs=1e-14)
@@ -148,11 +159,44 @@ def test_singular_neumann_problem(make_solver) -> None:
     rhs = rng.standard_normal(shape) + 5.0  # incompatible: nonzero mean
     x, report = make_solver(1e-6).solve(operator, rhs)
     compatible = rhs - rhs.mean()
-    assert report.converged
+    # The compatible part is solved to rtol, but the system as given has no solution: the
+    # report must not say converged, and says how much of the right-hand side was removed.
+    assert report.residual <= 1e-6
+    assert not report.converged
+    removed = np.sqrt(rhs.size) * abs(rhs.mean())
+    assert report.incompatibility == pytest.approx(removed / np.linalg.norm(rhs), rel=1e-12)
     assert abs(x.mean()) <= 1e-12 * np.abs(x).max()
     assert true_relative_residual(operator, x, compatible) <= 1e-6
     expected, _ = reference_solve(operator, rhs)
     np.testing.assert_allclose(x, expected, atol=1e-4 * np.abs(expected).max())
+
+
+@pytest.mark.parametrize("make_solver", SOLVERS)
+def test_round_off_mean_still_converges(make_solver) -> None:
+    # A consistent right-hand side (zero mean up to round-off, as the divergence of a closed
+    # box) keeps converged = True with an incompatibility at round-off level.
+    shape = (14, 11)
+    rng = np.random.default_rng(5)
+    operator = Operator5Point(
+        np.zeros(shape), rng.uniform(0.2, 1.0, (13, 11)), rng.uniform(0.2, 1.0, (14, 10))
+    )
+    rhs = rng.standard_normal(shape)
+    rhs -= rhs.mean()
+    x, report = make_solver(1e-8).solve(operator, rhs)
+    assert report.converged
+    assert report.incompatibility <= 1e-14
+    # A constant right-hand side is all incompatible: nothing is left to solve, and that is
+    # not convergence either.
+    x, report = make_solver(1e-6).solve(operator, np.full(shape, 2.0))
+    assert not report.converged and report.incompatibility == pytest.approx(1.0)
+    assert np.all(x == 0.0)
+
+
+@pytest.mark.parametrize("make_solver", SOLVERS)
+def test_non_singular_problem_has_no_incompatibility(make_solver) -> None:
+    operator = random_operator((12, 9), 21)
+    _, report = make_solver(1e-6).solve(operator, np.random.default_rng(22).standard_normal((12, 9)))
+    assert report.converged and report.incompatibility == 0.0
 
 
 @pytest.mark.parametrize("make_solver", SOLVERS)
@@ -171,7 +215,10 @@ def test_two_disconnected_components(make_solver) -> None:
     rhs = np.random.default_rng(4).standard_normal(shape) + 1.0
     x, report = make_solver(1e-8).solve(operator, rhs)
     expected, b = reference_solve(operator, rhs)
-    assert report.converged
+    # The two Neumann components got a right-hand side with a nonzero mean: solved for its
+    # compatible part, reported as not converged.
+    assert report.residual <= 1e-8 and not report.converged
+    assert report.incompatibility > 0.1
     assert np.all(x[2, :] == 0.0)
     scale = np.abs(x).max()
     assert abs(x[:2].mean()) < 1e-9 * scale
@@ -352,7 +399,8 @@ def test_mgpcg_reuses_levels_only_for_the_same_operator() -> None:
         rhs = rng.standard_normal(shape)
         x, report = solver.solve(operator, rhs)
         expected, _ = reference_solve(operator, rhs)
-        assert report.converged
+        assert report.residual <= 1e-10
+        assert report.converged == (report.incompatibility <= 1e-10)
         np.testing.assert_allclose(x, expected, atol=1e-7 * np.abs(expected).max())
 
 

@@ -125,7 +125,8 @@ def test_built_in_scene_round_trips_through_toml(name: str, tmp_path) -> None:
     path = tmp_path / f"{name}.toml"
     path.write_text(text)
     again = load_scene(path)
-    again.base_dir = None
+    again.base_dir = again.source = None
+    scene.source = None
     assert again == scene
     assert tomllib.loads(text)["name"] == name
 
