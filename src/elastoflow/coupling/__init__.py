@@ -13,6 +13,11 @@ from elastoflow.coupling._classify import (
     interior_boundary_from_map,
 )
 from elastoflow.coupling._forces import force_momentum_exchange, force_traction
+from elastoflow.coupling._interface import (
+    InterfaceFlux,
+    PressureCoupledBodies,
+    interface_flux,
+)
 from elastoflow.coupling._map import BoundaryMap, build_boundary_map
 from elastoflow.coupling._obstacle import (
     Obstacle,
@@ -26,14 +31,17 @@ from elastoflow.coupling._obstacle import (
 
 __all__ = [
     "BoundaryMap",
+    "InterfaceFlux",
     "Obstacle",
     "PointClassification",
+    "PressureCoupledBodies",
     "RigidMotion",
     "build_boundary_map",
     "classify_points",
     "concatenate_boundaries",
     "force_momentum_exchange",
     "force_traction",
+    "interface_flux",
     "interior_boundary_from_map",
     "obstacle_circle",
     "obstacle_pipe",

@@ -18,11 +18,14 @@ from elastoflow.fluid._boundaries import (
     WallNoSlip,
 )
 from elastoflow.fluid._interior import InteriorBoundary
+from elastoflow.fluid._kernels import OPEN_MIN
 from elastoflow.fluid._operators import divergence_faces_to_cells, gradient_cells_to_faces
-from elastoflow.fluid._solver import FluidSolver, FluidStepReport
+from elastoflow.fluid._solver import CoupledBodies, FluidSolver, FluidStepReport
 from elastoflow.fluid._state import FluidState
 
 __all__ = [
+    "OPEN_MIN",
+    "CoupledBodies",
     "DomainBoundaries",
     "FluidSolver",
     "FluidState",

@@ -4,7 +4,7 @@ import inspect
 import math
 import time as _time
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -20,9 +20,33 @@ from elastoflow.fluid._boundaries import (
 from elastoflow.fluid._interior import InteriorBoundary
 from elastoflow.fluid._state import FluidState
 from elastoflow.grid import Grid2D
-from elastoflow.linalg import Operator5Point, PoissonSolverMGPCG, SolveReport
+from elastoflow.linalg import LowRankTerm, Operator5Point, PoissonSolverMGPCG, SolveReport
 
 _ADVECTION_SCHEMES = ("semi_lagrangian", "maccormack")
+
+
+class CoupledBodies(Protocol):
+    """Bodies whose inertia the pressure solve sees (the strongly coupled projection).
+
+    The body side of the projection's flux balance, ``(1 - A) u_s`` on every face a body
+    covers, is a linear function of the bodies' velocities; the pressure pushes back on the
+    bodies through the transpose of that function. The fluid only needs three things:
+    """
+
+    def add_to_rhs(self, rhs: np.ndarray, scale: float, active: np.ndarray) -> None:
+        """``rhs -= scale * (net body outflow of each active cell)`` for the predicted body
+        velocities (the ``(1 - A) u_s`` terms of ``pressure_rhs``)."""
+        ...
+
+    def coupling_term(self, active: np.ndarray) -> LowRankTerm:
+        """The bodies' term of the pressure operator (symmetric, positive semi-definite)."""
+        ...
+
+    def respond(self, pressure: np.ndarray, active: np.ndarray, closed_u: np.ndarray,
+                closed_v: np.ndarray) -> None:
+        """Apply ``pressure``'s force to the bodies; write the new body velocity into the
+        arrays of u / v faces that the fluid treats as closed."""
+        ...
 
 
 @dataclass(frozen=True)
@@ -482,7 +506,8 @@ class FluidSolver:
             np.multiply(profile, side.ramp(time), out=targets[index])
 
     def project(
-        self, state: FluidState, dt: float, interior: InteriorBoundary | None = None
+        self, state: FluidState, dt: float, interior: InteriorBoundary | None = None,
+        bodies: CoupledBodies | None = None,
     ) -> SolveReport:
         """Make the velocity divergence-free: ``lap p = (rho/dt) div w``, ``u = w - dt/rho grad p``.
 
@@ -490,8 +515,14 @@ class FluidSolver:
         ``div(A grad p) = (rho/dt) div(A w + (1 - A) u_s)``; faces with A = 0 take the body
         velocity. The previous pressure is the initial guess; the new one is stored in
         ``state.pressure`` [Pa].
+
+        With ``bodies`` the projection is strongly coupled: the bodies' velocities are unknowns
+        of the same solve (their inertia enters the operator, `CoupledBodies`), the pressure's
+        force is applied to them, and closed faces take their new velocity.
         """
         self._check_step_input(state, dt, interior)
+        if bodies is not None:
+            return self._project_coupled(state, dt, interior, bodies)
         h = self.grid.h
         u, v = state.velocity_x, state.velocity_y
         if interior is None:
@@ -523,6 +554,52 @@ class FluidSolver:
             )
             kernels.copy_into(pressure, state.pressure)
         self._subtract_gradient(state, state.pressure, dt, interior, solid_known=True)
+        return report
+
+    def _project_coupled(
+        self, state: FluidState, dt: float, interior: InteriorBoundary | None,
+        bodies: CoupledBodies,
+    ) -> SolveReport:
+        if interior is None:
+            raise ValueError("a strongly coupled projection needs the bodies' InteriorBoundary")
+        if self.incremental_pressure:
+            raise ValueError(
+                "incremental_pressure = True: not available with the strongly coupled projection"
+            )
+        solve_coupled = getattr(self.pressure_solver, "solve_coupled", None)
+        if solve_coupled is None:
+            raise ValueError(
+                f"pressure_solver = {self.pressure_solver!r}: the strongly coupled projection "
+                "needs a solver with solve_coupled (PoissonSolverMGPCG)"
+            )
+        h = self.grid.h
+        u, v = state.velocity_x, state.velocity_y
+        open_x, open_y = interior.open_fraction_x, interior.open_fraction_y
+        operator = self._assemble_pressure_operator(open_x, open_y, reuse=True)
+        active = operator.diagonal > 0.0
+        active[:-1, :] |= operator.weights_x > 0.0
+        active[1:, :] |= operator.weights_x > 0.0
+        active[:, :-1] |= operator.weights_y > 0.0
+        active[:, 1:] |= operator.weights_y > 0.0
+        self._solid_u[...] = 0.0
+        self._solid_v[...] = 0.0
+        scale = self.density * h / dt
+        kernels.pressure_rhs(u, v, scale, True, open_x, open_y, self._solid_u, self._solid_v,
+                             self._rhs_pressure)
+        bodies.add_to_rhs(self._rhs_pressure, scale, active)
+        term = bodies.coupling_term(active)
+        if self._pressure_out and _writable_into(state.pressure):
+            _, report = solve_coupled(operator, term, self._rhs_pressure, x0=state.pressure,
+                                      out=state.pressure)
+        else:
+            pressure, report = solve_coupled(operator, term, self._rhs_pressure,
+                                             x0=state.pressure)
+            kernels.copy_into(pressure, state.pressure)
+        bodies.respond(state.pressure, active, self._solid_u, self._solid_v)
+        kernels.subtract_pressure_gradient(
+            u, v, state.pressure, dt / (self.density * h), self._outflow, True, open_x, open_y,
+            self._solid_u, self._solid_v,
+        )
         return report
 
     def _solid_face_velocities(

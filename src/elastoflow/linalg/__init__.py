@@ -29,11 +29,12 @@ the operator is unchanged, so an operator's arrays must not be modified after co
 
 
 from elastoflow.linalg._jacobi import PoissonSolverJacobi
-from elastoflow.linalg._mgpcg import PoissonSolverMGPCG
+from elastoflow.linalg._mgpcg import LowRankTerm, PoissonSolverMGPCG
 from elastoflow.linalg._operator import Operator5Point, SolveReport, apply_operator
 
 __all__ = [
-    "Operator5Point",
+    "LowRankTerm",
+        "Operator5Point",
     "PoissonSolverJacobi",
     "PoissonSolverMGPCG",
     "SolveReport",

@@ -1,45 +1,19 @@
 from __future__ import annotations
 
-import time as _time
 from collections.abc import Sequence
-from dataclasses import dataclass, field
 from typing import Any, Literal
 
 import numpy as np
 
 from elastoflow.grid import Grid2D
+from elastoflow.simulation._report import SimulationBlowUp, StepReport
+from elastoflow.simulation._schemes import (
+    COUPLING_SCHEMES,
+    CouplingScheme,
+)
 
 ForceModel = Literal["traction", "momentum_exchange"]
 FORCE_MODELS: tuple[str, ...] = ("traction", "momentum_exchange")
-
-
-class SimulationBlowUp(RuntimeError):
-    """The coupled run left its valid range; the message says what happened where."""
-
-
-@dataclass
-class StepReport:
-    """What one coupled step did.
-
-    Attributes:
-        step: Index of the step just taken (1 for the first).
-        time: Simulated time after the step [s].
-        pressure_iterations: Iterations of the pressure solve.
-        pressure_residual: Final relative residual of the pressure solve.
-        substeps: FEM substeps taken by each body (empty without bodies).
-        cfl: max |u| dt / h after the step.
-        crossing_count: Entries in the boundary map (0 without bodies or obstacles).
-        seconds_by_phase: Wall time of each phase [s]: map, fluid phases, force, solid.
-    """
-
-    step: int
-    time: float
-    pressure_iterations: int
-    pressure_residual: float
-    substeps: list[int] = field(default_factory=list)
-    cfl: float = 0.0
-    crossing_count: int = 0
-    seconds_by_phase: dict[str, float] = field(default_factory=dict)
 
 
 class Simulation:
@@ -86,6 +60,10 @@ class Simulation:
             ``a^n = (F + (m~ - m_a) a^(n-1)) / (m_s + m~)``, stable whenever
             ``m~ > (m_a - m_s) / 2`` and equal to the physical ``F / (m_s + m_a)`` once the
             acceleration settles. 0 gives plain explicit coupling.
+        coupling: The coupling scheme: "explicit" (the paper's partitioned step,
+            `ExplicitCoupling`) or "monolithic" (the pressure solve sees the bodies' inertia,
+            `MonolithicCoupling`; stable for any density ratio without relaxation), or a
+            scheme object.
     """
 
     def __init__(
@@ -103,6 +81,7 @@ class Simulation:
         cfl_limit: float = 20.0,
         force_relaxation: float = 1.0,
         added_mass: float = 0.0,
+        coupling: str | CouplingScheme = "explicit",
     ) -> None:
         from elastoflow.fluid import FluidState
 
@@ -123,6 +102,20 @@ class Simulation:
             )
         if not (0.0 <= added_mass < np.inf):
             raise ValueError(f"added_mass = {added_mass!r}: must be a finite number >= 0")
+        if isinstance(coupling, str):
+            if coupling not in COUPLING_SCHEMES:
+                raise ValueError(
+                    f"coupling = {coupling!r}: must be one of {tuple(COUPLING_SCHEMES)}"
+                )
+            scheme: CouplingScheme = COUPLING_SCHEMES[coupling]()
+        else:
+            scheme = coupling
+        if scheme.name == "monolithic" and (force_relaxation != 1.0 or added_mass != 0.0):
+            raise ValueError(
+                "force_relaxation and added_mass belong to the explicit coupling; the monolithic "
+                "coupling needs neither (leave them at 1 and 0)"
+            )
+        self.scheme = scheme
         self.grid = grid
         self.fluid_solver = fluid_solver
         self.state = state if state is not None else FluidState.zeros(grid)
@@ -185,115 +178,8 @@ class Simulation:
     # -- the coupled step ----------------------------------------------------------------
 
     def step(self) -> StepReport:
-        """Advance fluid and bodies by one fluid time step ``dt``."""
-        from elastoflow.coupling import (
-            build_boundary_map,
-            force_momentum_exchange,
-            force_traction,
-            interior_boundary_from_map,
-        )
-
-        seconds: dict[str, float] = {}
-        clock = _time.perf_counter
-        dt, fluid, state = self.dt, self.fluid_solver, self.state
-        next_step = self.step_index + 1
-
-        interior = None
-        bmap = None
-        if self.has_boundaries:
-            t0 = clock()
-            points, velocities, edges, edge_body, offsets = self._boundary_arrays()
-            bmap = build_boundary_map(self.grid, points, velocities, edges, edge_body)
-            # Reusing the dense arrays keeps the per-step cost at the map's own work.
-            interior = interior_boundary_from_map(self.grid, bmap, out=self.interior)
-            seconds["map"] = clock() - t0
-
-        t0 = clock()
-        fluid.advect(state, dt, interior)
-        seconds["advection"] = clock() - t0
-        t0 = clock()
-        try:
-            fluid.diffuse(state, dt, interior)
-        except ValueError:
-            self._check_fluid(next_step)
-            raise
-        seconds["viscosity"] = clock() - t0
-        t0 = clock()
-        fluid.apply_forces(state, dt, self.time)
-        seconds["forces"] = clock() - t0
-
-        nodal_force = np.zeros((0, 2))
-        if self.bodies and self.force_model == "momentum_exchange":
-            assert bmap is not None
-            t0 = clock()
-            nodal_force = force_momentum_exchange(
-                self.grid, bmap, state.velocity_x, state.velocity_y,
-                fluid.density, dt, self.alpha,
-            )
-            seconds["coupling_force"] = clock() - t0
-
-        t0 = clock()
-        try:
-            solve = fluid.project(state, dt, interior)
-        except ValueError:
-            # A non-finite velocity stops the linear solvers first: report it as a blow-up
-            # naming the step (re-raised unchanged when the fields are finite).
-            self._check_fluid(next_step)
-            raise
-        seconds["pressure"] = clock() - t0
-
-        if self.bodies and self.force_model == "traction":
-            assert bmap is not None
-            t0 = clock()
-            nodal_force = force_traction(
-                self.grid, bmap, state.velocity_x, state.velocity_y,
-                state.pressure, fluid.density, fluid.viscosity, interior,
-                gravity=fluid.gravity,
-            )
-            seconds["coupling_force"] = clock() - t0
-
-        cfl = self._check_fluid(next_step)
-
-        substeps_taken: list[int] = []
-        if self.bodies:
-            t0 = clock()
-            for index, body in enumerate(self.bodies):
-                force = nodal_force[offsets[index]:offsets[index + 1]]
-                if self.force_relaxation < 1.0 and self.step_index > 0:
-                    previous = self.body_forces[index]
-                    force = previous + self.force_relaxation * (force - previous)
-                self.body_forces[index] = force.copy()
-                extra = None
-                if self.added_mass_coefficient > 0.0:
-                    extra = self.added_mass[index]
-                    acceleration = (body.velocities - self._previous_velocities[index]) / dt
-                    force = force + extra[:, None] * acceleration
-                self._previous_velocities[index] = body.velocities.copy()
-                try:
-                    report = body.advance(
-                        dt, self.substeps, force, step=next_step, added_mass=extra
-                    )
-                except Exception as error:  # re-raised with where it happened
-                    raise SimulationBlowUp(
-                        f"step {next_step}, t = {self.time + dt:.6g} s, body {index}: {error}"
-                    ) from error
-                substeps_taken.append(int(report.substeps))
-            seconds["solid"] = clock() - t0
-
-        self.time += dt
-        self.step_index = next_step
-        self.interior = interior
-        self.boundary_map = bmap
-        report = StepReport(
-            step=next_step,
-            time=self.time,
-            pressure_iterations=int(solve.iterations),
-            pressure_residual=float(solve.residual),
-            substeps=substeps_taken,
-            cfl=cfl,
-            crossing_count=0 if bmap is None else int(bmap.crossing_count),
-            seconds_by_phase=seconds,
-        )
+        """Advance fluid and bodies by one fluid time step ``dt`` with the coupling scheme."""
+        report = self.scheme.step(self)
         self.last_report = report
         return report
 

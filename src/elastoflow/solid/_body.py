@@ -10,6 +10,7 @@ import numpy as np
 from elastoflow.solid import _kernels
 from elastoflow.solid._material import MaterialStVK
 from elastoflow.solid._mesh import TriangleMesh
+from elastoflow.solid._response import StepResponse, step_response
 
 DEFAULT_SAFETY = 0.5
 """Fraction of the estimated critical substep that ``n_sub="auto"`` uses.
@@ -312,6 +313,110 @@ class ElasticBody:
             substeps=substeps, substep_dt=sub_dt, stable_substep=self._stable_substep,
             min_determinant=float(self.deformation_determinants().min()),
         )
+
+    def step_response(self, dt: float) -> StepResponse:
+        """The body's linearised backward-Euler answer to a force held over ``dt`` [s].
+
+        ``step_response(dt).velocity_change(f)`` solves ``(M + dt D + dt^2 K + dt alpha M) dv
+        = dt f`` at the current positions (held nodes get 0): what the strongly coupled
+        pressure solve uses as the body's inertia (`elastoflow.solid._response`).
+        """
+        m = self.material
+        return step_response(
+            self.positions, self.mesh.triangles, self._dm_inverse, self._rest_area, self.mass,
+            self.fixed_mask, m.lame_lambda, m.lame_mu, m.damping_lambda, m.damping_mu,
+            self.velocity_damping, float(dt),
+        )
+
+    def advance_newmark(
+        self, dt: float, external_forces: np.ndarray, response: StepResponse, *,
+        step: int | None = None, tolerance: float = 1e-10, max_iterations: int = 12,
+    ) -> SolidStepReport:
+        """One implicit step of ``dt`` [s] by Newmark's average-acceleration rule.
+
+        ``x1 = x0 + dt v0 + dt^2/4 (a0 + a1)``, ``v1 = v0 + dt/2 (a0 + a1)``, with
+        ``M a = f_internal(x, v) + f_external + M g``, solved by modified Newton iterations on
+        the matrix of ``response`` (`step_response` built for ``dt / 2``, i.e.
+        ``M + dt/2 D + dt^2/4 K``). Unconditionally stable for the linearised body and second
+        order; the strongly coupled scheme uses it because its answer to a force held over
+        the step is exactly ``response`` (the same rule), which keeps the coupled step stable
+        (docs/method_notes.md, "Strong coupling").
+
+        Args:
+            dt: Step [s].
+            external_forces: Nodal forces [N/m] held over the step, shape (n, 2).
+            response: ``step_response(dt / 2)`` at the current positions.
+            step: Outer step index, only used to name the step in errors.
+            tolerance: Stop when the Newton update is below ``tolerance`` times the body's
+                size.
+            max_iterations: Newton iterations at most.
+
+        Raises:
+            SolidInversionError: An element inverted or a value became non-finite; the body
+                keeps its state from before this call.
+        """
+        n = self.mesh.point_count
+        forces = np.ascontiguousarray(external_forces, dtype=np.float64)
+        if forces.shape != (n, 2) or not np.all(np.isfinite(forces)):
+            raise ValueError(f"external_forces: must be finite, shape ({n}, 2)")
+        mass = self.mass[:, None]
+        held = self.fixed_mask
+        x0 = self.positions
+        v0 = self.velocities
+        f_external = forces + mass * self.gravity
+        a0 = (self._forces_at(x0, v0) + f_external) / mass
+        a0[held] = 0.0
+        # The first Newton update solves the linearised step exactly; an explicit guess (a0
+        # extrapolated) would start stiff bodies far off.
+        x1 = x0 + dt * v0
+        x1[held] = x0[held]
+        size = float(np.ptp(self.mesh.points, axis=0).max())
+        iterations = 0
+        for iterations in range(1, max_iterations + 1):
+            v1 = 2.0 * (x1 - x0) / dt - v0
+            residual = 0.25 * dt * dt * (mass * a0 + self._forces_at(x1, v1) + f_external)
+            residual -= mass * (x1 - x0 - dt * v0)
+            update = response.solve(residual)
+            x1 += update
+            if not np.all(np.isfinite(x1)):
+                break
+            if float(np.abs(update).max()) <= tolerance * size:
+                break
+        v1 = 2.0 * (x1 - x0) / dt - v0
+        v1[held] = 0.0
+        determinants = np.empty(self.mesh.triangle_count)
+        _kernels.element_determinants(x1, self.mesh.triangles, self._dm_inverse, determinants)
+        where = "" if step is None else f"step {step}, "
+        if not (np.all(np.isfinite(x1)) and np.all(np.isfinite(v1))
+                and determinants.min() > 0.0):
+            element = int(np.argmin(np.nan_to_num(determinants, nan=-np.inf)))
+            raise SolidInversionError(
+                f"elastic body failed at {where}implicit step (dt = {dt:.3g} s): element "
+                f"{element} has det F = {determinants[element]:.3g} (inverted or non-finite); "
+                "use a smaller dt",
+                step=step, substep=0, element=element,
+                determinant=float(determinants[element]), positions=x1,
+            )
+        self.positions[:] = x1
+        self.velocities[:] = v1
+        return SolidStepReport(
+            substeps=iterations, substep_dt=dt, stable_substep=self._stable_substep,
+            min_determinant=float(determinants.min()),
+        )
+
+    def _forces_at(self, positions: np.ndarray, velocities: np.ndarray) -> np.ndarray:
+        """Internal (elastic, Voigt and drag) nodal forces [N/m] at a given state."""
+        forces = np.empty_like(positions)
+        determinants = np.empty(self.mesh.triangle_count)
+        m = self.material
+        _kernels.internal_forces(
+            np.ascontiguousarray(positions), np.ascontiguousarray(velocities),
+            self.mesh.triangles, self._dm_inverse, self._rest_area, m.lame_lambda, m.lame_mu,
+            m.damping_lambda, m.damping_mu, forces, determinants,
+        )
+        if self.velocity_damping:
+            forces -= self.velocity_damping * self.mass[:, None] * velocities
+        return forces
 
     def substep(self, dt_s: float, external_forces: np.ndarray | None = None) -> SolidStepReport:
         """One substep of size ``dt_s`` [s] (``advance(dt_s, 1, external_forces)``)."""

@@ -1,0 +1,388 @@
+"""The body side of the pressure equation as a linear operator of the boundary velocities.
+
+The projection keeps ``div(A u + (1 - A) u_s)`` at zero, where ``(1 - A) u_s`` is the part of
+a face's flux that the body carries. For the strongly coupled step that part must be a linear
+function of the bodies' nodal velocities, and its transpose must give the force that the cell
+pressures exert on the nodes, so that the coupled system stays symmetric. Both come from the
+boundary map: along the line through a face (the vertical line through a u point, the
+horizontal one through a v point) the map's crossings split the face into fluid and solid
+intervals; over a solid interval the body velocity is the linear interpolation between the two
+crossings that bound its span (as inside bodies, METHOD.md §5.4), and each crossing's velocity
+is ``(1 - t) v_a + t v_b`` of its edge. The flux of the solid part of face ``f`` is therefore
+
+    (1 - A_f) u_s,f = sum_k  W[f, k] V_k          (V: nodal velocity components)
+
+with ``W`` sparse: a few crossings per face, two nodes per crossing. The force of the cell
+pressures on the nodes is ``h W^T (p_left - p_right)`` per unit depth: the exact discrete
+counterpart (virtual work) of the flux, so that ``div`` and the force are adjoint.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Protocol
+
+import numpy as np
+from numba import njit
+from scipy import sparse
+
+from elastoflow.coupling._map import BoundaryMap
+from elastoflow.fluid import OPEN_MIN, InteriorBoundary
+from elastoflow.grid import Grid2D
+from elastoflow.linalg import LowRankTerm
+
+
+@njit(cache=True)
+def _swept_lines(
+    offsets: np.ndarray, coordinate: np.ndarray, sign: np.ndarray, edge_index: np.ndarray,
+    parameter: np.ndarray, edges: np.ndarray, line_start: int, line_count_out: int,
+    point_count: int, origin_along: float, h: float, point_first: bool, stride: int,
+    face_offset: int, component: int, fill: bool, rows: np.ndarray, cols: np.ndarray,
+    values: np.ndarray, start: int,
+) -> int:
+    """Triplets of ``W`` for the faces along one family of lines; returns the next free slot.
+
+    Face ``(l, k)`` (``[k, l]`` when ``point_first``) of the line family has flat index
+    ``face_offset + i * stride + j``. With ``fill`` False only counts.
+    """
+    extent = point_count * h
+    slot = start
+    for l in range(line_count_out):
+        line = line_start + 2 * l
+        begin = offsets[line]
+        end = offsets[line + 1]
+        winding = 0
+        for c in range(begin, end - 1):
+            winding += sign[c]
+            if winding == 0:
+                continue
+            low_crossing = coordinate[c] - origin_along
+            width = coordinate[c + 1] - coordinate[c]
+            a = max(low_crossing, 0.0)
+            b = min(coordinate[c + 1] - origin_along, extent)
+            if b <= a or width <= 0.0:
+                continue
+            k0 = min(int(a / h), point_count - 1)
+            k1 = min(int(b / h), point_count - 1)
+            for k in range(k0, k1 + 1):
+                lo = max(a, k * h)
+                hi = min(b, (k + 1) * h)
+                if hi <= lo:
+                    continue
+                if not fill:
+                    slot += 4
+                    continue
+                # Integral over [lo, hi] of the interpolation weight of the upper crossing,
+                # w(s) = (s - s_c) / width, and of the lower one, 1 - w; per unit face length.
+                upper = ((hi - low_crossing) ** 2 - (lo - low_crossing) ** 2) / (2.0 * width * h)
+                lower = (hi - lo) / h - upper
+                if point_first:
+                    face = face_offset + k * stride + l
+                else:
+                    face = face_offset + l * stride + k
+                for side in range(2):
+                    crossing = c + side
+                    weight = lower if side == 0 else upper
+                    edge = edge_index[crossing]
+                    t = parameter[crossing]
+                    rows[slot] = face
+                    cols[slot] = 2 * edges[edge, 0] + component
+                    values[slot] = weight * (1.0 - t)
+                    rows[slot + 1] = face
+                    cols[slot + 1] = 2 * edges[edge, 1] + component
+                    values[slot + 1] = weight * t
+                    slot += 2
+    return slot
+
+
+@dataclass(frozen=True)
+class InterfaceFlux:
+    """``W`` restricted to the faces it touches, with each face's two cells.
+
+    Attributes:
+        grid: The grid.
+        matrix: ``W`` as CSR, shape (F, 2P): row r is face ``faces[r]``'s body flux per unit
+            face length [m/s] from the nodal velocity components (``2 point + component``);
+            faces that the fluid treats as closed (open fraction below ``OPEN_MIN``) carry
+            their whole flux, so their row sums the body velocity.
+        faces: Flat face index of each row: u faces ``i * ny + j``, then v faces
+            ``(nx + 1) ny + i * (ny + 1) + j``, int64, shape (F,).
+        low_cell: Flat index ``i * ny + j`` of the cell on the face's low side (west or
+            south), or -1 outside the domain, int64, shape (F,).
+        high_cell: The same on the high side (east or north).
+        axis: 0 for u faces, 1 for v faces, int8, shape (F,).
+    """
+
+    grid: Grid2D
+    matrix: sparse.csr_matrix
+    faces: np.ndarray
+    low_cell: np.ndarray
+    high_cell: np.ndarray
+    axis: np.ndarray
+
+    @property
+    def transpose(self) -> sparse.csr_matrix:
+        return self.matrix.T.tocsr()
+
+    def face_flux(self, velocities: np.ndarray) -> np.ndarray:
+        """Body flux per unit length of each row's face [m/s] for nodal ``velocities`` (P, 2)."""
+        return self.matrix @ np.ascontiguousarray(velocities, dtype=np.float64).reshape(-1)
+
+    def cell_divergence(self, face_flux: np.ndarray, active: np.ndarray,
+                        out: np.ndarray) -> np.ndarray:
+        """Add each face's flux to its cells' net outflow (``out`` (nx, ny), velocity units).
+
+        Only ``active`` cells receive a contribution.
+        """
+        flat = out.reshape(-1)
+        mask = active.reshape(-1)
+        low, high = self.low_cell, self.high_cell
+        keep = (low >= 0)
+        keep[keep] = mask[low[keep]]
+        np.add.at(flat, low[keep], face_flux[keep])
+        keep = (high >= 0)
+        keep[keep] = mask[high[keep]]
+        np.subtract.at(flat, high[keep], face_flux[keep])
+        return out
+
+    def pressure_jump(self, pressure: np.ndarray, active: np.ndarray) -> np.ndarray:
+        """``p_low - p_high`` across each row's face, inactive and outside cells as 0."""
+        flat = pressure.reshape(-1)
+        mask = active.reshape(-1)
+        jump = np.zeros(self.faces.shape[0])
+        low, high = self.low_cell, self.high_cell
+        keep = low >= 0
+        keep[keep] = mask[low[keep]]
+        jump[keep] += flat[low[keep]]
+        keep = high >= 0
+        keep[keep] = mask[high[keep]]
+        jump[keep] -= flat[high[keep]]
+        return jump
+
+
+def interface_flux(grid: Grid2D, bmap: BoundaryMap,
+                   interior: InteriorBoundary) -> InterfaceFlux:
+    """Build ``W`` from the boundary map (module docstring) for the faces of ``interior``."""
+    if bmap.grid != grid:
+        raise ValueError(f"boundary map grid {bmap.grid!r}: must be the grid {grid!r}")
+    nx, ny, h = grid.nx, grid.ny, grid.h
+    ox, oy = grid.origin
+    u_faces = (nx + 1) * ny
+    families = (
+        # u faces: columns I = 2i of the y-map, segments along y, x-velocity.
+        (bmap.y_offsets, bmap.y_coordinate, bmap.y_sign, bmap.y_edge, bmap.y_parameter,
+         nx + 1, ny, oy, False, ny, 0, 0),
+        # v faces: rows J = 2j of the x-map, segments along x, y-velocity.
+        (bmap.x_offsets, bmap.x_coordinate, bmap.x_sign, bmap.x_edge, bmap.x_parameter,
+         ny + 1, nx, ox, True, ny + 1, u_faces, 1),
+    )
+    empty_i = np.zeros(0, dtype=np.int64)
+    empty_f = np.zeros(0)
+    count = 0
+    for (offsets, coordinate, sign, edge, parameter, lines, points, origin, first, stride,
+         offset, component) in families:
+        count = _swept_lines(offsets, coordinate, sign, edge, parameter, bmap.edges, 0, lines,
+                             points, origin, h, first, stride, offset, component, False,
+                             empty_i, empty_i, empty_f, count)
+    rows = np.empty(count, dtype=np.int64)
+    cols = np.empty(count, dtype=np.int64)
+    values = np.empty(count)
+    slot = 0
+    for (offsets, coordinate, sign, edge, parameter, lines, points, origin, first, stride,
+         offset, component) in families:
+        slot = _swept_lines(offsets, coordinate, sign, edge, parameter, bmap.edges, 0, lines,
+                            points, origin, h, first, stride, offset, component, True,
+                            rows, cols, values, slot)
+    faces, row_of = np.unique(rows, return_inverse=True)
+    matrix = sparse.csr_matrix(
+        (values, (row_of, cols)), shape=(faces.shape[0], 2 * bmap.point_count)
+    )
+    is_u = faces < u_faces
+    open_fraction = np.where(
+        is_u,
+        interior.open_fraction_x.reshape(-1)[np.minimum(faces, u_faces - 1)],
+        interior.open_fraction_y.reshape(-1)[np.maximum(faces - u_faces, 0)],
+    )
+    # A face the fluid closes carries the body's whole flux: rescale its row from the solid
+    # part (1 - A) to all of it.
+    closed = (open_fraction < OPEN_MIN) & (open_fraction > 0.0)
+    if closed.any():
+        scale = np.ones(faces.shape[0])
+        scale[closed] = 1.0 / (1.0 - open_fraction[closed])
+        matrix = sparse.diags(scale) @ matrix
+    matrix = matrix.tocsr()
+    # Cells on either side of each face.
+    u_index = faces
+    v_index = faces - u_faces
+    i = np.where(is_u, u_index // ny, v_index // (ny + 1))
+    j = np.where(is_u, u_index % ny, v_index % (ny + 1))
+    low = np.where(is_u, (i - 1) * ny + j, i * ny + (j - 1))
+    high = np.where(is_u, i * ny + j, i * ny + j)
+    low_valid = np.where(is_u, i >= 1, j >= 1)
+    high_valid = np.where(is_u, i <= nx - 1, j <= ny - 1)
+    low = np.where(low_valid, low, -1).astype(np.int64)
+    high = np.where(high_valid, high, -1).astype(np.int64)
+    return InterfaceFlux(grid, matrix, faces.astype(np.int64), low, high,
+                         np.where(is_u, 0, 1).astype(np.int8))
+
+
+class BodyResponse(Protocol):
+    """A body's (mean) velocity change answering nodal forces held over the step (linear)."""
+
+    def velocity_change(self, forces: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+        ...
+
+    def compliance(self, dofs: np.ndarray) -> np.ndarray:
+        ...
+
+
+class PressureCoupledBodies:
+    """The bodies' side of the strongly coupled projection (`elastoflow.fluid.CoupledBodies`).
+
+    Args:
+        flux: ``W`` of this step's boundary map.
+        predicted: Velocities [m/s] of all boundary points, shape (P, 2): what the bodies
+            sweep over the step without the pressure, and the obstacles' prescribed velocity.
+        responses: Per body, its answer to a force held over the step (the velocity that
+            enters ``predicted``), e.g. `elastoflow.solid.StepResponse`.
+        offsets: Point offsets of the bodies in the boundary arrays (``offsets[b]:offsets[b+1]``
+            are body b's nodes); points past the last body are obstacles (no response).
+        density: Fluid density [kg/m^3].
+        dt: Fluid step [s].
+        bmap: The boundary map (points and edges), needed with ``gravity``.
+        gravity: The fluid's gravity [m/s^2]. The hydrostatic part ``rho g.(x - x_b)`` of the
+            pressure (``x_b`` each body's centroid) is not left to ``W``, which applies each
+            cut cell's centre pressure to the whole covered part of its faces and so misses
+            the buoyancy of a straight edge lying inside a row of cells by up to half a cell
+            of height; its exact integral along the edges replaces it (a known force, applied
+            in the prediction: the coupled system is unchanged).
+
+    After `respond`, ``velocities`` holds the boundary points' new velocities and
+    ``pressure_forces`` the nodal forces [N/m] of the pressure on them.
+    """
+
+    def __init__(self, flux: InterfaceFlux, predicted: np.ndarray,
+                 responses: list[BodyResponse], offsets: list[int], density: float,
+                 dt: float, bmap: BoundaryMap | None = None,
+                 gravity: tuple[float, float] = (0.0, 0.0)) -> None:
+        if (gravity[0] != 0.0 or gravity[1] != 0.0) and bmap is None:
+            raise ValueError("PressureCoupledBodies: gravity needs the boundary map")
+        self.bmap = bmap
+        self.gravity = (float(gravity[0]), float(gravity[1]))
+        self.flux = flux
+        self.predicted = np.ascontiguousarray(predicted, dtype=np.float64)
+        self.responses = responses
+        self.offsets = offsets
+        self.density = float(density)
+        self.dt = float(dt)
+        self.face_length = flux.grid.h
+        self.velocities = self.predicted.copy()
+        self.pressure_forces = np.zeros_like(self.predicted)
+        self._correction = np.zeros_like(self.predicted)
+        self._cell_matrix: sparse.csr_matrix | None = None
+
+    def _cells(self, active: np.ndarray) -> sparse.csr_matrix:
+        """``D W``: net body outflow of each active cell per unit nodal velocity."""
+        if self._cell_matrix is not None:
+            return self._cell_matrix
+        flux = self.flux
+        size = flux.grid.nx * flux.grid.ny
+        mask = active.reshape(-1)
+        rows = []
+        signs = []
+        faces = []
+        for cells, sign in ((flux.low_cell, 1.0), (flux.high_cell, -1.0)):
+            keep = cells >= 0
+            keep[keep] = mask[cells[keep]]
+            index = np.flatnonzero(keep)
+            rows.append(cells[index])
+            faces.append(index)
+            signs.append(np.full(index.shape[0], sign))
+        scatter = sparse.csr_matrix(
+            (np.concatenate(signs), (np.concatenate(rows), np.concatenate(faces))),
+            shape=(size, flux.faces.shape[0]),
+        )
+        self._cell_matrix = (scatter @ flux.matrix).tocsr()
+        return self._cell_matrix
+
+    def velocity_change(self, forces: np.ndarray) -> np.ndarray:
+        change = np.zeros_like(forces)
+        for index, response in enumerate(self.responses):
+            lo, hi = self.offsets[index], self.offsets[index + 1]
+            response.velocity_change(forces[lo:hi], out=change[lo:hi])
+        return change
+
+    def _hydrostatic_correction(self, active: np.ndarray) -> np.ndarray:
+        """Exact minus ``W``'s nodal force of the hydrostatic pressure, per body (P, 2)."""
+        correction = np.zeros_like(self.predicted)
+        if self.bmap is None or self.gravity == (0.0, 0.0) or len(self.offsets) < 2:
+            return correction
+        grid = self.flux.grid
+        x, y = grid.cell_centers()
+        points, edges = self.bmap.points, self.bmap.edges
+        cells = self._cells(active)
+        gx, gy = self.gravity
+        for index in range(len(self.offsets) - 1):
+            lo, hi = self.offsets[index], self.offsets[index + 1]
+            mine = edges[(edges[:, 0] >= lo) & (edges[:, 0] < hi)]
+            if not mine.shape[0]:
+                continue
+            reference = points[lo:hi].mean(axis=0)
+            # p = rho g.(x - x_b): rho g.x rises against gravity, i.e. with depth.
+            field = self.density * (gx * (x - reference[0]) + gy * (y - reference[1]))
+            nodal = np.zeros_like(points[lo:hi])
+            a, b = mine[:, 0] - lo, mine[:, 1] - lo
+            pa = self.density * ((points[mine[:, 0]] - reference) @ np.array([gx, gy]))
+            pb = self.density * ((points[mine[:, 1]] - reference) @ np.array([gx, gy]))
+            edge = points[mine[:, 1]] - points[mine[:, 0]]
+            # -p n ds with n ds = (dy, -dx) (out of the body, on the right of a->b); a linear
+            # p along the edge gives node a (p_a / 3 + p_b / 6) and node b the mirror.
+            normal = np.column_stack((edge[:, 1], -edge[:, 0]))
+            np.add.at(nodal, a, -normal * (pa / 3.0 + pb / 6.0)[:, None])
+            np.add.at(nodal, b, -normal * (pa / 6.0 + pb / 3.0)[:, None])
+            discrete = self.face_length * (cells.T @ field.reshape(-1)).reshape(-1, 2)
+            correction[lo:hi] = nodal - discrete[lo:hi]
+        return correction
+
+    def add_to_rhs(self, rhs: np.ndarray, scale: float, active: np.ndarray) -> None:
+        cells = self._cells(active)
+        self._correction = self._hydrostatic_correction(active)
+        if np.any(self._correction):
+            self.predicted = self.predicted + self.velocity_change(self._correction)
+        rhs.reshape(-1)[:] -= scale * (cells @ self.predicted.reshape(-1))
+
+    def coupling_term(self, active: np.ndarray) -> LowRankTerm:
+        """``rho h^2 / dt (DW) Phi (DW)^T`` with ``Phi`` the bodies' compliance on the
+        degrees of freedom that ``W`` touches (block diagonal over bodies)."""
+        cells = self._cells(active)
+        by_dof = cells.T.tocsr()
+        touched = np.flatnonzero(np.diff(by_dof.indptr) > 0)
+        last = 2 * self.offsets[-1]
+        touched = touched[touched < last]
+        matrix = np.zeros((touched.shape[0], touched.shape[0]))
+        for index, response in enumerate(self.responses):
+            lo, hi = 2 * self.offsets[index], 2 * self.offsets[index + 1]
+            mine = np.flatnonzero((touched >= lo) & (touched < hi))
+            if mine.size:
+                matrix[np.ix_(mine, mine)] = response.compliance(touched[mine] - lo)
+        restricted = by_dof[touched]
+        return LowRankTerm(
+            offsets=restricted.indptr.astype(np.int64), points=restricted.indices.astype(np.int64),
+            weights=restricted.data.astype(np.float64), matrix=matrix,
+            scale=self.density * self.face_length**2 / self.dt,
+        )
+
+    def respond(self, pressure: np.ndarray, active: np.ndarray, closed_u: np.ndarray,
+                closed_v: np.ndarray) -> None:
+        cells = self._cells(active)
+        forces = self.face_length * (cells.T @ pressure.reshape(-1))
+        dynamic = forces.reshape(-1, 2)
+        self.velocities = self.predicted + self.velocity_change(dynamic)
+        self.pressure_forces = dynamic + self._correction
+        face_flux = self.flux.face_flux(self.velocities)
+        flux = self.flux
+        nx, ny = flux.grid.nx, flux.grid.ny
+        u_faces = (nx + 1) * ny
+        is_u = flux.axis == 0
+        closed_u.reshape(-1)[flux.faces[is_u]] = face_flux[is_u]
+        closed_v.reshape(-1)[flux.faces[~is_u] - u_faces] = face_flux[~is_u]
