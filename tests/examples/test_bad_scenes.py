@@ -331,7 +331,14 @@ def _errors(result: Any) -> list[str]:
         repr(result.exception))
     assert "Traceback" not in result.output
     assert result.exit_code == 2, result.output
+    for internal in INTERNAL_WORDS:
+        assert internal not in result.output, (internal, result.output)
     return [line for line in result.output.splitlines() if line.startswith("error:")]
+
+
+# Words of the code, not of the scene file, that once leaked into messages.
+INTERNAL_WORDS = ("constrained-int", "literal[", "FluidSolver", "WallMoving", "Input should",
+                  "allow_pickle", "cannot convert float", "Aborted")
 
 
 @pytest.mark.parametrize("case", CASES, ids=[case.id for case in CASES])

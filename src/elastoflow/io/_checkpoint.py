@@ -31,6 +31,14 @@ class CheckpointError(ValueError):
     from another scene. The message names the file and says which."""
 
 
+def damage(error: BaseException) -> str:
+    """What a failed ``np.load`` of an ``.npz`` says about the file, in a user's words."""
+    if "allow_pickle" in str(error):
+        # Never advise allow_pickle: loading pickles from a file runs code from that file.
+        return "it holds pickled Python objects, which elastoflow never writes"
+    return f"truncated or corrupt: {type(error).__name__}: {error}"
+
+
 def read_checkpoint(path: str | Path) -> dict[str, np.ndarray]:
     """Every array of a checkpoint file, read in full (so that a damaged file fails here).
 
@@ -51,9 +59,7 @@ def read_checkpoint(path: str | Path) -> dict[str, np.ndarray]:
     except OSError as error:
         raise CheckpointError(f"cannot read checkpoint {path}: {error.strerror or error}") from None
     except Exception as error:  # noqa: BLE001 - numpy/zipfile fail with many exception types
-        raise CheckpointError(
-            f"checkpoint {path} is damaged (truncated or corrupt: {type(error).__name__}: "
-            f"{error})") from None
+        raise CheckpointError(f"checkpoint {path} is damaged ({damage(error)})") from None
     missing = [key for key in ("time", "step_index") if key not in data]
     if missing:
         raise CheckpointError(f"checkpoint {path} is not an elastoflow checkpoint (no "

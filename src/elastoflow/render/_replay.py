@@ -7,6 +7,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
+from elastoflow.io._checkpoint import damage
 from elastoflow.render._frame import default_value_range, render_frame, view_values
 from elastoflow.render._video import VideoWriter
 
@@ -60,8 +61,8 @@ def _read_snapshot(path: Path) -> dict[str, np.ndarray]:
         with np.load(path, allow_pickle=False) as archive:
             data = {key: np.array(archive[key]) for key in archive.files}
     except Exception as error:  # noqa: BLE001 - numpy/zipfile fail with many exception types
-        raise ValueError(f"field snapshot {path} is damaged (truncated or corrupt: "
-                         f"{type(error).__name__}: {error}); delete it and render again") from None
+        raise ValueError(f"field snapshot {path} is damaged ({damage(error)}); delete it and "
+                         "render again") from None
     missing = [key for key in _SNAPSHOT_KEYS if key not in data]
     if missing or data["pressure"].ndim != 2:
         raise ValueError(f"field snapshot {path} is not a complete elastoflow snapshot (missing "

@@ -135,12 +135,11 @@ def _polygon_problems(key: str, points: Sequence[tuple[float, float]]) -> list[s
                     f"{first[vertex]}; a polygon lists each vertex once (the first is not "
                     "repeated at the end, except as an exact closing copy)")]
         first[vertex] = index
-    area = 0.5 * float(np.sum(polygon[:, 0] * np.roll(polygon[:, 1], -1)
-                              - np.roll(polygon[:, 0], -1) * polygon[:, 1]))
     extent = float(np.max(np.ptp(polygon, axis=0)))
-    if abs(area) <= 1e-12 * extent**2:
+    spread = np.linalg.svd(polygon - polygon.mean(axis=0), compute_uv=False)
+    if spread[-1] <= 1e-12 * max(extent, 1e-300) * np.sqrt(len(polygon)):
         return [(f"{key} = {_points_text(polygon)}: the polygon encloses no area (its vertices "
-                "are on one line)")]
+                 "are on one line)")]
     crossing = geometry.self_crossing(polygon)
     if crossing is not None:
         i, j = crossing
