@@ -21,6 +21,7 @@ import pytest
 from typer.testing import CliRunner
 
 from elastoflow.cli import app
+from elastoflow.scenes import _checks as checks
 from elastoflow.scenes import get_scene, list_scenes, scene_to_toml
 
 runner = CliRunner()
@@ -351,6 +352,8 @@ def test_bad_scene_is_refused_with_one_line_per_key(case: Case, tmp_path: Path,
 
     # `run` takes the scene's own step count, as `validate` does; nothing may be stepped.
     monkeypatch.setattr(Simulation, "step", no_stepping)
+    # The same memory on every machine and between the two commands.
+    monkeypatch.setattr(checks, "available_memory", lambda: 16 * 2**30)
     path = _write(case, tmp_path)
     checked = _errors(runner.invoke(app, ["validate", str(path)]))
     assert len(checked) == len(case.keys), checked

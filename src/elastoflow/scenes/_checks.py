@@ -265,9 +265,9 @@ def check_memory(scene: Scene, available: int | None = None) -> list[str]:
     if available is None or total <= available:
         return []
     key, share = max(parts, key=lambda part: part[1])
-    return [(f"{key}: the run would need about {_bytes_text(total)} of memory ({_bytes_text(share)} "
-            f"for this), more than the {_bytes_text(available)} available; use fewer cells or "
-            "elements")]
+    this = "" if share >= 0.9 * total else f" ({_bytes_text(share)} for this)"
+    return [(f"{key}: the run would need about {_bytes_text(total)} of memory{this}, more than "
+             f"the {_bytes_text(available)} available; use fewer cells or elements")]
 
 
 # --------------------------------------------------------------------------------------------
@@ -288,7 +288,16 @@ def _inscribed_width(mesh: Any, starts: np.ndarray, ends: np.ndarray) -> float:
         mesh.points, corners.mean(axis=1),
         0.5 * (corners + np.roll(corners, -1, axis=1)).reshape(-1, 2),
     ])
-    return 2.0 * float(geometry.distance_to_segments(samples, starts, ends).max())
+    return 2.0 * float(geometry.distance_to_segments(_thinned(samples), starts, ends).max())
+
+
+MAX_SAMPLES = 20_000
+"""Most interior points of one body a geometry check looks at (every k-th beyond that): the
+checks compare them with every boundary edge, and a mesh that large is fine everywhere."""
+
+
+def _thinned(points: np.ndarray) -> np.ndarray:
+    return points[::max(1, len(points) // MAX_SAMPLES)]
 
 
 def _boundary_samples(starts: np.ndarray, ends: np.ndarray, spacing: float) -> np.ndarray:
@@ -326,7 +335,7 @@ def _inner_points(polygon_or_mesh: Any) -> np.ndarray:
     """Points inside a region: element centroids of a mesh, nothing more for a polygon (its
     outline samples suffice)."""
     if hasattr(polygon_or_mesh, "triangles"):
-        return polygon_or_mesh.points[polygon_or_mesh.triangles].mean(axis=1)
+        return _thinned(polygon_or_mesh.points[polygon_or_mesh.triangles].mean(axis=1))
     return np.zeros((0, 2))
 
 

@@ -19,14 +19,15 @@ def _orientation(ax: np.ndarray, ay: np.ndarray, bx: np.ndarray, by: np.ndarray,
 
 
 def first_crossing(starts_a: np.ndarray, ends_a: np.ndarray, starts_b: np.ndarray,
-                   ends_b: np.ndarray, *, skip: np.ndarray | None = None) -> tuple[int, int] | None:
+                   ends_b: np.ndarray, *, one_loop: bool = False) -> tuple[int, int] | None:
     """First pair ``(i, j)`` of segments, ``i`` from set a and ``j`` from set b, that cross
     properly (each separates the other's end points strictly); touching is not crossing.
 
     Args:
         starts_a, ends_a: Segments of set a [m], shape (k, 2).
         starts_b, ends_b: Segments of set b [m], shape (l, 2).
-        skip: Optional bool mask (k, l) of pairs to ignore (adjacent edges of one polygon).
+        one_loop: Both sets are the edges of one closed polygon: an edge is not compared with
+            itself or its two neighbours (they share a vertex).
     """
     k, count_b = len(starts_a), len(starts_b)
     if k == 0 or count_b == 0:
@@ -36,6 +37,7 @@ def first_crossing(starts_a: np.ndarray, ends_a: np.ndarray, starts_b: np.ndarra
     bx1, by1 = ends_b[:, 0][None, :], ends_b[:, 1][None, :]
     low_b = np.minimum(starts_b, ends_b)
     high_b = np.maximum(starts_b, ends_b)
+    columns = np.arange(count_b)[None, :]
     for begin in range(0, k, rows):
         stop = min(k, begin + rows)
         ax0, ay0 = starts_a[begin:stop, 0][:, None], starts_a[begin:stop, 1][:, None]
@@ -45,8 +47,9 @@ def first_crossing(starts_a: np.ndarray, ends_a: np.ndarray, starts_b: np.ndarra
         near = ((low_a[:, None, 0] <= high_b[None, :, 0]) & (low_b[None, :, 0] <= high_a[:, None, 0])
                 & (low_a[:, None, 1] <= high_b[None, :, 1])
                 & (low_b[None, :, 1] <= high_a[:, None, 1]))
-        if skip is not None:
-            near &= ~skip[begin:stop]
+        if one_loop:
+            gap = np.abs(np.arange(begin, stop)[:, None] - columns)
+            near &= (gap > 1) & (gap != count_b - 1)
         if not near.any():
             continue
         crossing = near & (
@@ -67,39 +70,41 @@ def polygon_edges(polygon: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def self_crossing(polygon: np.ndarray) -> tuple[int, int] | None:
-    """First pair of non-adjacent edges ``(i, j)``, ``i < j``, of a polygon that cross or
-    touch, or None when the polygon is simple."""
+    """First pair of non-adjacent edges ``(i, j)``, ``i < j``, of a polygon that cross, or a
+    vertex and an edge it lies on without being its end (touching), or None when the polygon
+    is simple."""
     count = len(polygon)
     starts, ends = polygon_edges(polygon)
-    index = np.arange(count)
-    gap = np.abs(index[:, None] - index[None, :])
-    # Adjacent edges share a vertex; an edge with itself is no crossing.
-    adjacent = (gap <= 1) | (gap == count - 1)
-    hit = first_crossing(starts, ends, starts, ends, skip=adjacent)
-    if hit is None:
-        # A vertex lying on a non-adjacent edge (touching) also makes the outline non-simple.
-        distances = _point_segment_distances(polygon, starts, ends)
-        vertex_on_edge = (distances <= 1e-12 * max(1.0, float(np.abs(polygon).max())))
-        vertex_on_edge &= ~((index[:, None] == index[None, :])
-                            | (index[:, None] == (index[None, :] + 1) % count))
-        touching = np.argwhere(vertex_on_edge)
-        if touching.size == 0:
-            return None
-        vertex, edge = (int(v) for v in touching[0])
-        return (min(vertex, edge), max(vertex, edge))
-    i, j = hit
-    return (min(i, j), max(i, j))
+    hit = first_crossing(starts, ends, starts, ends, one_loop=True)
+    if hit is not None:
+        return (min(hit), max(hit))
+    tolerance = 1e-12 * max(1.0, float(np.abs(polygon).max()))
+    rows = max(1, _CHUNK // count)
+    edges = np.arange(count)[None, :]
+    for begin in range(0, count, rows):
+        stop = min(count, begin + rows)
+        vertices = np.arange(begin, stop)[:, None]
+        on_edge = _point_segment_distances(polygon[begin:stop], starts, ends) <= tolerance
+        # A vertex is the end of its own edge and of the one before.
+        on_edge &= (edges != vertices) & (edges != (vertices - 1) % count)
+        touching = np.argwhere(on_edge)
+        if touching.size:
+            vertex, edge = int(touching[0, 0]) + begin, int(touching[0, 1])
+            return (min(vertex, edge), max(vertex, edge))
+    return None
 
 
 def _point_segment_distances(points: np.ndarray, starts: np.ndarray,
                              ends: np.ndarray) -> np.ndarray:
-    """Distance of every point to every segment, shape (p, k) (small inputs only)."""
-    d = ends - starts
-    length2 = np.maximum(np.einsum("ij,ij->i", d, d), 1e-300)
-    rel = points[:, None, :] - starts[None, :, :]
-    t = np.clip(np.einsum("pkj,kj->pk", rel, d) / length2, 0.0, 1.0)
-    nearest = starts[None, :, :] + t[..., None] * d[None, :, :]
-    return np.linalg.norm(points[:, None, :] - nearest, axis=2)
+    """Distance of every point to every segment, shape (p, k) (at most a chunk of pairs)."""
+    dx, dy = (ends - starts)[:, 0][None, :], (ends - starts)[:, 1][None, :]
+    length2 = np.maximum(dx * dx + dy * dy, 1e-300)
+    rx = points[:, 0][:, None] - starts[:, 0][None, :]
+    ry = points[:, 1][:, None] - starts[:, 1][None, :]
+    t = np.clip((rx * dx + ry * dy) / length2, 0.0, 1.0)
+    rx -= t * dx
+    ry -= t * dy
+    return np.sqrt(rx * rx + ry * ry)
 
 
 def distance_to_segments(points: np.ndarray, starts: np.ndarray, ends: np.ndarray) -> np.ndarray:
