@@ -77,7 +77,7 @@ def large_scene(n: int = 512) -> Any:
         "obstacles": [{"shape": "circle", "center": (0.42, 0.26), "radius": 0.05}],
         "bodies": bars,
         "time": {"dt": 0.0065, "steps": 1000, "substeps": 18},
-        "coupling": {"force_model": "momentum_exchange"},
+        "coupling": {"scheme": "explicit", "force_model": "momentum_exchange"},
     })
 
 

@@ -37,6 +37,7 @@ fixed = { box = [0.39, 0.79, 0.61, 0.81] }
 dt = 0.02
 steps = 4
 [coupling]
+scheme = "explicit"
 force_model = "momentum_exchange"
 [outputs]
 video = { fps = 10 }

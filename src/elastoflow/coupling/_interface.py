@@ -3,18 +3,24 @@
 The projection keeps ``div(A u + (1 - A) u_s)`` at zero, where ``(1 - A) u_s`` is the part of
 a face's flux that the body carries. For the strongly coupled step that part must be a linear
 function of the bodies' nodal velocities, and its transpose must give the force that the cell
-pressures exert on the nodes, so that the coupled system stays symmetric. Both come from the
-boundary map: along the line through a face (the vertical line through a u point, the
-horizontal one through a v point) the map's crossings split the face into fluid and solid
-intervals; over a solid interval the body velocity is the linear interpolation between the two
-crossings that bound its span (as inside bodies, METHOD.md §5.4), and each crossing's velocity
-is ``(1 - t) v_a + t v_b`` of its edge. The flux of the solid part of face ``f`` is therefore
+pressures exert on the nodes, so that the coupled system stays symmetric. Along the line
+through a face (the vertical line through a u point, the horizontal one through a v point) the
+boundary map's crossings split the face into fluid and solid intervals; each solid interval
+carries its length times the body velocity at its midpoint:
 
     (1 - A_f) u_s,f = sum_k  W[f, k] V_k          (V: nodal velocity components)
 
-with ``W`` sparse: a few crossings per face, two nodes per crossing. The force of the cell
-pressures on the nodes is ``h W^T (p_left - p_right)`` per unit depth: the exact discrete
-counterpart (virtual work) of the flux, so that ``div`` and the force are adjoint.
+The velocity at the midpoint is the body's own: barycentric in the triangle of the elastic body
+that contains it, or, for obstacles (no triangles) and round-off at the outline, that of the
+nearest point of the nearest boundary edge. Both are exact for affine motion, so ``W`` gives the
+exact swept flux of any rigid motion (the midpoint rule is exact for a linear field), and a
+uniform pressure exerts no net force and no torque. A face's velocity is taken where the face
+is, not interpolated along the line between the span's far crossings: a thin flag lying along
+a row of faces would otherwise hand the pressure on its sides to its two ends.
+
+The force of the cell pressures on the nodes is ``h W^T (p_low - p_high)`` per unit depth: the
+exact discrete counterpart (virtual work) of the flux, so that ``div`` and the force are
+adjoint.
 """
 
 from __future__ import annotations
@@ -33,34 +39,45 @@ from elastoflow.linalg import LowRankTerm
 
 
 @njit(cache=True)
-def _swept_lines(
+def _solid_intervals(
     offsets: np.ndarray, coordinate: np.ndarray, sign: np.ndarray, edge_index: np.ndarray,
-    parameter: np.ndarray, edges: np.ndarray, line_start: int, line_count_out: int,
-    point_count: int, origin_along: float, h: float, point_first: bool, stride: int,
-    face_offset: int, component: int, fill: bool, rows: np.ndarray, cols: np.ndarray,
-    values: np.ndarray, start: int,
+    edge_body: np.ndarray, line_count_out: int, point_count: int, origin_along: float,
+    origin_across: float, h: float, point_first: bool, stride: int, face_offset: int,
+    elastic_count: int, fill: bool, faces: np.ndarray, fractions: np.ndarray,
+    samples: np.ndarray, bodies: np.ndarray, start: int,
 ) -> int:
-    """Triplets of ``W`` for the faces along one family of lines; returns the next free slot.
-
-    Face ``(l, k)`` (``[k, l]`` when ``point_first``) of the line family has flat index
-    ``face_offset + i * stride + j``. With ``fill`` False only counts.
-    """
+    """Every solid interval of every face along one family of lines (line ``l`` at
+    ``origin_across + l h``): its face, its length over h, its midpoint (x, y) and the body
+    that covers it. Where outlines overlap (a flag clamped inside a cylinder) an elastic body
+    (index below ``elastic_count``) wins over an obstacle. With ``fill`` False only counts;
+    returns the next free slot."""
     extent = point_count * h
     slot = start
+    body_total = 0
+    for e in range(edge_body.shape[0]):
+        body_total = max(body_total, edge_body[e] + 1)
+    windings = np.zeros(max(body_total, 1), np.int64)
     for l in range(line_count_out):
-        line = line_start + 2 * l
+        line = 2 * l
         begin = offsets[line]
         end = offsets[line + 1]
+        across = origin_across + l * h
+        for c in range(begin, end):
+            windings[edge_body[edge_index[c]]] = 0
         winding = 0
         for c in range(begin, end - 1):
             winding += sign[c]
+            windings[edge_body[edge_index[c]]] += sign[c]
             if winding == 0:
                 continue
-            low_crossing = coordinate[c] - origin_along
-            width = coordinate[c + 1] - coordinate[c]
-            a = max(low_crossing, 0.0)
+            cover = -1
+            for candidate in range(body_total):
+                if windings[candidate] != 0 and (
+                        cover < 0 or candidate < elastic_count <= cover):
+                    cover = candidate
+            a = max(coordinate[c] - origin_along, 0.0)
             b = min(coordinate[c + 1] - origin_along, extent)
-            if b <= a or width <= 0.0:
+            if b <= a:
                 continue
             k0 = min(int(a / h), point_count - 1)
             k1 = min(int(b / h), point_count - 1)
@@ -69,30 +86,87 @@ def _swept_lines(
                 hi = min(b, (k + 1) * h)
                 if hi <= lo:
                     continue
-                if not fill:
-                    slot += 4
-                    continue
-                # Integral over [lo, hi] of the interpolation weight of the upper crossing,
-                # w(s) = (s - s_c) / width, and of the lower one, 1 - w; per unit face length.
-                upper = ((hi - low_crossing) ** 2 - (lo - low_crossing) ** 2) / (2.0 * width * h)
-                lower = (hi - lo) / h - upper
-                if point_first:
-                    face = face_offset + k * stride + l
-                else:
-                    face = face_offset + l * stride + k
-                for side in range(2):
-                    crossing = c + side
-                    weight = lower if side == 0 else upper
-                    edge = edge_index[crossing]
-                    t = parameter[crossing]
-                    rows[slot] = face
-                    cols[slot] = 2 * edges[edge, 0] + component
-                    values[slot] = weight * (1.0 - t)
-                    rows[slot + 1] = face
-                    cols[slot + 1] = 2 * edges[edge, 1] + component
-                    values[slot + 1] = weight * t
-                    slot += 2
+                if fill:
+                    if point_first:
+                        faces[slot] = face_offset + k * stride + l
+                        samples[slot, 0] = origin_along + 0.5 * (lo + hi)
+                        samples[slot, 1] = across
+                    else:
+                        faces[slot] = face_offset + l * stride + k
+                        samples[slot, 0] = across
+                        samples[slot, 1] = origin_along + 0.5 * (lo + hi)
+                    fractions[slot] = (hi - lo) / h
+                    bodies[slot] = cover if cover >= 0 else edge_body[edge_index[c]]
+                slot += 1
     return slot
+
+
+@njit(cache=True)
+def _barycentric(px: float, py: float, ax: float, ay: float, bx: float, by: float, cx: float,
+                 cy: float) -> tuple[float, float, float]:
+    det = (by - cy) * (ax - cx) + (cx - bx) * (ay - cy)
+    if det == 0.0:
+        return -1.0, -1.0, -1.0
+    wa = ((by - cy) * (px - cx) + (cx - bx) * (py - cy)) / det
+    wb = ((cy - ay) * (px - cx) + (ax - cx) * (py - cy)) / det
+    return wa, wb, 1.0 - wa - wb
+
+
+@njit(cache=True)
+def _sample_weights(
+    samples: np.ndarray, bodies: np.ndarray, points: np.ndarray, edges: np.ndarray,
+    edge_body: np.ndarray, triangles: np.ndarray, triangle_offsets: np.ndarray,
+    nodes: np.ndarray, weights: np.ndarray,
+) -> None:
+    """The body velocity at each sample as weights of at most three points.
+
+    Inside an elastic body (``bodies[s] < triangle_offsets.shape[0] - 1``): the barycentric
+    weights of the triangle containing the sample (exact for affine motion: rigid motion,
+    uniform strain). Otherwise, or when no triangle contains it (round-off at the outline; an
+    obstacle, which has no triangles): the nearest point of the body's nearest boundary edge.
+    """
+    body_count = triangle_offsets.shape[0] - 1
+    for s in range(samples.shape[0]):
+        px, py = samples[s, 0], samples[s, 1]
+        body = bodies[s]
+        found = False
+        if body < body_count:
+            best = -np.inf
+            for triangle in range(triangle_offsets[body], triangle_offsets[body + 1]):
+                i0, i1, i2 = (triangles[triangle, 0], triangles[triangle, 1],
+                              triangles[triangle, 2])
+                wa, wb, wc = _barycentric(px, py, points[i0, 0], points[i0, 1],
+                                          points[i1, 0], points[i1, 1], points[i2, 0],
+                                          points[i2, 1])
+                worst = min(wa, min(wb, wc))
+                if worst > best:
+                    best = worst
+                    nodes[s, 0], nodes[s, 1], nodes[s, 2] = i0, i1, i2
+                    weights[s, 0], weights[s, 1], weights[s, 2] = wa, wb, wc
+                if worst >= 0.0:
+                    break
+            found = best >= -1e-9
+        if found:
+            continue
+        nearest = np.inf
+        for e in range(edges.shape[0]):
+            if edge_body[e] != body:
+                continue
+            a, b = edges[e, 0], edges[e, 1]
+            dx = points[b, 0] - points[a, 0]
+            dy = points[b, 1] - points[a, 1]
+            length = dx * dx + dy * dy
+            t = 0.0
+            if length > 0.0:
+                t = ((px - points[a, 0]) * dx + (py - points[a, 1]) * dy) / length
+                t = min(max(t, 0.0), 1.0)
+            qx = points[a, 0] + t * dx - px
+            qy = points[a, 1] + t * dy - py
+            distance = qx * qx + qy * qy
+            if distance < nearest:
+                nearest = distance
+                nodes[s, 0], nodes[s, 1], nodes[s, 2] = a, b, b
+                weights[s, 0], weights[s, 1], weights[s, 2] = 1.0 - t, t, 0.0
 
 
 @dataclass(frozen=True)
@@ -160,39 +234,67 @@ class InterfaceFlux:
         return jump
 
 
-def interface_flux(grid: Grid2D, bmap: BoundaryMap,
-                   interior: InteriorBoundary) -> InterfaceFlux:
-    """Build ``W`` from the boundary map (module docstring) for the faces of ``interior``."""
+def interface_flux(grid: Grid2D, bmap: BoundaryMap, interior: InteriorBoundary,
+                   triangles: np.ndarray | None = None,
+                   triangle_offsets: np.ndarray | None = None) -> InterfaceFlux:
+    """Build ``W`` from the boundary map (module docstring) for the faces of ``interior``.
+
+    Args:
+        grid: The grid.
+        bmap: This step's boundary map.
+        interior: The fluid's view of it (open fractions).
+        triangles: The elastic bodies' triangles, indices into ``bmap.points``, shape (T, 3);
+            none: every covered face takes the velocity of the nearest boundary edge.
+        triangle_offsets: Body b's triangles are ``triangles[offsets[b]:offsets[b+1]]``; body
+            indices are those of ``bmap.edge_body`` (bodies first, then obstacles).
+    """
     if bmap.grid != grid:
         raise ValueError(f"boundary map grid {bmap.grid!r}: must be the grid {grid!r}")
+    if triangles is None or triangle_offsets is None:
+        triangles = np.zeros((0, 3), dtype=np.int64)
+        triangle_offsets = np.zeros(1, dtype=np.int64)
     nx, ny, h = grid.nx, grid.ny, grid.h
     ox, oy = grid.origin
     u_faces = (nx + 1) * ny
+    elastic_count = int(triangle_offsets.shape[0] - 1)
     families = (
-        # u faces: columns I = 2i of the y-map, segments along y, x-velocity.
-        (bmap.y_offsets, bmap.y_coordinate, bmap.y_sign, bmap.y_edge, bmap.y_parameter,
-         nx + 1, ny, oy, False, ny, 0, 0),
-        # v faces: rows J = 2j of the x-map, segments along x, y-velocity.
-        (bmap.x_offsets, bmap.x_coordinate, bmap.x_sign, bmap.x_edge, bmap.x_parameter,
-         ny + 1, nx, ox, True, ny + 1, u_faces, 1),
+        # u faces: columns I = 2i of the y-map (x = ox + i h), segments along y.
+        (bmap.y_offsets, bmap.y_coordinate, bmap.y_sign, bmap.y_edge, nx + 1, ny, oy, ox,
+         False, ny, 0),
+        # v faces: rows J = 2j of the x-map (y = oy + j h), segments along x.
+        (bmap.x_offsets, bmap.x_coordinate, bmap.x_sign, bmap.x_edge, ny + 1, nx, ox, oy,
+         True, ny + 1, u_faces),
     )
     empty_i = np.zeros(0, dtype=np.int64)
     empty_f = np.zeros(0)
-    count = 0
-    for (offsets, coordinate, sign, edge, parameter, lines, points, origin, first, stride,
-         offset, component) in families:
-        count = _swept_lines(offsets, coordinate, sign, edge, parameter, bmap.edges, 0, lines,
-                             points, origin, h, first, stride, offset, component, False,
-                             empty_i, empty_i, empty_f, count)
-    rows = np.empty(count, dtype=np.int64)
-    cols = np.empty(count, dtype=np.int64)
-    values = np.empty(count)
+    empty_s = np.zeros((0, 2))
+    counts = []
+    for (offsets, coordinate, sign, edge, lines, points, along, across, first, stride,
+         offset) in families:
+        counts.append(_solid_intervals(offsets, coordinate, sign, edge, bmap.edge_body, lines,
+                                       points, along, across, h, first, stride, offset,
+                                       elastic_count, False, empty_i, empty_f, empty_s,
+                                       empty_i, 0))
+    total = sum(counts)
+    sample_faces = np.empty(total, dtype=np.int64)
+    fractions = np.empty(total)
+    samples = np.empty((total, 2))
+    bodies = np.empty(total, dtype=np.int64)
     slot = 0
-    for (offsets, coordinate, sign, edge, parameter, lines, points, origin, first, stride,
-         offset, component) in families:
-        slot = _swept_lines(offsets, coordinate, sign, edge, parameter, bmap.edges, 0, lines,
-                            points, origin, h, first, stride, offset, component, True,
-                            rows, cols, values, slot)
+    for (offsets, coordinate, sign, edge, lines, points, along, across, first, stride,
+         offset) in families:
+        slot = _solid_intervals(offsets, coordinate, sign, edge, bmap.edge_body, lines, points,
+                                along, across, h, first, stride, offset, elastic_count, True,
+                                sample_faces, fractions, samples, bodies, slot)
+    nodes = np.zeros((total, 3), dtype=np.int64)
+    weights = np.zeros((total, 3))
+    _sample_weights(samples, bodies, bmap.points, bmap.edges, bmap.edge_body,
+                    np.ascontiguousarray(triangles, dtype=np.int64),
+                    np.ascontiguousarray(triangle_offsets, dtype=np.int64), nodes, weights)
+    component = (sample_faces >= u_faces).astype(np.int64)
+    rows = np.repeat(sample_faces, 3)
+    cols = (2 * nodes + component[:, None]).ravel()
+    values = (weights * fractions[:, None]).ravel()
     faces, row_of = np.unique(rows, return_inverse=True)
     matrix = sparse.csr_matrix(
         (values, (row_of, cols)), shape=(faces.shape[0], 2 * bmap.point_count)

@@ -1218,3 +1218,32 @@ def pcg_low_rank_kernel(rows, cols, offsets, diagonal, weights_x, weights_y, tot
         if pq <= 0.0 or squared <= threshold:
             break
     return iterations, squared
+
+
+@njit(cache=True)
+def low_rank_diagonal_kernel(offsets, points, weights, matrix, scale, size, out):
+    """``out[c] += scale sum_{d,e} B_cd M_de B_ce`` for ``B^T`` in CSR (rows d), ``out`` of
+    ``size`` points: the entries of each point are gathered first, so the cost is the sum over
+    points of (entries at the point)^2, not points x k^2."""
+    k = offsets.shape[0] - 1
+    count = np.zeros(size + 1, np.int64)
+    for d in range(k):
+        for e in range(offsets[d], offsets[d + 1]):
+            count[points[e] + 1] += 1
+    for c in range(size):
+        count[c + 1] += count[c]
+    fill = count[:-1].copy()
+    rows = np.empty(offsets[k], np.int64)
+    values = np.empty(offsets[k])
+    for d in range(k):
+        for e in range(offsets[d], offsets[d + 1]):
+            c = points[e]
+            rows[fill[c]] = d
+            values[fill[c]] = weights[e]
+            fill[c] += 1
+    for c in range(size):
+        total = 0.0
+        for a in range(count[c], count[c + 1]):
+            for b in range(count[c], count[c + 1]):
+                total += values[a] * matrix[rows[a], rows[b]] * values[b]
+        out[c] += scale * total

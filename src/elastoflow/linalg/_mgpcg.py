@@ -14,6 +14,7 @@ from elastoflow.linalg._kernels import (
     coarsen_serial,
     dense_matrix_kernel,
     load_operator_kernel,
+    low_rank_diagonal_kernel,
     pad_masked_kernel,
     pad_values_kernel,
     pcg_kernel,
@@ -57,14 +58,9 @@ class LowRankTerm:
     def diagonal(self, shape: tuple[int, int]) -> NDArray[np.float64]:
         """``diag(C)`` as an (m, n) array."""
         out = np.zeros(shape[0] * shape[1])
-        k = self.offsets.shape[0] - 1
-        rows = np.repeat(np.arange(k), np.diff(self.offsets))
-        # diag(C)_c = scale sum_{d,e} B_cd M_de B_ce over the entries of point c.
-        if self.points.size:
-            unique, local = np.unique(self.points, return_inverse=True)
-            dense = np.zeros((unique.shape[0], k))
-            np.add.at(dense, (local, rows), self.weights)
-            out[unique] = self.scale * np.einsum("cd,de,ce->c", dense, self.matrix, dense)
+        low_rank_diagonal_kernel(self.offsets, self.points, self.weights,
+                                 np.ascontiguousarray(self.matrix), float(self.scale),
+                                 out.shape[0], out)
         return out.reshape(shape)
 
     def apply(self, x: NDArray[np.float64]) -> NDArray[np.float64]:

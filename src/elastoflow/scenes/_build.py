@@ -350,6 +350,7 @@ def build_simulation(scene: Scene, *, steps: int | None = None,
             alpha=scene.coupling.alpha,
             force_relaxation=scene.coupling.force_relaxation,
             added_mass=scene.coupling.added_mass,
+            coupling=scene.coupling.scheme,
         )
     except ValueError as error:
         raise SceneError([f"time or coupling: {error}"], scene.source) from None

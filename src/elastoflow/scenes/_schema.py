@@ -365,6 +365,16 @@ class TimeSpec(_Spec):
 
 
 class CouplingSpec(_Spec):
+    """How fluid and bodies advance together.
+
+    ``scheme = "monolithic"`` (default): one pressure solve sees the bodies' inertia, stable
+    for any density ratio with no relaxation (`elastoflow.simulation.MonolithicCoupling`).
+    ``scheme = "explicit"``: the paper's partitioned step, whose force model, relaxation and
+    added-mass estimate are the other keys; they are refused with the monolithic scheme,
+    which needs none of them.
+    """
+
+    scheme: Literal["monolithic", "explicit"] = "monolithic"
     force_model: Literal["traction", "momentum_exchange"] = "traction"
     alpha: Annotated[float, Field(gt=0.0, le=1.0)] = 0.5
     """Volume fraction in eq. 8 of the momentum-exchange model."""
@@ -372,6 +382,22 @@ class CouplingSpec(_Spec):
     """Under-relaxation of the force on the bodies (1: none); stabilises light bodies."""
     added_mass: Annotated[float, Field(ge=0.0)] = 0.0
     """Coefficient of the added-mass stabilisation (0: off)."""
+
+    @model_validator(mode="after")
+    def _explicit_keys(self) -> CouplingSpec:
+        if self.scheme == "monolithic":
+            if self.force_model != "traction":
+                raise ValueError(
+                    f"force_model = {self.force_model!r} needs scheme = \"explicit\"; the "
+                    "monolithic scheme takes the force from its own pressure solve"
+                )
+            if self.force_relaxation != 1.0 or self.added_mass != 0.0:
+                raise ValueError(
+                    "force_relaxation and added_mass stabilise the explicit scheme only; with "
+                    "scheme = \"monolithic\" (the default) leave them out, or set "
+                    "scheme = \"explicit\""
+                )
+        return self
 
 
 # --------------------------------------------------------------------------------------------

@@ -258,8 +258,12 @@ class MonolithicCoupling:
         seconds["solid"] = clock() - t0
 
         t0 = clock()
+        triangles = np.concatenate([body.mesh.triangles + offsets[index]
+                                    for index, body in enumerate(sim.bodies)])
+        triangle_offsets = np.cumsum([0] + [body.mesh.triangle_count for body in sim.bodies])
         coupled = PressureCoupledBodies(
-            interface_flux(grid, bmap, interior), predicted, responses,
+            interface_flux(grid, bmap, interior, triangles, triangle_offsets), predicted,
+            responses,
             offsets[:len(sim.bodies) + 1], fluid.density, dt, bmap=bmap,
             gravity=fluid.gravity,
         )

@@ -321,12 +321,7 @@ class ElasticBody:
         = dt f`` at the current positions (held nodes get 0): what the strongly coupled
         pressure solve uses as the body's inertia (`elastoflow.solid._response`).
         """
-        m = self.material
-        return step_response(
-            self.positions, self.mesh.triangles, self._dm_inverse, self._rest_area, self.mass,
-            self.fixed_mask, m.lame_lambda, m.lame_mu, m.damping_lambda, m.damping_mu,
-            self.velocity_damping, float(dt),
-        )
+        return self._response_at(self.positions, dt)
 
     def advance_newmark(
         self, dt: float, external_forces: np.ndarray, response: StepResponse, *,
@@ -371,16 +366,43 @@ class ElasticBody:
         x1 = x0 + dt * v0
         x1[held] = x0[held]
         size = float(np.ptp(self.mesh.points, axis=0).max())
+
+        def residual_at(x: np.ndarray) -> tuple[np.ndarray, float]:
+            v = 2.0 * (x - x0) / dt - v0
+            r = 0.25 * dt * dt * (mass * a0 + self._forces_at(x, v) + f_external)
+            r -= mass * (x - x0 - dt * v0)
+            r[held] = 0.0
+            norm = float(np.linalg.norm(r))
+            return r, norm if np.isfinite(norm) else np.inf
+
+        # Newton on Newmark's residual: the matrix of ``response`` (tangent at the start of
+        # the step) while it contracts, a fresh tangent at the iterate and a halving line
+        # search when it does not (fast rotations leave the start's tangent behind).
+        factor = response
+        fresh = False
+        residual, norm = residual_at(x1)
         iterations = 0
         for iterations in range(1, max_iterations + 1):
-            v1 = 2.0 * (x1 - x0) / dt - v0
-            residual = 0.25 * dt * dt * (mass * a0 + self._forces_at(x1, v1) + f_external)
-            residual -= mass * (x1 - x0 - dt * v0)
-            update = response.solve(residual)
-            x1 += update
-            if not np.all(np.isfinite(x1)):
+            update = factor.solve(residual)
+            step_length = 1.0
+            for _ in range(8):
+                trial = x1 + step_length * update
+                trial_residual, trial_norm = residual_at(trial)
+                if trial_norm < norm:
+                    break
+                if not fresh:
+                    # Retry the full step with the tangent at the current iterate.
+                    factor = self._response_at(x1, 0.5 * dt)
+                    fresh = True
+                    update = factor.solve(residual)
+                    continue
+                step_length *= 0.5
+            else:
                 break
-            if float(np.abs(update).max()) <= tolerance * size:
+            x1 = trial
+            residual, norm = trial_residual, trial_norm
+            fresh = False
+            if step_length * float(np.abs(update).max()) <= tolerance * size:
                 break
         v1 = 2.0 * (x1 - x0) / dt - v0
         v1[held] = 0.0
@@ -402,6 +424,14 @@ class ElasticBody:
         return SolidStepReport(
             substeps=iterations, substep_dt=dt, stable_substep=self._stable_substep,
             min_determinant=float(determinants.min()),
+        )
+
+    def _response_at(self, positions: np.ndarray, dt: float) -> StepResponse:
+        m = self.material
+        return step_response(
+            np.ascontiguousarray(positions), self.mesh.triangles, self._dm_inverse,
+            self._rest_area, self.mass, self.fixed_mask, m.lame_lambda, m.lame_mu,
+            m.damping_lambda, m.damping_mu, self.velocity_damping, float(dt),
         )
 
     def _forces_at(self, positions: np.ndarray, velocities: np.ndarray) -> np.ndarray:

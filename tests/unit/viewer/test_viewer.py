@@ -25,7 +25,7 @@ _SCENE = {
         "fixed": {"box": [0.39, 0.79, 0.61, 0.81]},
     }],
     "time": {"dt": 0.02, "steps": 10},
-    "coupling": {"force_model": "momentum_exchange"},
+    "coupling": {"scheme": "explicit", "force_model": "momentum_exchange"},
 }
 
 

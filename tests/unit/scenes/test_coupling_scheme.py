@@ -1,0 +1,56 @@
+"""``coupling.scheme`` in scene files: the default, and the keys that belong to the explicit
+scheme refused with the monolithic one."""
+
+from __future__ import annotations
+
+import pytest
+
+from elastoflow.scenes import SceneError, get_scene, parse_scene
+from elastoflow.simulation import ExplicitCoupling, MonolithicCoupling
+
+_BASE = {
+    "domain": {"lx": 1.0, "ly": 1.0, "nx": 16},
+    "fluid": {"density": 1000.0, "viscosity": 1e-3},
+    "time": {"dt": 0.01, "steps": 2},
+}
+
+
+def test_default_scheme_is_monolithic_and_built_scenes_follow_it() -> None:
+    scene = parse_scene(_BASE)
+    assert scene.coupling.scheme == "monolithic"
+    assert get_scene("bar_in_jet").coupling.scheme == "monolithic"
+
+
+@pytest.mark.parametrize("coupling", [
+    {"force_relaxation": 0.5},
+    {"added_mass": 1.0},
+    {"force_model": "momentum_exchange"},
+    {"scheme": "monolithic", "force_relaxation": 0.1},
+])
+def test_explicit_keys_are_refused_with_the_monolithic_scheme(coupling: dict) -> None:
+    with pytest.raises(SceneError) as error:
+        parse_scene({**_BASE, "coupling": coupling})
+    message = str(error.value)
+    assert "coupling" in message and "explicit" in message
+    assert len(message.strip().splitlines()) == 1
+
+
+def test_explicit_scheme_takes_its_keys() -> None:
+    scene = parse_scene({**_BASE, "coupling": {"scheme": "explicit", "force_relaxation": 0.2,
+                                               "force_model": "momentum_exchange"}})
+    assert scene.coupling.scheme == "explicit"
+
+
+@pytest.mark.parametrize(("name", "scheme"), [("explicit", ExplicitCoupling),
+                                              ("monolithic", MonolithicCoupling)])
+def test_simulation_gets_the_scheme(name: str, scheme: type) -> None:
+    from elastoflow.scenes import build_simulation
+
+    simulation = build_simulation(parse_scene({**_BASE, "coupling": {"scheme": name}}))
+    assert isinstance(simulation.scheme, scheme)
+    simulation.step()
+
+
+def test_unknown_scheme_is_refused() -> None:
+    with pytest.raises(SceneError, match="coupling.scheme"):
+        parse_scene({**_BASE, "coupling": {"scheme": "implicit"}})
