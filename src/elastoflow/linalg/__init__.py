@@ -10,9 +10,11 @@ SolveReport)`` (``out``: an array to receive ``x``, may be ``x0``) and guarantee
 * on every singular (pure Neumann) connected component the right-hand side is made compatible
   by subtracting its mean there, and the returned ``x`` has zero mean there;
 * ``SolveReport.residual`` is the true relative residual ``|b - A x| / |b|`` (2-norm) of the
-  returned ``x`` for that compatible ``b`` (not a recursively updated estimate), and
-  ``converged`` means it is ``<= rtol``; ``x0`` is a warm start (0 iterations when it already
-  meets ``rtol``).
+  returned ``x`` for that compatible ``b`` (not a recursively updated estimate);
+  ``SolveReport.incompatibility`` is the share of the given right-hand side that was removed to
+  make it compatible (round-off for a consistent problem, order 1 for net inflow into a closed
+  box); ``converged`` means both are ``<= rtol``, so an incompatible system is never reported
+  converged; ``x0`` is a warm start (0 iterations when it already meets ``rtol``).
 
 ``PoissonSolverJacobi(rtol, max_iterations, omega)`` is the paper's solver: weighted Jacobi,
 convergent for every such operator (``0 < omega < 1``), but it needs O(n^2) sweeps on an

@@ -367,6 +367,7 @@ def resolve_scene(name_or_path: str) -> Scene:
     from elastoflow.scenes._toml import load_scene
 
     path = Path(name_or_path)
-    if name_or_path.endswith(".toml") or path.exists():
+    looks_like_a_path = path.suffix != "" or len(path.parts) > 1
+    if name_or_path.endswith(".toml") or path.exists() or looks_like_a_path:
         return load_scene(path)
     return get_scene(name_or_path)

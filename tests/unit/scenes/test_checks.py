@@ -197,6 +197,19 @@ def test_memory_is_checked_before_anything_is_allocated() -> None:
     assert peak < 10 * 2**20
 
 
+def test_flux_check_allocates_nothing_on_a_huge_grid() -> None:
+    data = scene_data(domain={"lx": 1.0, "ly": 1.0, "nx": 1_000_000_000},
+                      boundaries={"left": {**INFLOW, "profile": "parabolic"}})
+    tracemalloc.start()
+    try:
+        (line,) = problems(data)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert line.startswith("boundaries.left.speed = 1: the domain is closed")
+    assert peak < 10 * 2**20
+
+
 def test_memory_estimate_against_a_given_limit() -> None:
     scene = parse_scene(scene_data(domain={"lx": 1.0, "ly": 1.0, "nx": 512}))
     total, parts = memory_estimate(scene)
@@ -359,3 +372,13 @@ def test_self_crossing_finds_crossing_and_touching_edges() -> None:
     # Vertex 4 lies on edge 1 (a pinched outline).
     pinched = np.array([[0, 0], [2, 0], [2, 2], [1, 2], [2, 1], [0, 2]], float)
     assert geometry.self_crossing(pinched) is not None
+
+
+def test_a_name_that_looks_like_a_path_is_read_as_a_file(tmp_path) -> None:
+    from elastoflow.scenes import resolve_scene
+
+    for name in (str(tmp_path / "missing.tml"), "folder/scene"):
+        with pytest.raises(SceneError, match="cannot read scene file: No such file"):
+            resolve_scene(name)
+    with pytest.raises(SceneError, match="unknown scene name"):
+        resolve_scene("bar_in_jett")
