@@ -256,7 +256,7 @@ def build_bodies(scene: Scene) -> list[Any]:
         except SceneError as error:
             raise SceneError([f"bodies.{index}.{p}" for p in error.problems],
                              scene.source) from None
-        except ValueError as error:
+        except (ValueError, ArithmeticError) as error:
             raise SceneError([(f"bodies.{index}.shape = {spec.shape.type}: cannot mesh it: "
                               f"{error}")], scene.source) from None
         m = spec.material
@@ -269,6 +269,9 @@ def build_bodies(scene: Scene) -> list[Any]:
             raise SceneError([f"bodies.{index}.material: {error}"], scene.source) from None
         fixed: np.ndarray = np.zeros(0, dtype=np.int64)
         if spec.fixed is not None:
+            if any(node >= mesh.point_count for node in spec.fixed.nodes):
+                raise SceneError([(f"bodies.{index}.fixed.nodes = {spec.fixed.nodes}: the mesh "
+                                   f"has nodes 0..{mesh.point_count - 1}")], scene.source)
             parts = [np.asarray(spec.fixed.nodes, dtype=np.int64)]
             if spec.fixed.box is not None:
                 in_box = solid.nodes_in_box(mesh, spec.fixed.box)
@@ -277,9 +280,6 @@ def build_bodies(scene: Scene) -> list[Any]:
                                        "contains no node of the body's mesh")], scene.source)
                 parts.append(in_box)
             fixed = np.unique(np.concatenate(parts))
-            if fixed.size and fixed.max() >= mesh.points.shape[0]:
-                raise SceneError([(f"bodies.{index}.fixed.nodes = {spec.fixed.nodes}: the mesh "
-                                   f"has nodes 0..{mesh.points.shape[0] - 1}")], scene.source)
         pivot = None if spec.pivot is None else solid.nearest_node(mesh, spec.pivot)
         try:
             bodies.append(solid.ElasticBody(
@@ -287,6 +287,11 @@ def build_bodies(scene: Scene) -> list[Any]:
             ))
         except ValueError as error:
             raise SceneError([f"bodies.{index}: {error}"], scene.source) from None
+        except ArithmeticError as error:
+            # Denormal or extreme material values: the wave speed or substep is not a number.
+            raise SceneError([(f"bodies.{index}.material: its values give no finite stable "
+                               f"substep ({type(error).__name__}: {error}); use physical "
+                               "values")], scene.source) from None
     return bodies
 
 
@@ -336,7 +341,7 @@ def build_simulation(scene: Scene, *, steps: int | None = None,
             _warnings.warn(line, SceneWarning, stacklevel=2)
     try:
         fluid_solver = build_fluid_solver(scene, grid)
-    except ValueError as error:
+    except (ValueError, ArithmeticError) as error:
         raise SceneError([f"fluid: {error}"], scene.source) from None
     try:
         return Simulation(
@@ -352,7 +357,7 @@ def build_simulation(scene: Scene, *, steps: int | None = None,
             added_mass=scene.coupling.added_mass,
             coupling=scene.coupling.scheme,
         )
-    except ValueError as error:
+    except (ValueError, ArithmeticError) as error:
         raise SceneError([f"time or coupling: {error}"], scene.source) from None
 
 

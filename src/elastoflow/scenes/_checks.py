@@ -223,7 +223,8 @@ def _mesh_elements(shape: Any) -> float:
     else:
         return 0.0
     # Triangle's quality meshes hold about 1.5 times the equilateral count.
-    return 1.5 * area / (math.sqrt(3.0) / 4.0 * size**2)
+    element_area = math.sqrt(3.0) / 4.0 * size * size
+    return 1.5 * area / element_area if element_area > 0.0 else math.inf
 
 
 def memory_estimate(scene: Scene) -> tuple[float, list[tuple[str, float]]]:

@@ -151,10 +151,14 @@ def _allowed(item: Any, member: str | None) -> str:
 def format_validation_error(error: ValidationError) -> list[str]:
     """One line per problem: ``key.path = value: what is allowed``.
 
-    The alternatives of a union (``substeps``: an integer or "auto") make one line.
+    One key makes one line: the alternatives of a union (``substeps``: an integer or "auto"),
+    the missing items of a too short array, and the items of an array that all fail the same
+    way are each folded into one.
     """
-    lines: list[str] = []
+    # Each problem as (path, value text, what is allowed); a value text of None: no value.
+    problems: list[tuple[str, str | None, str]] = []
     union: dict[str, tuple[Any, list[str]]] = {}
+    short: dict[str, int] = {}
     for item in error.errors(include_url=False):
         loc = tuple(item["loc"])
         path = _path(loc)
@@ -163,39 +167,72 @@ def format_validation_error(error: ValidationError) -> list[str]:
         if member is not None:
             if path not in union:
                 union[path] = (item.get("input"), [])
-                lines.append(path)  # placeholder, filled below
+                problems.append((path, "", ""))  # filled below
             union[path][1].append(_allowed(item, member))
         elif kind == "extra_forbidden":
             parent = _model_at(loc[:-1])
             allowed = ", ".join(parent.model_fields) if parent else "see the documentation"
-            lines.append(f"{path}: unknown key (allowed keys: {allowed})")
+            problems.append((path, None, f"unknown key (allowed keys: {allowed})"))
         elif kind == "missing" and loc and isinstance(loc[-1], int):
             parent_path = _path(loc[:-1])
-            lines.append(f"{parent_path}: too few items (item {loc[-1]} is missing)")
+            if parent_path not in short:
+                problems.append((parent_path, _show(item.get("input")), ""))  # filled below
+            short[parent_path] = max(short.get(parent_path, 0), loc[-1] + 1)
         elif kind == "missing":
-            lines.append(f"{path}: missing (required)")
+            problems.append((path, None, "missing (required)"))
         elif kind == "too_long":
-            lines.append(f"{path} = {_show(item.get('input'))}: too many items")
+            problems.append((path, _show(item.get("input")), "too many items"))
         elif kind == "union_tag_invalid":
             ctx = item.get("ctx", {})
-            lines.append(
-                f"{path}.{ctx.get('discriminator', 'type').strip(chr(39))} = "
-                f"{_show(ctx.get('tag'))}: unknown kind (allowed: {ctx.get('expected_tags')})"
-            )
+            discriminator = ctx.get("discriminator", "type").strip(chr(39))
+            problems.append((f"{path}.{discriminator}", _show(ctx.get("tag")),
+                             f"unknown kind (allowed: {ctx.get('expected_tags')})"))
         elif kind == "union_tag_not_found":
             ctx = item.get("ctx", {})
-            lines.append(f"{path}: missing key {ctx.get('discriminator', 'type')}")
+            problems.append((path, None, f"missing key {ctx.get('discriminator', 'type')}"))
         else:
             allowed = _allowed(item, None)
             if kind in _TYPE_WORDS or item["msg"].startswith("Input should be "):
                 allowed = f"must be {allowed}"
-            lines.append(f"{path} = {_show(item.get('input'))}: {allowed}")
-    for index, line in enumerate(lines):
-        if line in union:
-            value, alternatives = union[line]
+            problems.append((path, _show(item.get("input")), allowed))
+    for index, (path, value, allowed) in enumerate(problems):
+        if path in union and value == "":
+            raw, alternatives = union[path]
             unique = list(dict.fromkeys(alternatives))
-            lines[index] = f"{line} = {_show(value)}: must be {' or '.join(unique)}"
-    return lines
+            problems[index] = (path, _show(raw), f"must be {' or '.join(unique)}")
+        elif path in short and not allowed:
+            problems[index] = (path, value, f"too few items (needs {short[path]})")
+    return [_line(*problem) for problem in _fold_items(problems)]
+
+
+def _line(path: str, value: str | None, allowed: str) -> str:
+    return f"{path}: {allowed}" if value is None else f"{path} = {value}: {allowed}"
+
+
+def _fold_items(problems: list[tuple[str, str | None, str]]) -> list[tuple[str, str | None, str]]:
+    """Items of one array that fail the same way (``jets.0 = 0: must be a table``,
+    ``jets.1 = 0: must be a table``) as one problem of the array."""
+    groups: dict[tuple[str, str], list[int]] = {}
+    for index, (path, value, allowed) in enumerate(problems):
+        parent, _, last = path.rpartition(".")
+        if last.isdigit() and value is not None:
+            groups.setdefault((parent, allowed), []).append(index)
+    folded: list[tuple[str, str | None, str]] = []
+    done: set[int] = set()
+    for index, problem in enumerate(problems):
+        if index in done:
+            continue
+        path, value, allowed = problem
+        parent, _, last = path.rpartition(".")
+        members = groups.get((parent, allowed), []) if last.isdigit() else []
+        if len(members) < 2:
+            folded.append(problem)
+            continue
+        done.update(members)
+        items = ", ".join(problems[m][0].rpartition(".")[2] for m in members)
+        values = ", ".join(str(problems[m][1]) for m in members)
+        folded.append((parent, None, f"items {items} = {values}: {allowed}"))
+    return folded
 
 
 def _inside(bounds: tuple[float, float, float, float], lx: float, ly: float) -> bool:

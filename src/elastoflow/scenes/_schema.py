@@ -30,6 +30,9 @@ Point = Annotated[tuple[float, float], Strict(False)]
 Box = Annotated[tuple[float, float, float, float], Strict(False)]
 """Axis-aligned box ``(x0, y0, x1, y1)`` [m]."""
 
+MAX_SUBSTEPS = 1_000_000
+"""Most solid substeps per fluid step a scene may ask for ("auto" computes the count)."""
+
 MAX_SEGMENTS = 100_000
 """Most outline vertices of a circle obstacle. More only add cost (the overlap checks compare
 outline edges pairwise) and no accuracy: the fluid sees the outline through the grid cells."""
@@ -353,7 +356,7 @@ class TimeSpec(_Spec):
     cfl: PositiveFloat | None = None
     duration: PositiveFloat | None = None
     steps: PositiveInt | None = None
-    substeps: PositiveInt | Literal["auto"] = "auto"
+    substeps: Annotated[int, Field(gt=0, le=MAX_SUBSTEPS)] | Literal["auto"] = "auto"
 
     @model_validator(mode="after")
     def _exactly_one(self) -> TimeSpec:
@@ -408,7 +411,7 @@ View = Literal["speed", "vorticity", "pressure", "dye"]
 
 class VideoSpec(_Spec):
     view: View = "speed"
-    fps: PositiveInt = 30
+    fps: Annotated[int, Field(gt=0, le=1000)] = 30
     every: PositiveInt = 1
     """Render a frame every this many fluid steps."""
 

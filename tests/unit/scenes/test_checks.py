@@ -76,6 +76,17 @@ def test_an_integer_is_a_float_and_tables_accept_lists_for_pairs() -> None:
     assert scene.domain.lx == 1.0 and scene.fluid.gravity == (0.0, -9.0)
 
 
+@pytest.mark.parametrize(("tables", "expected"), [
+    ({"fluid": {"gravity": [1.0]}}, "fluid.gravity = [1.0]: too few items (needs 2)"),
+    ({"jets": [0, 0]}, "jets: items 0, 1 = 0, 0: must be a table"),
+    ({"fluid": {"gravity": [0.0, -9.8, 1.0]}},
+     "fluid.gravity = [0.0, -9.8, 1.0]: too many items"),
+])
+def test_one_line_per_array_key(tables: dict, expected: str) -> None:
+    (line,) = problems(scene_data(**tables))
+    assert line == expected
+
+
 @pytest.mark.parametrize("rtol", [float("inf"), 0.0, -1e-6, 1.0])
 def test_pressure_rtol_is_finite_positive_and_below_one(rtol: float) -> None:
     (line,) = problems(scene_data(fluid={"pressure_rtol": rtol}))
