@@ -286,6 +286,27 @@ def interface_flux(grid: Grid2D, bmap: BoundaryMap, interior: InteriorBoundary,
         slot = _solid_intervals(offsets, coordinate, sign, edge, bmap.edge_body, lines, points,
                                 along, across, h, first, stride, offset, elastic_count, True,
                                 sample_faces, fractions, samples, bodies, slot)
+    # Only faces next to a cell the pressure equation has (one with an interior face open by
+    # OPEN_MIN) enter it; the faces deep inside bodies are dropped before the point location.
+    open_x = interior.open_fraction_x >= OPEN_MIN
+    open_y = interior.open_fraction_y >= OPEN_MIN
+    active = np.zeros((nx + 2, ny + 2), dtype=bool)
+    inner = active[1:-1, 1:-1]
+    inner[1:, :] |= open_x[1:-1, :]
+    inner[:-1, :] |= open_x[1:-1, :]
+    inner[:, 1:] |= open_y[:, 1:-1]
+    inner[:, :-1] |= open_y[:, 1:-1]
+    is_u_sample = sample_faces < u_faces
+    u_index = np.minimum(sample_faces, u_faces - 1)
+    v_index = np.maximum(sample_faces - u_faces, 0)
+    ui, uj = u_index // ny, u_index % ny
+    vi, vj = v_index // (ny + 1), v_index % (ny + 1)
+    # Padded cell indices on both sides: u face (i, j) joins cells (i-1, j) and (i, j).
+    near = np.where(is_u_sample, active[ui, uj + 1] | active[ui + 1, uj + 1],
+                    active[vi + 1, vj] | active[vi + 1, vj + 1])
+    sample_faces, fractions, samples, bodies = (sample_faces[near], fractions[near],
+                                                np.ascontiguousarray(samples[near]), bodies[near])
+    total = int(sample_faces.shape[0])
     nodes = np.zeros((total, 3), dtype=np.int64)
     weights = np.zeros((total, 3))
     _sample_weights(samples, bodies, bmap.points, bmap.edges, bmap.edge_body,
