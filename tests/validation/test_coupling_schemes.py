@@ -121,3 +121,42 @@ def test_disc_pushed_by_a_force_feels_the_added_mass(ratio: float) -> None:
     acceleration = (mass @ body.velocities)[1] / mass.sum() / (steps * DT)
     expected = -ratio / (ratio + 1.0) * GRAVITY
     assert abs(acceleration - expected) <= 0.03 * abs(expected), (acceleration, expected)
+
+
+@pytest.mark.slow
+def test_neutrally_buoyant_body_in_a_vortex_gains_no_energy() -> None:
+    """A soft neutrally buoyant disc carried by an inviscid vortex in a free-slip box: the
+    total (fluid kinetic + body kinetic + elastic) energy never rises above its start, and the
+    body's share does not grow. 300 steps at 48^2 here; docs/method_notes.md item 8 has
+    10 000 steps at 64^2."""
+    n = 48
+    grid = Grid2D(nx=n, ny=n, h=1.0 / n)
+    walls = fluid.DomainBoundaries(left=fluid.WallFreeSlip(), right=fluid.WallFreeSlip(),
+                                   bottom=fluid.WallFreeSlip(), top=fluid.WallFreeSlip())
+    solver = fluid.FluidSolver(grid, density=FLUID_DENSITY, viscosity=0.0, boundaries=walls,
+                               advection="maccormack")
+    state = fluid.FluidState.zeros(grid)
+    xu, yu = np.arange(n + 1)[:, None] / n, (np.arange(n)[None, :] + 0.5) / n
+    xv, yv = (np.arange(n)[:, None] + 0.5) / n, np.arange(n + 1)[None, :] / n
+    state.velocity_x[:] = 0.2 * np.sin(np.pi * xu) * np.cos(np.pi * yu)
+    state.velocity_y[:] = -0.2 * np.cos(np.pi * xv) * np.sin(np.pi * yv)
+    outline = coupling.obstacle_circle((0.3, 0.5), 0.08, segments=40).polygon
+    body = solid.ElasticBody(solid.mesh_from_polygon(outline, element_size=0.03),
+                             solid.MaterialStVK(FLUID_DENSITY, 1e5, 0.3))
+    simulation = Simulation(grid, solver, state=state, bodies=[body], dt=0.01,
+                            coupling="monolithic")
+    h = grid.h
+
+    def energies() -> tuple[float, float]:
+        u, v = simulation.state.velocity_x, simulation.state.velocity_y
+        fluid_energy = 0.5 * FLUID_DENSITY * h * h * (np.sum(u[1:-1] ** 2) + np.sum(v[:, 1:-1] ** 2))
+        return float(fluid_energy), body.kinetic_energy() + body.elastic_energy()
+
+    start = sum(energies())
+    body_energy = []
+    for _ in range(300):
+        simulation.step()
+        fluid_energy, solid_energy = energies()
+        assert fluid_energy + solid_energy <= start * (1.0 + 1e-9)
+        body_energy.append(solid_energy)
+    assert max(body_energy[150:]) < 1.5 * max(body_energy[:150])
