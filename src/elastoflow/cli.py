@@ -200,8 +200,10 @@ def run(
         _fail(f"--out = {str(out_dir)!r}: cannot write the outputs there "
               f"({error.strerror or error}: {error.filename or ''})")
     failure: BaseException | None = None
+    unfinished: OSError | None = None
     stopped = False
     mid_step = False
+    written: list[Path] = []
     try:
         with _StopRequest() as stop:
             _step_loop(simulation, session, total, stop, quiet)
@@ -213,18 +215,29 @@ def run(
     finally:
         # A failed or hard-interrupted step may leave a half-updated state: keep only the
         # checkpoints taken between steps.
-        written = session.close(final_checkpoint=failure is None and not mid_step)
+        try:
+            written = session.close(final_checkpoint=failure is None and not mid_step)
+        except OSError as error:
+            # A full or read-only file system: say so instead of a traceback.
+            unfinished = error
 
     if session.video_note:
         typer.echo(f"note: {session.video_note}", err=True)
     for path in written:
         typer.echo(f"wrote {path}")
+    problems = []
     if failure is not None:
         where = f"step {simulation.step_index + 1} (t = {simulation.time:.6g} s)"
         message = str(failure)
         if not message.startswith("step"):
             message = f"{where}: {type(failure).__name__}: {message}"
-        _fail(f"run failed at {message}", EXIT_RUN_FAILED)
+        problems.append(f"run failed at {message}")
+    if unfinished is not None:
+        problems.append(f"cannot finish the outputs in {out_dir} after step "
+                        f"{simulation.step_index}: {unfinished.strerror or unfinished}"
+                        + (f" ({unfinished.filename})" if unfinished.filename else ""))
+    if problems:
+        _fail(problems, EXIT_RUN_FAILED)
     if stopped:
         typer.echo(f"stopped at step {simulation.step_index} of {total}; resume with:\n"
                    f"  elastoflow run {scene} --out {out_dir} --resume --steps {total}")

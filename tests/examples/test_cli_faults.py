@@ -180,3 +180,29 @@ def test_validate_prints_warnings_and_ok(tmp_path: Path) -> None:
     lines = result.output.strip().splitlines()
     assert lines[0].startswith(f"warning: {path}: bodies.0.shape: the body is only 1.60 cells")
     assert lines[1].startswith("ok: tiny: 16x16 cells, 1 bodies (16 elements)")
+
+
+def test_a_full_disk_during_a_run_is_an_error_not_a_traceback(
+        tiny: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    import errno
+
+    from elastoflow.io import FieldWriter
+
+    original = FieldWriter.write
+    calls = {"count": 0}
+
+    def fill_up(self: Any, arrays: Any) -> Any:
+        calls["count"] += 1
+        if calls["count"] >= 3:
+            raise OSError(errno.ENOSPC, "No space left on device", "step.npz")
+        return original(self, arrays)
+
+    monkeypatch.setattr(FieldWriter, "write", fill_up)
+    result = runner.invoke(app, ["run", str(tiny), "--out", str(tmp_path / "out"), "--quiet",
+                                 "--no-video", "--fields", "npz", "--every", "1"])
+    assert result.exit_code == 1, result.output
+    assert isinstance(result.exception, SystemExit)
+    errors = [line for line in result.output.splitlines() if line.startswith("error:")]
+    assert len(errors) == 2, result.output
+    assert errors[0].startswith("error: run failed at step") and "No space left" in errors[0]
+    assert errors[1].startswith(f"error: cannot finish the outputs in {tmp_path / 'out'}")
