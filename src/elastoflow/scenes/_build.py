@@ -318,7 +318,7 @@ def build_simulation(scene: Scene, *, steps: int | None = None,
             what is allowed.
     """
     from elastoflow.scenes._checks import check_built, check_memory
-    from elastoflow.simulation import Simulation
+    from elastoflow.simulation import MonolithicCoupling, Simulation
 
     problems = check_memory(scene)
     if problems:
@@ -355,7 +355,8 @@ def build_simulation(scene: Scene, *, steps: int | None = None,
             alpha=scene.coupling.alpha,
             force_relaxation=scene.coupling.force_relaxation,
             added_mass=scene.coupling.added_mass,
-            coupling=scene.coupling.scheme,
+            coupling=(MonolithicCoupling(scene.coupling.newmark_gamma)
+                      if scene.coupling.scheme == "monolithic" else "explicit"),
         )
     except (ValueError, ArithmeticError) as error:
         raise SceneError([f"time or coupling: {error}"], scene.source) from None

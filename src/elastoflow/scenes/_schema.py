@@ -385,6 +385,9 @@ class CouplingSpec(_Spec):
     """Under-relaxation of the force on the bodies (1: none); stabilises light bodies."""
     added_mass: Annotated[float, Field(ge=0.0)] = 0.0
     """Coefficient of the added-mass stabilisation (0: off)."""
+    newmark_gamma: Annotated[float, Field(ge=0.5, le=1.0)] = 0.55
+    """Monolithic scheme: Newmark's gamma of the bodies' implicit step (0.5: no numerical
+    damping; more damps the modes the step does not resolve)."""
 
     @model_validator(mode="after")
     def _explicit_keys(self) -> CouplingSpec:

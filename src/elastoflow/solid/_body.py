@@ -326,6 +326,7 @@ class ElasticBody:
     def advance_newmark(
         self, dt: float, external_forces: np.ndarray, response: StepResponse, *,
         step: int | None = None, tolerance: float = 1e-10, max_iterations: int = 12,
+        gamma: float = 0.5,
     ) -> SolidStepReport:
         """One implicit step of ``dt`` [s] by Newmark's average-acceleration rule.
 
@@ -367,10 +368,14 @@ class ElasticBody:
         x1[held] = x0[held]
         size = float(np.ptp(self.mesh.points, axis=0).max())
 
+        beta = 0.5 * gamma
+        drift = x0 + dt * v0 + (0.5 - beta) * dt * dt * a0
+
         def residual_at(x: np.ndarray) -> tuple[np.ndarray, float]:
+            # With beta = gamma / 2 the end velocity is 2 (x1 - x0) / dt - v0 for any gamma.
             v = 2.0 * (x - x0) / dt - v0
-            r = 0.25 * dt * dt * (mass * a0 + self._forces_at(x, v) + f_external)
-            r -= mass * (x - x0 - dt * v0)
+            r = beta * dt * dt * (self._forces_at(x, v) + f_external)
+            r -= mass * (x - drift)
             r[held] = 0.0
             norm = float(np.linalg.norm(r))
             return r, norm if np.isfinite(norm) else np.inf
@@ -392,7 +397,7 @@ class ElasticBody:
                     break
                 if not fresh:
                     # Retry the full step with the tangent at the current iterate.
-                    factor = self._response_at(x1, 0.5 * dt)
+                    factor = self._response_at(x1, gamma * dt, np.sqrt(beta) * dt, 0.5 * dt)
                     fresh = True
                     update = factor.solve(residual)
                     continue
@@ -426,13 +431,23 @@ class ElasticBody:
             min_determinant=float(determinants.min()),
         )
 
-    def _response_at(self, positions: np.ndarray, dt: float) -> StepResponse:
+    def _response_at(self, positions: np.ndarray, dt: float,
+                     stiffness_step: float | None = None,
+                     scale: float | None = None) -> StepResponse:
         m = self.material
         return step_response(
             np.ascontiguousarray(positions), self.mesh.triangles, self._dm_inverse,
             self._rest_area, self.mass, self.fixed_mask, m.lame_lambda, m.lame_mu,
             m.damping_lambda, m.damping_mu, self.velocity_damping, float(dt),
+            stiffness_step, scale,
         )
+
+    def newmark_response(self, dt: float, gamma: float = 0.5) -> StepResponse:
+        """The answer of `advance_newmark` (``gamma``, ``beta = gamma / 2``) to a force held
+        over the step, at the current positions: mean velocity ``dt/2 A^-1 f`` with
+        ``A = M + gamma dt (D + alpha M) + beta dt^2 K`` (end velocity twice that)."""
+        return self._response_at(self.positions, gamma * dt, np.sqrt(0.5 * gamma) * dt,
+                                 0.5 * dt)
 
     def _forces_at(self, positions: np.ndarray, velocities: np.ndarray) -> np.ndarray:
         """Internal (elastic, Voigt and drag) nodal forces [N/m] at a given state."""

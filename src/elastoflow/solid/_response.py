@@ -191,17 +191,19 @@ def step_response(
     positions: np.ndarray, triangles: np.ndarray, dm_inverse: np.ndarray,
     rest_area: np.ndarray, mass: np.ndarray, fixed_mask: np.ndarray, lame_lambda: float,
     lame_mu: float, damping_lambda: float, damping_mu: float, velocity_damping: float,
-    dt: float,
+    dt: float, stiffness_step: float | None = None, scale: float | None = None,
 ) -> StepResponse:
-    """Assemble and factor ``M + dt D + dt^2 K + dt alpha M`` on the free degrees of freedom."""
+    """Assemble and factor ``M + dt D + s^2 K + dt alpha M`` on the free degrees of freedom
+    (``s = stiffness_step``, default ``dt``); its answer is ``scale A^-1 f`` (default ``dt``)."""
+    s = dt if stiffness_step is None else float(stiffness_step)
     n = positions.shape[0]
     m = triangles.shape[0]
     rows = np.empty(36 * m, dtype=np.int64)
     cols = np.empty(36 * m, dtype=np.int64)
     values = np.empty(36 * m)
     response_triplets(
-        positions, triangles, dm_inverse, rest_area, dt * damping_lambda + dt * dt * lame_lambda,
-        dt * damping_mu + dt * dt * lame_mu, lame_lambda, lame_mu, dt * dt, rows, cols, values,
+        positions, triangles, dm_inverse, rest_area, dt * damping_lambda + s * s * lame_lambda,
+        dt * damping_mu + s * s * lame_mu, lame_lambda, lame_mu, s * s, rows, cols, values,
     )
     size = 2 * n
     matrix = sparse.coo_matrix((values, (rows, cols)), shape=(size, size)).tocsr()
@@ -210,9 +212,10 @@ def step_response(
     lumped = np.repeat(mass * (1.0 + dt * velocity_damping), 2)
     matrix = matrix + sparse.diags(lumped)
     free = np.flatnonzero(~np.repeat(fixed_mask, 2)).astype(np.int64)
+    answer = dt if scale is None else float(scale)
     if free.size == 0:
-        return StepResponse(free, dt, None)
+        return StepResponse(free, answer, None)
     reduced = matrix[free][:, free].tocsc()
     factor = sparse_linalg.splu(reduced, permc_spec="MMD_AT_PLUS_A",
                                 options={"SymmetricMode": True})
-    return StepResponse(free, dt, factor)
+    return StepResponse(free, answer, factor)
