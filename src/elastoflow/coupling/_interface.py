@@ -126,11 +126,22 @@ def _sample_weights(
     obstacle, which has no triangles): the nearest point of the body's nearest boundary edge.
     """
     body_count = triangle_offsets.shape[0] - 1
+    last = -1
     for s in range(samples.shape[0]):
         px, py = samples[s, 0], samples[s, 1]
         body = bodies[s]
         found = False
         if body < body_count:
+            # Samples come line by line: the triangle of the previous one is the likeliest.
+            if triangle_offsets[body] <= last < triangle_offsets[body + 1]:
+                i0, i1, i2 = triangles[last, 0], triangles[last, 1], triangles[last, 2]
+                wa, wb, wc = _barycentric(px, py, points[i0, 0], points[i0, 1],
+                                          points[i1, 0], points[i1, 1], points[i2, 0],
+                                          points[i2, 1])
+                if min(wa, min(wb, wc)) >= 0.0:
+                    nodes[s, 0], nodes[s, 1], nodes[s, 2] = i0, i1, i2
+                    weights[s, 0], weights[s, 1], weights[s, 2] = wa, wb, wc
+                    continue
             best = -np.inf
             for triangle in range(triangle_offsets[body], triangle_offsets[body + 1]):
                 i0, i1, i2 = (triangles[triangle, 0], triangles[triangle, 1],
@@ -144,6 +155,7 @@ def _sample_weights(
                     nodes[s, 0], nodes[s, 1], nodes[s, 2] = i0, i1, i2
                     weights[s, 0], weights[s, 1], weights[s, 2] = wa, wb, wc
                 if worst >= 0.0:
+                    last = triangle
                     break
             found = best >= -1e-9
         if found:

@@ -23,7 +23,8 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse.linalg as sparse_linalg
 from numba import njit
-from scipy import sparse
+from scipy import linalg, sparse
+from threadpoolctl import ThreadpoolController
 
 
 @njit(cache=True)
@@ -136,6 +137,18 @@ def response_triplets(
                         values[index] = column[2 * b + k]
 
 
+# One BLAS thread for the small dense factorizations below: OpenBLAS's threads, on 2 cores
+# shared with the Numba pool, took 200 ms for a 288 x 288 Cholesky and inverse that one
+# thread does in 4 ms. The controller is built once (scanning the loaded libraries costs
+# 1.5 ms); each limit then costs microseconds and is undone on leaving.
+_BLAS = ThreadpoolController()
+
+# Free degrees of freedom up to which the matrix is factored dense (LAPACK Cholesky): for a
+# few hundred, SuperLU's solve with one right-hand side per boundary degree of freedom is
+# the slow part (51 ms for 288 against ~2 ms dense on bar_in_jet's bar).
+_DENSE_LIMIT = 600
+
+
 @dataclass
 class StepResponse:
     """The factored one-step response of one body: ``dv = dt A^-1 f`` on its free nodes.
@@ -148,13 +161,20 @@ class StepResponse:
     free: np.ndarray
     dt: float
     _factor: sparse_linalg.SuperLU | None
+    _inverse: np.ndarray | None = None
+
+    def _solve(self, values: np.ndarray) -> np.ndarray:
+        if self._inverse is not None:
+            return self._inverse @ values
+        assert self._factor is not None
+        return self._factor.solve(values)
 
     def solve(self, values: np.ndarray) -> np.ndarray:
         """``A^-1 values`` for nodal values (n, 2); 0 on held nodes."""
         flat = np.ascontiguousarray(values, dtype=np.float64).reshape(-1)
         result = np.zeros(flat.shape[0])
-        if self._factor is not None and self.free.size:
-            result[self.free] = self._factor.solve(flat[self.free])
+        if (self._factor is not None or self._inverse is not None) and self.free.size:
+            result[self.free] = self._solve(flat[self.free])
         return result.reshape(-1, 2)
 
     def compliance(self, dofs: np.ndarray) -> np.ndarray:
@@ -162,17 +182,19 @@ class StepResponse:
         entry (a, b) is the velocity change of dof a per unit force on dof b."""
         dofs = np.asarray(dofs, dtype=np.int64)
         result = np.zeros((dofs.shape[0], dofs.shape[0]))
-        if self._factor is None or not dofs.size:
+        if (self._factor is None and self._inverse is None) or not dofs.size:
             return result
         position = np.full(max(int(dofs.max()), int(self.free.max())) + 1, -1, np.int64)
         position[self.free] = np.arange(self.free.shape[0])
         local = position[dofs]
         movable = np.flatnonzero(local >= 0)
         if movable.size:
-            unit = np.zeros((self.free.shape[0], movable.shape[0]))
-            unit[local[movable], np.arange(movable.shape[0])] = 1.0
-            solved = self._factor.solve(unit)
-            block = self.dt * solved[local[movable]]
+            if self._inverse is not None:
+                block = self.dt * self._inverse[np.ix_(local[movable], local[movable])]
+            else:
+                unit = np.zeros((self.free.shape[0], movable.shape[0]))
+                unit[local[movable], np.arange(movable.shape[0])] = 1.0
+                block = self.dt * self._solve(unit)[local[movable]]
             result[np.ix_(movable, movable)] = 0.5 * (block + block.T)
         return result
 
@@ -182,8 +204,8 @@ class StepResponse:
         result = np.zeros(flat.shape[0]) if out is None else out.reshape(-1)
         if out is not None:
             result[:] = 0.0
-        if self._factor is not None and self.free.size:
-            result[self.free] = self.dt * self._factor.solve(flat[self.free])
+        if (self._factor is not None or self._inverse is not None) and self.free.size:
+            result[self.free] = self.dt * self._solve(flat[self.free])
         return result.reshape(-1, 2)
 
 
@@ -216,6 +238,14 @@ def step_response(
     if free.size == 0:
         return StepResponse(free, answer, None)
     reduced = matrix[free][:, free].tocsc()
-    factor = sparse_linalg.splu(reduced, permc_spec="MMD_AT_PLUS_A",
-                                options={"SymmetricMode": True})
-    return StepResponse(free, answer, factor)
+    if free.size <= _DENSE_LIMIT:
+        with _BLAS.limit(limits=1, user_api="blas"):
+            try:
+                factor = linalg.cho_factor(reduced.toarray(), check_finite=False)
+            except linalg.LinAlgError:
+                factor = None  # not positive definite to round-off: the LU below solves it
+            if factor is not None:
+                inverse = linalg.cho_solve(factor, np.eye(free.size), check_finite=False)
+                return StepResponse(free, answer, None, 0.5 * (inverse + inverse.T))
+    lu = sparse_linalg.splu(reduced, permc_spec="MMD_AT_PLUS_A", options={"SymmetricMode": True})
+    return StepResponse(free, answer, lu)
