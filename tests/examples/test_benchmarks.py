@@ -64,3 +64,13 @@ def test_output_viewer_and_startup_run(results: Path) -> None:
     assert 0.0 < startup["seconds_imports"] < startup["seconds_to_first_step"]
     for name in ("output", "viewer", "startup"):
         assert _written(results, name)
+
+
+def test_coupling_benchmark_runs(results: Path) -> None:
+    from benchmarks import bench_coupling
+
+    rows = bench_coupling.main(["--quick", "--steps", "2", "--size", "32"])
+    assert [row["case"] for row in rows] == ["bar_in_jet explicit", "bar_in_jet monolithic"]
+    assert all(row["ms_per_step"] > 0.0 and row["pressure_iterations"] > 0 for row in rows)
+    assert rows[1]["ratio_to_explicit"] > 0.0
+    assert _written(results, "coupling")

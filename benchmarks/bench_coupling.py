@@ -1,0 +1,76 @@
+"""Cost of the coupling schemes on the paper's bar: explicit (relaxed) against monolithic.
+
+``python -m benchmarks coupling [--quick] [--steps N] [--size N]``: for each scheme, ms per
+coupled step and per phase, and pressure iterations, over ``steps`` steps after a warm-up, each
+scheme in the same process (kernels compiled before timing). Target (issue 12): the monolithic
+step at most 1.5x the explicit one.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from typing import Any
+
+from benchmarks._common import markdown_table, versus_target, write_results
+
+TARGET_RATIO = 1.5
+
+
+def _simulation(scheme: str, size: int) -> Any:
+    import elastoflow
+    from elastoflow.scenes import CouplingSpec, get_scene
+
+    scene = get_scene("bar_in_jet")
+    coupling = (CouplingSpec(scheme="explicit", force_model="traction", force_relaxation=0.1)
+                if scheme == "explicit" else CouplingSpec(scheme="monolithic"))
+    domain = scene.domain.model_copy(update={"nx": size})
+    return elastoflow.load(scene.model_copy(update={"coupling": coupling, "domain": domain}))
+
+
+def measure(scheme: str, steps: int, warmup: int, size: int) -> dict[str, Any]:
+    simulation = _simulation(scheme, size)
+    for _ in range(warmup):
+        simulation.step()
+    phases: dict[str, float] = {}
+    iterations = 0
+    start = time.perf_counter()
+    for _ in range(steps):
+        report = simulation.step()
+        iterations += report.pressure_iterations
+        for name, seconds in report.seconds_by_phase.items():
+            phases[name] = phases.get(name, 0.0) + seconds
+    elapsed = time.perf_counter() - start
+    row: dict[str, Any] = {
+        "case": f"bar_in_jet {scheme}", "size": size, "steps": steps,
+        "ms_per_step": 1e3 * elapsed / steps,
+        "pressure_iterations": iterations / steps,
+    }
+    for name in ("advection", "viscosity", "pressure", "solid", "map", "coupling_force"):
+        row[f"ms_{name}"] = 1e3 * phases.get(name, 0.0) / steps
+    return row
+
+
+def main(argv: list[str] | None = None) -> list[dict[str, Any]]:
+    """Run the benchmark, print a Markdown table, write ``results/coupling.json``."""
+    args = list(sys.argv[1:] if argv is None else argv)
+    quick = "--quick" in args
+    steps = int(args[args.index("--steps") + 1]) if "--steps" in args else (20 if quick else 200)
+    size = int(args[args.index("--size") + 1]) if "--size" in args else 256
+    warmup = 3 if quick else 20
+    rows = [measure(scheme, steps, warmup, size) for scheme in ("explicit", "monolithic")]
+    ratio = rows[1]["ms_per_step"] / rows[0]["ms_per_step"]
+    rows[1]["ratio_to_explicit"] = ratio
+    rows[1]["target_ratio"] = TARGET_RATIO
+    rows[1]["vs_target"] = versus_target(ratio, TARGET_RATIO, at_most=True)
+    print(markdown_table(rows, [
+        "case", "size", "ms_per_step", "pressure_iterations", "ms_advection", "ms_viscosity",
+        "ms_pressure", "ms_solid", "ms_map", "ms_coupling_force", "ratio_to_explicit",
+        "target_ratio", "vs_target"]))
+    path = write_results("coupling", rows)
+    print(f"\nwrote {path}")
+    return rows
+
+
+if __name__ == "__main__":
+    main()
