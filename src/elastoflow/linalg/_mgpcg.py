@@ -187,6 +187,23 @@ class _Hierarchy:
         semidefinite_cholesky_kernel(self.dense, self.factor)
 
 
+def _load_rhs(hierarchy: _Hierarchy, null_space: _NullSpace,
+              rhs: NDArray[np.float64]) -> tuple[float, float]:
+    """Pad ``rhs`` into ``hierarchy.b``, compatible on singular components; return its norm
+    and the share removed to make it compatible (`incompatibility`)."""
+    bad, squared_b = pad_masked_kernel(rhs, null_space.active, hierarchy.b)
+    if bad:
+        raise ValueError("rhs: values must be finite; got NaN or inf")
+    incompatible = 0.0
+    if null_space.has_singular:
+        unpad_values_kernel(hierarchy.b, hierarchy.values)
+        removed = null_space.remove_means(hierarchy.values)
+        incompatible = incompatibility(removed, float(np.sqrt(squared_b)))
+        pad_values_kernel(hierarchy.values, hierarchy.b)
+        squared_b = sum_of_squares_kernel(hierarchy.values)
+    return float(np.sqrt(squared_b)), incompatible
+
+
 @dataclass(frozen=True)
 class PoissonSolverMGPCG:
     """Conjugate gradient preconditioned by one geometric multigrid V-cycle per iteration.
@@ -268,17 +285,7 @@ class PoissonSolverMGPCG:
             hierarchy = _Hierarchy(operator.shape)
             self._hierarchies[operator.shape] = hierarchy
         null_space = hierarchy.prepare(operator)
-        bad, squared_b = pad_masked_kernel(rhs, null_space.active, hierarchy.b)
-        if bad:
-            raise ValueError("rhs: values must be finite; got NaN or inf")
-        incompatible = 0.0
-        if null_space.has_singular:
-            unpad_values_kernel(hierarchy.b, hierarchy.values)
-            removed = null_space.remove_means(hierarchy.values)
-            incompatible = incompatibility(removed, float(np.sqrt(squared_b)))
-            pad_values_kernel(hierarchy.values, hierarchy.b)
-            squared_b = sum_of_squares_kernel(hierarchy.values)
-        norm_b = float(np.sqrt(squared_b))
+        norm_b, incompatible = _load_rhs(hierarchy, null_space, rhs)
         if norm_b == 0.0:
             x = _output(out, operator.shape)
             x[...] = 0.0
@@ -347,17 +354,7 @@ class PoissonSolverMGPCG:
         if not hierarchy.coarse:
             # The V-cycle needs the coarse levels even where the Chebyshev iteration would do.
             hierarchy._build(False)
-        bad, squared_b = pad_masked_kernel(rhs, null_space.active, hierarchy.b)
-        if bad:
-            raise ValueError("rhs: values must be finite; got NaN or inf")
-        incompatible = 0.0
-        if null_space.has_singular:
-            unpad_values_kernel(hierarchy.b, hierarchy.values)
-            removed = null_space.remove_means(hierarchy.values)
-            incompatible = incompatibility(removed, float(np.sqrt(squared_b)))
-            pad_values_kernel(hierarchy.values, hierarchy.b)
-            squared_b = sum_of_squares_kernel(hierarchy.values)
-        norm_b = float(np.sqrt(squared_b))
+        norm_b, incompatible = _load_rhs(hierarchy, null_space, rhs)
         if norm_b == 0.0:
             x = _output(out, operator.shape)
             x[...] = 0.0

@@ -16,6 +16,7 @@ import numpy as np
 from elastoflow.simulation._report import SimulationBlowUp, StepReport
 
 if TYPE_CHECKING:
+    from elastoflow.fluid import InteriorBoundary
     from elastoflow.simulation._simulation import Simulation
 
 
@@ -63,19 +64,7 @@ class ExplicitCoupling:
             interior = interior_boundary_from_map(sim.grid, bmap, out=sim.interior)
             seconds["map"] = clock() - t0
 
-        t0 = clock()
-        fluid.advect(state, dt, interior)
-        seconds["advection"] = clock() - t0
-        t0 = clock()
-        try:
-            fluid.diffuse(state, dt, interior)
-        except ValueError:
-            sim._check_fluid(next_step)
-            raise
-        seconds["viscosity"] = clock() - t0
-        t0 = clock()
-        fluid.apply_forces(state, dt, sim.time)
-        seconds["forces"] = clock() - t0
+        _intermediate_velocity(sim, interior, next_step, seconds)
 
         nodal_force = np.zeros((0, 2))
         if sim.bodies and sim.force_model == "momentum_exchange":
@@ -227,19 +216,7 @@ class MonolithicCoupling:
             )
         seconds["coupling_force"] = clock() - t0
 
-        t0 = clock()
-        fluid.advect(state, dt, interior)
-        seconds["advection"] = clock() - t0
-        t0 = clock()
-        try:
-            fluid.diffuse(state, dt, interior)
-        except ValueError:
-            sim._check_fluid(next_step)
-            raise
-        seconds["viscosity"] = clock() - t0
-        t0 = clock()
-        fluid.apply_forces(state, dt, sim.time)
-        seconds["forces"] = clock() - t0
+        _intermediate_velocity(sim, interior, next_step, seconds)
 
         t0 = clock()
         before = [(body.positions.copy(), body.velocities.copy()) for body in sim.bodies]
@@ -318,6 +295,27 @@ class MonolithicCoupling:
             crossing_count=int(bmap.crossing_count),
             seconds_by_phase=seconds,
         )
+
+
+def _intermediate_velocity(sim: Simulation, interior: InteriorBoundary | None, step: int,
+                           seconds: dict[str, float]) -> None:
+    """The fluid phases before the projection: advect, diffuse, apply forces (timed)."""
+    clock = _time.perf_counter
+    fluid, state, dt = sim.fluid_solver, sim.state, sim.dt
+    t0 = clock()
+    fluid.advect(state, dt, interior)
+    seconds["advection"] = clock() - t0
+    t0 = clock()
+    try:
+        fluid.diffuse(state, dt, interior)
+    except ValueError:
+        # A non-finite velocity stops the solver first: report the blow-up with its step.
+        sim._check_fluid(step)
+        raise
+    seconds["viscosity"] = clock() - t0
+    t0 = clock()
+    fluid.apply_forces(state, dt, sim.time)
+    seconds["forces"] = clock() - t0
 
 
 def _restore(sim: Simulation, states: list[tuple[np.ndarray, np.ndarray]]) -> None:
