@@ -126,6 +126,8 @@ def build_fluid_solver(scene: Scene, grid: Grid2D) -> Any:
         jets=jets,
         gravity=scene.fluid.gravity,
         pressure_solver=solvers[scene.fluid.pressure_solver](rtol=scene.fluid.pressure_rtol),
+        advection=scene.fluid.advection,
+        incremental_pressure=scene.fluid.incremental_pressure,
     )
 
 
@@ -321,6 +323,12 @@ def build_simulation(scene: Scene, *, steps: int | None = None,
     from elastoflow.simulation import MonolithicCoupling, Simulation
 
     problems = check_memory(scene)
+    if scene.fluid.incremental_pressure and scene.bodies and scene.coupling.scheme == "monolithic":
+        problems.append(
+            'fluid.incremental_pressure = true: not available with coupling.scheme = '
+            '"monolithic" (the coupled solve needs the whole pressure); set it false or use '
+            'coupling.scheme = "explicit"'
+        )
     if problems:
         raise SceneError(problems, scene.source)
     dt = time_step(scene)

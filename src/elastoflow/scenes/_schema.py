@@ -110,6 +110,13 @@ class FluidSpec(_Spec):
     pressure_solver: Literal["mgpcg", "jacobi"] = "mgpcg"
     pressure_rtol: Annotated[float, Field(gt=0.0, lt=1.0)] = 1e-6
     """Relative residual the pressure solve must reach; 1 or more would skip the solve."""
+    advection: Literal["semi_lagrangian", "maccormack"] = "semi_lagrangian"
+    """Transport of velocity and dye: the paper's semi-Lagrangian step (first order,
+    diffusive) or MacCormack's correction of it (second order where the flow is smooth;
+    docs/validation_fluid.md)."""
+    incremental_pressure: bool = False
+    """Solve for the pressure increment (removes the plain splitting's O(dt) error at walls
+    in steady flow; docs/method_notes.md item 6)."""
 
 
 # --------------------------------------------------------------------------------------------

@@ -54,3 +54,32 @@ def test_simulation_gets_the_scheme(name: str, scheme: type) -> None:
 def test_unknown_scheme_is_refused() -> None:
     with pytest.raises(SceneError, match="coupling.scheme"):
         parse_scene({**_BASE, "coupling": {"scheme": "implicit"}})
+
+
+@pytest.mark.parametrize("advection", ["semi_lagrangian", "maccormack"])
+def test_fluid_numerics_reach_the_solver(advection: str) -> None:
+    from elastoflow.scenes import build_simulation
+
+    scene = parse_scene({**_BASE, "fluid": {"advection": advection,
+                                            "incremental_pressure": True}})
+    simulation = build_simulation(scene)
+    assert simulation.fluid_solver.advection == advection
+    assert simulation.fluid_solver.incremental_pressure is True
+
+
+def test_unknown_advection_is_refused() -> None:
+    with pytest.raises(SceneError, match="fluid.advection"):
+        parse_scene({**_BASE, "fluid": {"advection": "weno"}})
+
+
+def test_incremental_pressure_with_a_coupled_body_is_refused_before_running() -> None:
+    from elastoflow.scenes import build_simulation
+
+    body = {"shape": {"type": "rectangle", "box": [0.4, 0.4, 0.6, 0.6], "divisions": [4, 4]},
+            "material": {"density": 1000.0, "young_modulus": 1e5, "poisson_ratio": 0.3}}
+    scene = parse_scene({**_BASE, "fluid": {"incremental_pressure": True}, "bodies": [body]})
+    with pytest.raises(SceneError, match="fluid.incremental_pressure"):
+        build_simulation(scene)
+    explicit = parse_scene({**_BASE, "fluid": {"incremental_pressure": True}, "bodies": [body],
+                            "coupling": {"scheme": "explicit"}})
+    build_simulation(explicit).step()
