@@ -206,44 +206,9 @@ class InterfaceFlux:
     high_cell: np.ndarray
     axis: np.ndarray
 
-    @property
-    def transpose(self) -> sparse.csr_matrix:
-        return self.matrix.T.tocsr()
-
     def face_flux(self, velocities: np.ndarray) -> np.ndarray:
         """Body flux per unit length of each row's face [m/s] for nodal ``velocities`` (P, 2)."""
         return self.matrix @ np.ascontiguousarray(velocities, dtype=np.float64).reshape(-1)
-
-    def cell_divergence(self, face_flux: np.ndarray, active: np.ndarray,
-                        out: np.ndarray) -> np.ndarray:
-        """Add each face's flux to its cells' net outflow (``out`` (nx, ny), velocity units).
-
-        Only ``active`` cells receive a contribution.
-        """
-        flat = out.reshape(-1)
-        mask = active.reshape(-1)
-        low, high = self.low_cell, self.high_cell
-        keep = (low >= 0)
-        keep[keep] = mask[low[keep]]
-        np.add.at(flat, low[keep], face_flux[keep])
-        keep = (high >= 0)
-        keep[keep] = mask[high[keep]]
-        np.subtract.at(flat, high[keep], face_flux[keep])
-        return out
-
-    def pressure_jump(self, pressure: np.ndarray, active: np.ndarray) -> np.ndarray:
-        """``p_low - p_high`` across each row's face, inactive and outside cells as 0."""
-        flat = pressure.reshape(-1)
-        mask = active.reshape(-1)
-        jump = np.zeros(self.faces.shape[0])
-        low, high = self.low_cell, self.high_cell
-        keep = low >= 0
-        keep[keep] = mask[low[keep]]
-        jump[keep] += flat[low[keep]]
-        keep = high >= 0
-        keep[keep] = mask[high[keep]]
-        jump[keep] -= flat[high[keep]]
-        return jump
 
 
 def interface_flux(grid: Grid2D, bmap: BoundaryMap, interior: InteriorBoundary,
