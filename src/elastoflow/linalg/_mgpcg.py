@@ -187,10 +187,16 @@ class _Hierarchy:
         semidefinite_cholesky_kernel(self.dense, self.factor)
 
 
-def _load_rhs(hierarchy: _Hierarchy, null_space: _NullSpace,
-              rhs: NDArray[np.float64]) -> tuple[float, float]:
-    """Pad ``rhs`` into ``hierarchy.b``, compatible on singular components; return its norm
-    and the share removed to make it compatible (`incompatibility`)."""
+def _load(hierarchy: _Hierarchy, null_space: _NullSpace, rhs: NDArray[np.float64],
+          x0: NDArray[np.float64] | None) -> tuple[float, float]:
+    """Pad ``rhs`` into ``hierarchy.b``, compatible on singular components, and the warm
+    start ``x0`` (or zeros) into ``hierarchy.x``; return the norm of the compatible rhs and
+    the share removed to make it compatible (`incompatibility`)."""
+    if x0 is None:
+        hierarchy.x[:] = 0.0
+    elif pad_masked_kernel(np.asarray(x0, dtype=np.float64), null_space.active,
+                           hierarchy.x)[0]:
+        raise ValueError("x0: values must be finite; got NaN or inf")
     bad, squared_b = pad_masked_kernel(rhs, null_space.active, hierarchy.b)
     if bad:
         raise ValueError("rhs: values must be finite; got NaN or inf")
@@ -252,6 +258,14 @@ class PoissonSolverMGPCG:
                 f"smoothing_sweeps: {self.smoothing_sweeps!r} is not allowed; expected >= 1"
             )
 
+    def _hierarchy(self, shape: tuple[int, int]) -> _Hierarchy:
+        """The storage for ``shape``, allocated on first use."""
+        hierarchy = self._hierarchies.get(shape)
+        if hierarchy is None:
+            hierarchy = _Hierarchy(shape)
+            self._hierarchies[shape] = hierarchy
+        return hierarchy
+
     def solve(
         self,
         operator: Operator5Point,
@@ -280,20 +294,13 @@ class PoissonSolverMGPCG:
             x0 = np.asarray(x0, dtype=np.float64)
             if x0.shape != operator.shape:
                 raise ValueError(f"x0: shape {x0.shape} is not allowed; expected {operator.shape}")
-        hierarchy = self._hierarchies.get(operator.shape)
-        if hierarchy is None:
-            hierarchy = _Hierarchy(operator.shape)
-            self._hierarchies[operator.shape] = hierarchy
+        hierarchy = self._hierarchy(operator.shape)
         null_space = hierarchy.prepare(operator)
-        norm_b, incompatible = _load_rhs(hierarchy, null_space, rhs)
+        norm_b, incompatible = _load(hierarchy, null_space, rhs, x0)
         if norm_b == 0.0:
             x = _output(out, operator.shape)
             x[...] = 0.0
             return x, SolveReport(0, 0.0, incompatible <= self.rtol, incompatible)
-        if x0 is None:
-            hierarchy.x[:] = 0.0
-        elif pad_masked_kernel(x0, null_space.active, hierarchy.x)[0]:
-            raise ValueError("x0: values must be finite; got NaN or inf")
         threshold = (self.rtol * norm_b) ** 2
         solution = hierarchy.x
         if not hierarchy.coarse:
@@ -346,24 +353,16 @@ class PoissonSolverMGPCG:
         preconditioned = Operator5Point(
             operator.diagonal + extra, operator.weights_x, operator.weights_y
         )
-        hierarchy = self._hierarchies.get(operator.shape)
-        if hierarchy is None:
-            hierarchy = _Hierarchy(operator.shape)
-            self._hierarchies[operator.shape] = hierarchy
+        hierarchy = self._hierarchy(operator.shape)
         null_space = hierarchy.prepare(preconditioned)
         if not hierarchy.coarse:
             # The V-cycle needs the coarse levels even where the Chebyshev iteration would do.
             hierarchy._build(False)
-        norm_b, incompatible = _load_rhs(hierarchy, null_space, rhs)
+        norm_b, incompatible = _load(hierarchy, null_space, rhs, x0)
         if norm_b == 0.0:
             x = _output(out, operator.shape)
             x[...] = 0.0
             return x, SolveReport(0, 0.0, incompatible <= self.rtol, incompatible)
-        if x0 is None:
-            hierarchy.x[:] = 0.0
-        elif pad_masked_kernel(np.asarray(x0, dtype=np.float64), null_space.active,
-                               hierarchy.x)[0]:
-            raise ValueError("x0: values must be finite; got NaN or inf")
         # The operator's own diagonal-plus-weights, padded (the levels hold A + diag(C)).
         padded_extra = np.zeros_like(hierarchy.b)
         pad_values_kernel(extra, padded_extra)

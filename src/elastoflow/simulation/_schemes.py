@@ -16,7 +16,9 @@ import numpy as np
 from elastoflow.simulation._report import SimulationBlowUp, StepReport
 
 if TYPE_CHECKING:
+    from elastoflow.coupling import BoundaryMap
     from elastoflow.fluid import InteriorBoundary
+    from elastoflow.linalg import SolveReport
     from elastoflow.simulation._simulation import Simulation
 
 
@@ -125,20 +127,7 @@ class ExplicitCoupling:
             seconds["solid"] = clock() - t0
 
         sim.time += dt
-        sim.step_index = next_step
-        sim.interior = interior
-        sim.boundary_map = bmap
-        report = StepReport(
-            step=next_step,
-            time=sim.time,
-            pressure_iterations=int(solve.iterations),
-            pressure_residual=float(solve.residual),
-            substeps=substeps_taken,
-            cfl=cfl,
-            crossing_count=0 if bmap is None else int(bmap.crossing_count),
-            seconds_by_phase=seconds,
-        )
-        return report
+        return _finish(sim, next_step, interior, bmap, solve, substeps_taken, cfl, seconds)
 
 
 class MonolithicCoupling:
@@ -282,19 +271,27 @@ class MonolithicCoupling:
 
         cfl = sim._check_fluid(next_step)
         sim.time += dt
-        sim.step_index = next_step
-        sim.interior = interior
-        sim.boundary_map = bmap
-        return StepReport(
-            step=next_step,
-            time=sim.time,
-            pressure_iterations=int(solve.iterations),
-            pressure_residual=float(solve.residual),
-            substeps=substeps_taken,
-            cfl=cfl,
-            crossing_count=int(bmap.crossing_count),
-            seconds_by_phase=seconds,
-        )
+        return _finish(sim, next_step, interior, bmap, solve, substeps_taken, cfl, seconds)
+
+
+def _finish(sim: Simulation, step: int, interior: InteriorBoundary | None,
+            bmap: BoundaryMap | None, solve: SolveReport, substeps: list[int], cfl: float,
+            seconds: dict[str, float]) -> StepReport:
+    """Commit the step index and this step's boundary data; the report of the step (the
+    caller has advanced ``sim.time``)."""
+    sim.step_index = step
+    sim.interior = interior
+    sim.boundary_map = bmap
+    return StepReport(
+        step=step,
+        time=sim.time,
+        pressure_iterations=int(solve.iterations),
+        pressure_residual=float(solve.residual),
+        substeps=substeps,
+        cfl=cfl,
+        crossing_count=0 if bmap is None else int(bmap.crossing_count),
+        seconds_by_phase=seconds,
+    )
 
 
 def _intermediate_velocity(sim: Simulation, interior: InteriorBoundary | None, step: int,
