@@ -14,6 +14,8 @@ from typing import Annotated, Any, NoReturn, Self
 
 import typer
 
+from elastoflow.sweep._cli import sweep_command
+
 EXIT_BAD_INPUT = 2
 EXIT_RUN_FAILED = 1
 
@@ -431,6 +433,9 @@ def warmup(
     except SceneError as error:
         _fail(str(error).splitlines())
     typer.echo(f"kernels compiled and cached in {total:.1f} s")
+
+
+app.command("sweep")(sweep_command)
 
 
 def main() -> None:

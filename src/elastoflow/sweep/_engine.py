@@ -1,0 +1,289 @@
+"""Running a checked sweep on Dask (distributed): the folder, the tasks, progress, the summary.
+
+The engine is Dask's; elastoflow only says what a point is (`run_point`) and keeps the sweep's
+folder::
+
+    OUT/sweep.toml                       the sweep file as run
+    OUT/summary.parquet                  one row per point (pandas.read_parquet)
+    OUT/fields.zarr                      with [snapshots]: xarray.open_zarr
+    OUT/points/point_00000/              the normal run outputs of point 0
+        parameters.json                  its parameters (a rerun checks they still match)
+        result.json                      written last: the point is finished
+        running.json                     while it runs: pid, host, worker, attempt
+
+A point with a ``result.json`` is never run again (``retry_failed`` runs failed ones again), so
+running the same sweep twice does the work once. A point whose worker dies is given by the
+scheduler to another worker (up to Dask's ``distributed.scheduler.allowed-failures`` times)
+and resumes from its newest checkpoint.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import math
+import os
+import time as _time
+import uuid
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from elastoflow.sweep._plan import SweepPlan, SweepPoint
+from elastoflow.sweep._results import read_result, write_summary
+from elastoflow.sweep._spec import SweepError
+from elastoflow.sweep._worker import RUNNING_FILE, PointTask, run_point
+
+SUMMARY_FILE = "summary.parquet"
+ZARR_FILE = "fields.zarr"
+_SUMMARY_INTERVAL = 5.0
+"""Least seconds between two rewrites of the summary while the sweep runs."""
+
+
+@dataclass
+class SweepProgress:
+    """The sweep as a whole, for the progress line."""
+
+    total: int
+    skipped: int = 0
+    done: int = 0
+    failed: int = 0
+    lost: int = 0
+    running: int = 0
+    queued: int = 0
+    elapsed: float = 0.0
+    eta: float | None = None
+
+    def line(self) -> str:
+        """``12/40 done, 1 failed, 2 running, 25 queued, 0:01:10 elapsed, ETA 0:03:20``."""
+        finished = self.skipped + self.done
+        parts = [f"{finished}/{self.total} done"]
+        if self.skipped:
+            parts[0] += f" ({self.skipped} before)"
+        parts += [f"{self.failed} failed"] + ([f"{self.lost} lost"] if self.lost else [])
+        parts += [f"{self.running} running", f"{self.queued} queued",
+                  f"{_clock(self.elapsed)} elapsed",
+                  f"ETA {_clock(self.eta) if self.eta is not None else '?'}"]
+        return ", ".join(parts)
+
+
+def _clock(seconds: float) -> str:
+    seconds = max(0, int(round(seconds)))
+    return f"{seconds // 3600}:{seconds // 60 % 60:02d}:{seconds % 60:02d}"
+
+
+@dataclass
+class SweepOutcome:
+    """What a run of `run_sweep` did.
+
+    Attributes:
+        rows: Every point's summary row, by index (pending ones included).
+        progress: The final counts.
+        summary: The Parquet file.
+        zarr: The Zarr store, or None without ``[snapshots]``.
+        stopped: Interrupted (Ctrl-C) before every point finished.
+    """
+
+    rows: dict[int, dict[str, Any]]
+    progress: SweepProgress
+    summary: Path
+    zarr: Path | None = None
+    stopped: bool = False
+    failed_points: list[str] = field(default_factory=list)
+
+
+def local_worker_count() -> int:
+    """Cores this process may use (one worker per core)."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:
+        return os.cpu_count() or 1
+
+
+@contextlib.contextmanager
+def open_client(scheduler: str | None = None, *, workers: int | None = None,
+                dashboard: bool = True) -> Iterator[Any]:
+    """A Dask client: of the scheduler at ``scheduler`` (an address or a scheduler file), or
+    of a new local cluster of ``workers`` processes (default one per core), one thread and
+    one Numba thread each, closed on exit."""
+    from distributed import Client, LocalCluster
+
+    if scheduler is not None:
+        if scheduler.endswith(".json") and Path(scheduler).is_file():
+            client = Client(scheduler_file=scheduler, timeout="30s")
+        else:
+            client = Client(scheduler, timeout="30s")
+        try:
+            yield client
+        finally:
+            client.close()
+        return
+    count = workers or local_worker_count()
+    # Numba's pool reads NUMBA_NUM_THREADS when the worker first imports numba; one thread
+    # per worker process keeps the workers off each other's cores.
+    env = {"NUMBA_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1"}
+    cluster = LocalCluster(n_workers=count, threads_per_worker=1, processes=True,
+                           dashboard_address=":8787" if dashboard else None, env=env,
+                           silence_logs=40)
+    client = Client(cluster)
+    try:
+        yield client
+    finally:
+        client.close()
+        cluster.close()
+
+
+def prepare_folder(plan: SweepPlan, out: Path, text: str | None = None) -> None:
+    """Create ``out`` and a folder per point; refuse a folder that holds another sweep.
+
+    Raises:
+        SweepError: A point folder there has other parameters (another sweep, or the file was
+            edited): one line per such point.
+    """
+    from elastoflow.io import write_text_atomic
+
+    points_dir = out / "points"
+    points_dir.mkdir(parents=True, exist_ok=True)
+    if text is not None:
+        write_text_atomic(out / "sweep.toml", text)
+    problems = []
+    for point in plan.points:
+        folder = points_dir / point.folder_name
+        record = json.dumps({"point": point.index, "parameters": point.parameters},
+                            sort_keys=True)
+        path = folder / "parameters.json"
+        if path.exists():
+            try:
+                same = json.loads(path.read_text()) == json.loads(record)
+            except (OSError, ValueError):
+                same = False
+            if not same:
+                problems.append(f"{out}/points/{point.folder_name}: holds a point with other "
+                                f"parameters than {point.describe()}; use another output folder "
+                                "(or remove this one) for a changed sweep")
+            continue
+        folder.mkdir(exist_ok=True)
+        write_text_atomic(path, record + "\n")
+    if problems:
+        raise SweepError(problems)
+
+
+def _pending_row(point: SweepPoint, out: Path, status: str = "pending",
+                 message: str = "") -> dict[str, Any]:
+    return {"point": point.index, "parameters": point.parameters, "status": status,
+            "message": message, "wall_time [s]": math.nan, "steps": 0, "time [s]": math.nan,
+            "attempts": 0, "resumed_from_step": 0, "worker": "",
+            "folder": point.folder_name, "results": {}}
+
+
+def _task(plan: SweepPlan, point: SweepPoint, out: Path) -> PointTask:
+    snapshots = plan.spec.snapshots
+    return PointTask(
+        index=point.index, parameters=point.parameters, scene=point.scene, steps=point.steps,
+        folder=str((out / "points" / point.folder_name).resolve()),
+        results_after=plan.spec.run.results_after,
+        snapshot_times=tuple(snapshots.times) if snapshots else (),
+        snapshot_fields=tuple(snapshots.fields) if snapshots else (),
+        probe_plot=plan.spec.run.probe_plot,
+    )
+
+
+def run_sweep(plan: SweepPlan, out: Path, client: Any, *, retry_failed: bool = False,
+              on_progress: Callable[[SweepProgress], None] | None = None) -> SweepOutcome:
+    """Run every point of ``plan`` not finished in ``out`` on the Dask ``client``.
+
+    Writes the summary (Parquet) as points finish, at most every few seconds, and at the end;
+    the Zarr store at the end. Ctrl-C (KeyboardInterrupt) cancels what has not run, writes the
+    summary and returns with ``stopped`` set: running the sweep again goes on from there.
+
+    Args:
+        plan: The checked sweep (`plan_sweep`).
+        out: Its folder (`prepare_folder` is called here).
+        client: A `distributed.Client`.
+        retry_failed: Run again the points that failed before (a blow-up is deterministic, so
+            by default they are kept as they are).
+        on_progress: Called with the counts whenever they change.
+    """
+    from distributed import as_completed
+
+    prepare_folder(plan, out)
+    rows: dict[int, dict[str, Any]] = {}
+    pending: list[SweepPoint] = []
+    for point in plan.points:
+        folder = out / "points" / point.folder_name
+        previous = read_result(folder)
+        if previous is not None and (previous.get("status") == "done" or (
+                previous.get("status") == "failed" and not retry_failed)):
+            rows[point.index] = previous
+        else:
+            if previous is not None:
+                (folder / "result.json").unlink(missing_ok=True)
+                # A deterministic failure would only repeat from its last checkpoint.
+                for old in (folder / "checkpoints").glob("checkpoint_*.npz"):
+                    old.unlink()
+            rows[point.index] = _pending_row(point, out)
+            pending.append(point)
+    progress = SweepProgress(total=len(plan.points), skipped=len(plan.points) - len(pending))
+    progress.failed = sum(1 for row in rows.values() if row.get("status") == "failed")
+    summary = out / "summary.parquet"
+    names = plan.parameter_names
+
+    def report() -> None:
+        threads = sum(client.nthreads().values()) if remaining else 0
+        progress.running = min(remaining, threads)
+        progress.queued = remaining - progress.running
+        progress.elapsed = _time.perf_counter() - began
+        if finished_here and remaining:
+            progress.eta = progress.elapsed / finished_here * remaining
+        elif not remaining:
+            progress.eta = 0.0
+        if on_progress is not None:
+            on_progress(progress)
+
+    began = _time.perf_counter()
+    remaining = len(pending)
+    finished_here = 0
+    token = uuid.uuid4().hex[:8]
+    futures = {
+        client.submit(run_point, _task(plan, point, out), pure=False,
+                      key=f"elastoflow-{plan.spec.name}-point{point.index}-{token}"): point
+        for point in pending
+    }
+    stopped = False
+    last_summary = _time.perf_counter()
+    report()
+    try:
+        for future in as_completed(list(futures)):
+            point = futures[future]
+            try:
+                row = future.result()
+            except Exception as error:  # noqa: BLE001 - KilledWorker, a lost connection, ...
+                row = _pending_row(point, out, "lost", f"{type(error).__name__}: {error}")
+                (out / "points" / point.folder_name / RUNNING_FILE).unlink(missing_ok=True)
+            rows[point.index] = row
+            remaining -= 1
+            finished_here += 1
+            status = row.get("status")
+            if status == "done":
+                progress.done += 1
+            elif status == "failed":
+                progress.failed += 1
+            else:
+                progress.lost += 1
+            if _time.perf_counter() - last_summary > _SUMMARY_INTERVAL:
+                write_summary(summary, [rows[i] for i in sorted(rows)], names)
+                last_summary = _time.perf_counter()
+            report()
+    except KeyboardInterrupt:
+        stopped = True
+        client.cancel([f for f in futures if not f.done()])
+    write_summary(summary, [rows[i] for i in sorted(rows)], names)
+    zarr_path = None
+    if plan.spec.snapshots is not None:
+        from elastoflow.sweep._zarr import write_snapshots_zarr
+
+        zarr_path = write_snapshots_zarr(out / ZARR_FILE, plan, rows, out)
+    failed = [f"point {i}: {row.get('message', '')}" for i, row in sorted(rows.items())
+              if row.get("status") in ("failed", "lost")]
+    return SweepOutcome(rows, progress, summary, zarr_path, stopped, failed)

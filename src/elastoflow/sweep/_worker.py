@@ -1,0 +1,227 @@
+"""One point of a sweep, run on a worker: the normal run outputs, resumable, with its result.
+
+`run_point` is what the engine sends to the workers. It never raises for a run that fails:
+a blow-up is a result (status ``failed`` with the message), so that the engine does not run it
+again elsewhere. A worker that dies mid-run is another matter: the engine gives the point to
+another worker, and `run_point` resumes it from the newest checkpoint in its folder.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import socket
+import time as _time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from elastoflow.sweep._results import RESULT_FILE, scalar_results
+
+RUNNING_FILE = "running.json"
+"""In a point's folder while it runs: process id, host, worker and attempt."""
+
+
+@dataclass(frozen=True)
+class PointTask:
+    """All a worker needs to run one point (pickled to the worker).
+
+    Attributes:
+        index: The point's index in the sweep.
+        parameters: Its varied parameters, key path -> value.
+        scene: Its `elastoflow.scenes.Scene`, outputs set by the sweep (checkpoints on).
+        steps: Fluid steps to run.
+        folder: Its output folder (absolute; every worker must see the same file system).
+        results_after: Statistics from this time on [s].
+        snapshot_times: Times [s] at which to keep fields for the Zarr store (may be empty).
+        snapshot_fields: Which fields (`SNAPSHOT_FIELDS`).
+        numba_threads: Numba threads the run may use on its worker.
+        probe_plot: Draw ``probes.png``.
+    """
+
+    index: int
+    parameters: dict[str, Any]
+    scene: Any
+    steps: int
+    folder: str
+    results_after: float = 0.0
+    snapshot_times: tuple[float, ...] = ()
+    snapshot_fields: tuple[str, ...] = ()
+    numba_threads: int = 1
+    probe_plot: bool = True
+
+
+def _write_json(path: Path, data: dict[str, Any]) -> None:
+    from elastoflow.io import write_text_atomic
+
+    write_text_atomic(path, json.dumps(data, indent=1, allow_nan=True) + "\n")
+
+
+def _worker_name() -> str:
+    try:
+        from distributed import get_worker
+
+        return str(get_worker().address)
+    except (ImportError, ValueError):
+        return f"{socket.gethostname()}:{os.getpid()}"
+
+
+def snapshot_path(folder: Path, k: int) -> Path:
+    return folder / "snapshots" / f"snapshot_{k:03d}.npz"
+
+
+def _snapshot(simulation: Any, names: tuple[str, ...]) -> dict[str, np.ndarray]:
+    """The chosen fields at cell centres, shape (nx, ny) each."""
+    from elastoflow.io import snapshot_arrays
+
+    interior = getattr(simulation, "interior", None)
+    data = snapshot_arrays(simulation.grid, simulation.state, time=simulation.time,
+                           step=simulation.step_index,
+                           solid_cells=None if interior is None else interior.solid_cells)
+    at_cells = {"velocity_x": data["velocity"][..., 0], "velocity_y": data["velocity"][..., 1],
+                "pressure": data["pressure"], "dye": data["dye"], "vorticity": data["vorticity"],
+                "solid": data["solid"]}
+    kept = {name: np.asarray(at_cells[name]) for name in names}
+    kept["time"] = np.array(simulation.time)
+    kept["step"] = np.array(simulation.step_index)
+    return kept
+
+
+class _Snapshots:
+    """Saves the fields at the first step at or after each requested time, once each."""
+
+    def __init__(self, task: PointTask, folder: Path, dt: float) -> None:
+        self.times = task.snapshot_times
+        self.names = task.snapshot_fields
+        self.folder = folder
+        self.tolerance = 1e-6 * dt
+
+    def __call__(self, simulation: Any) -> None:
+        from elastoflow.io import atomic_path
+
+        for k, moment in enumerate(self.times):
+            path = snapshot_path(self.folder, k)
+            if simulation.time >= moment - self.tolerance and not path.exists():
+                path.parent.mkdir(parents=True, exist_ok=True)
+                with atomic_path(path) as temporary, open(temporary, "wb") as handle:
+                    np.savez(handle, **_snapshot(simulation, self.names))
+
+
+def _start(folder: Path) -> int:
+    """Mark the point as running; returns which attempt this is (1 for the first)."""
+    folder.mkdir(parents=True, exist_ok=True)
+    attempt = 1
+    try:
+        attempt = int(json.loads((folder / RUNNING_FILE).read_text())["attempt"]) + 1
+    except (OSError, ValueError, KeyError, TypeError):
+        pass
+    _write_json(folder / RUNNING_FILE, {"pid": os.getpid(), "host": socket.gethostname(),
+                                        "worker": _worker_name(), "attempt": attempt,
+                                        "started": _time.time()})
+    return attempt
+
+
+def run_point(task: PointTask) -> dict[str, Any]:
+    """Run one point to its end (or its failure) and return its result row.
+
+    Writes the normal run outputs into ``task.folder`` (``scene.toml``, ``probes.csv``,
+    checkpoints, and fields, meshes or video when the sweep asks), the snapshots for the Zarr
+    store, and last ``result.json`` (the same dict as returned). Resumes from the newest
+    checkpoint in the folder, as ``elastoflow run --resume`` does.
+
+    Returns:
+        ``point``, ``parameters``, ``status`` (done or failed), ``message``,
+        ``wall_time [s]``, ``steps``, ``time [s]``, ``attempts``, ``resumed_from_step``,
+        ``worker``, ``folder``, ``results`` (`scalar_results` of the probes).
+    """
+    began = _time.perf_counter()
+    folder = Path(task.folder)
+    attempt = _start(folder)
+    try:
+        import numba
+
+        numba.set_num_threads(max(1, min(task.numba_threads, numba.config.NUMBA_NUM_THREADS)))
+    except (ImportError, ValueError):
+        pass
+    row: dict[str, Any] = {
+        "point": task.index, "parameters": task.parameters, "status": "failed", "message": "",
+        "wall_time [s]": math.nan, "steps": 0, "time [s]": 0.0, "attempts": attempt,
+        "resumed_from_step": 0, "worker": _worker_name(), "folder": folder.name, "results": {},
+    }
+    try:
+        _run(task, folder, row)
+    except Exception as error:  # noqa: BLE001 - every failure of a point is its result
+        message = str(error).splitlines()[0] if str(error) else ""
+        row["status"] = "failed"
+        row["message"] = f"{type(error).__name__}: {message}" if not message.startswith(
+            "step") else message
+    row["wall_time [s]"] = _time.perf_counter() - began
+    _write_json(folder / RESULT_FILE, row)
+    (folder / RUNNING_FILE).unlink(missing_ok=True)
+    return row
+
+
+def _run(task: PointTask, folder: Path, row: dict[str, Any]) -> None:
+    from elastoflow.io import (
+        CheckpointError,
+        OutputSession,
+        ProbeRecorder,
+        apply_output_overrides,
+        find_resume_checkpoint,
+        load_checkpoint,
+    )
+    from elastoflow.scenes import build_simulation, time_step
+
+    scene = task.scene
+    simulation = build_simulation(scene, steps=task.steps, warnings=[])
+    checkpoint = find_resume_checkpoint(folder)
+    resumed = False
+    if checkpoint is not None:
+        try:
+            load_checkpoint(checkpoint, simulation)
+            resumed = True
+        except CheckpointError:
+            # A checkpoint cut short by the kill: start over rather than give up the point.
+            simulation = build_simulation(scene, steps=task.steps, warnings=[])
+    row["resumed_from_step"] = simulation.step_index
+    # The probes are recorded here rather than by the session: their CSV is written before
+    # each checkpoint, so a point resumed after its worker was killed keeps its whole record.
+    session = OutputSession(apply_output_overrides(scene, probes=False), simulation, folder,
+                            resumed=resumed)
+    recorder = ProbeRecorder(scene.outputs.probes, simulation, folder / "probes.csv",
+                             resume_step=simulation.step_index if resumed else None)
+    snapshots = _Snapshots(task, folder, time_step(scene))
+    checkpoint_every = scene.outputs.checkpoint.every
+    failure: BaseException | None = None
+    try:
+        snapshots(simulation)
+        while simulation.step_index < task.steps:
+            report = simulation.step()
+            step = simulation.step_index
+            if step % scene.outputs.probes_every == 0:
+                recorder.record(simulation, report)
+            snapshots(simulation)
+            if step % checkpoint_every == 0 and recorder.rows:
+                recorder.write_csv()
+            session.after_step(simulation, report)
+    except Exception as error:  # noqa: BLE001 - recorded, outputs closed, then re-raised
+        failure = error
+    finally:
+        session.close(final_checkpoint=failure is None)
+        if recorder.rows:
+            recorder.write_csv()
+            if task.probe_plot:
+                recorder.plot()
+        close = getattr(recorder, "close", None)  # the streaming recorder holds its file open
+        if close is not None:
+            close()
+    row["steps"] = simulation.step_index
+    row["time [s]"] = simulation.time
+    if recorder.rows:
+        row["results"] = scalar_results(recorder.columns, recorder.rows, task.results_after)
+    if failure is not None:
+        raise failure
+    row["status"] = "done"
