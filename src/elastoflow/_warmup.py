@@ -58,3 +58,28 @@ def warm_up(
         if report is not None:
             report(name, time.perf_counter() - began)
     return time.perf_counter() - start
+
+
+_KERNEL_MODULES = ("fluid", "linalg", "solid", "coupling", "render")
+
+
+def kernels_need_compiling() -> bool:
+    """Whether a run would first compile kernels: some kernel module has no usable entry in
+    Numba's disk cache (none written yet, or written for an older source). A guess from the
+    cache's index files, for a message; False when it cannot tell."""
+    import importlib
+
+    try:
+        from numba.core.registry import CPUDispatcher
+
+        for name in _KERNEL_MODULES:
+            module = importlib.import_module(f"elastoflow.{name}._kernels")
+            found: list[Any] = [getattr(getattr(value, "_cache", None), "_cache_file", None)
+                                for value in vars(module).values()
+                                if isinstance(value, CPUDispatcher)]
+            caches = [cache for cache in found if cache is not None]
+            if caches and not any(cache._load_index() for cache in caches):
+                return True
+    except Exception:  # noqa: BLE001 - Numba's cache internals differ between versions
+        return False
+    return False

@@ -121,6 +121,57 @@ class _StopRequest:
         self.requested = True
 
 
+def _option_words(options: dict[str, Any]) -> list[str]:
+    """The command-line words that give ``options`` (the keys of `run`'s output options)."""
+    words: list[str] = []
+    for flag in ("video", "meshes", "probes"):
+        if options.get(flag) is not None:
+            words.append(f"--{flag}" if options[flag] else f"--no-{flag}")
+    if options.get("view") is not None:
+        words += ["--view", str(options["view"])]
+    if options.get("fields") is not None:
+        words += ["--fields", ",".join(options["fields"]) or "none"]
+    if options.get("every") is not None:
+        words += ["--every", str(options["every"])]
+    if options.get("checkpoint_every") is not None:
+        words += ["--checkpoint-every", str(options["checkpoint_every"])]
+    return words
+
+
+def _scene_differences(current: Any, stored: Any) -> list[str]:
+    """Key paths (``fluid.viscosity: 0.001 -> 1.0``) where two scenes differ, outputs and
+    name aside."""
+    exclude = {"outputs", "name", "description"}
+
+    def flat(value: Any, prefix: str, into: dict[str, Any]) -> dict[str, Any]:
+        if isinstance(value, dict):
+            for key, item in value.items():
+                flat(item, f"{prefix}.{key}" if prefix else str(key), into)
+        elif isinstance(value, list) and any(isinstance(v, dict | list) for v in value):
+            for index, item in enumerate(value):
+                flat(item, f"{prefix}.{index}", into)
+            into[f"{prefix}.#"] = len(value)
+        else:
+            into[prefix] = value
+        return into
+
+    a = flat(current.model_dump(mode="json", exclude=exclude), "", {})
+    b = flat(stored.model_dump(mode="json", exclude=exclude), "", {})
+    return [f"{key}: {b.get(key, '(none)')} -> {a.get(key, '(none)')}"
+            for key in sorted(set(a) | set(b)) if a.get(key) != b.get(key)]
+
+
+def _stored_scene(text: str) -> Any:
+    import tomllib
+
+    from elastoflow.scenes import SceneError, parse_scene
+
+    try:
+        return parse_scene(tomllib.loads(text))
+    except (SceneError, tomllib.TOMLDecodeError):
+        return None
+
+
 @app.command()
 def run(
     scene: Annotated[str, typer.Argument(help="Built-in scene name or scene TOML file.")],
@@ -142,32 +193,81 @@ def run(
     checkpoint_every: Annotated[int | None, typer.Option(help="Checkpoint every N steps (0: "
                                                          "only at the end).", min=0)] = None,
     resume: Annotated[bool, typer.Option(help="Continue from the newest checkpoint in the "
-                                         "output folder.")] = False,
+                                         "output folder, with the options of the run that "
+                                         "wrote it (options given now override them).")] = False,
+    force_resume: Annotated[bool, typer.Option(help="Resume even though the scene differs "
+                                               "from the one the checkpoint was saved "
+                                               "with.")] = False,
+    overwrite: Annotated[bool, typer.Option(help="Start a new run in an output folder that "
+                                            "holds checkpoints of an earlier one (they are "
+                                            "deleted).")] = False,
     quiet: Annotated[bool, typer.Option(help="No progress bar.")] = False,
 ) -> None:
     """Run a scene, writing video, fields, meshes, probes and checkpoints.
 
     Ctrl-C stops after the current step, keeps everything written so far (the video is
-    finished, a checkpoint saved) and prints how to resume.
+    finished, a checkpoint saved) and prints how to resume. A run killed at any point leaves
+    complete files; --resume removes its temporaries and continues every output.
     """
+    import json
+    import shlex
+
     from elastoflow.io import (
         CheckpointError,
+        OutputFolderBusy,
         OutputSession,
         apply_output_overrides,
+        checkpoints_by_step,
         find_resume_checkpoint,
+        folder_name,
         load_checkpoint,
+        lock_output_folder,
+        read_checkpoint,
+        remove_temporaries,
+        run_record,
     )
     from elastoflow.render import VIEWS
-    from elastoflow.scenes import SceneError, step_count
+    from elastoflow.scenes import SceneError, scene_to_toml, step_count
 
     chosen = _scene(scene)
     if view is not None and view not in VIEWS:
         _fail(f"--view = {view!r}: must be one of {', '.join(VIEWS)}")
-    chosen = apply_output_overrides(
-        chosen, video=video, fields=_parse_formats(fields), meshes=meshes, probes=probes,
-        checkpoint_every=checkpoint_every, view=view, every=every,
-    )
-    out_dir = out if out is not None else Path("out") / chosen.name
+    given: dict[str, Any] = {"video": video, "view": view, "fields": _parse_formats(fields), "meshes": meshes,
+             "probes": probes, "every": every, "checkpoint_every": checkpoint_every}
+    given = {key: value for key, value in given.items() if value is not None}
+    # A name from a scene file never leads out of out/ ("../../x" becomes "_x").
+    out_dir = out if out is not None else Path("out") / folder_name(chosen.name)
+    checkpoints = out_dir / "checkpoints"
+
+    options = dict(given)
+    checkpoint: Path | None = None
+    saved: dict[str, Any] = {}
+    if resume:
+        checkpoint = find_resume_checkpoint(out_dir)
+        if checkpoint is None:
+            _fail(f"--resume: no checkpoint in {checkpoints}")
+        try:
+            saved = read_checkpoint(checkpoint)
+        except CheckpointError as error:
+            older = [p for _, p in checkpoints_by_step(checkpoints)][:-1]
+            advice = (f"; move it away to resume from {older[-1].name}" if older else
+                      "; run again without --resume to start over")
+            _fail(f"--resume: {error}{advice}")
+        record = run_record(saved)
+        stored = _stored_scene(record["scene"]) if "scene" in record else None
+        if stored is not None:
+            changed = _scene_differences(chosen, stored)
+            if changed and not force_resume:
+                shown = "; ".join(changed[:3]) + (f"; and {len(changed) - 3} more"
+                                                  if len(changed) > 3 else "")
+                _fail(f"--resume: the scene differs from the one {checkpoint} was saved with "
+                      f"({shown}); pass --force-resume to continue from it anyway, or run "
+                      "again without --resume")
+            # The resumed run writes what the first one wrote, unless told otherwise now.
+            chosen = chosen.model_copy(update={"outputs": stored.outputs})
+        saved_options = record.get("options", {})
+        options = {**{k: v for k, v in saved_options.items() if k != "steps"}, **given}
+    chosen = apply_output_overrides(chosen, **given)
     try:
         # The scene's own length is checked even when --steps replaces it.
         scene_steps = step_count(chosen)
@@ -175,78 +275,156 @@ def run(
     except SceneError as error:
         _fail(str(error).splitlines())
     simulation = _build(chosen, total)
-    _output_folder(out_dir, "--out" if out is not None else "output folder")
-
-    resumed = False
-    if resume:
-        checkpoint = find_resume_checkpoint(out_dir)
-        if checkpoint is None:
-            _fail(f"--resume: no checkpoint in {out_dir / 'checkpoints'}")
-        try:
-            load_checkpoint(checkpoint, simulation)
-        except CheckpointError as error:
-            older = sorted((out_dir / "checkpoints").glob("checkpoint_*.npz"))[:-1]
-            advice = (f"; move it away to resume from {older[-1].name}" if older else
-                      "; run again without --resume to start over")
-            _fail(f"--resume: {error}{advice}")
-        resumed = True
-        typer.echo(f"resuming from {checkpoint} (step {simulation.step_index}, "
-                   f"t = {simulation.time:.4g} s)")
-    if simulation.step_index >= total:
-        typer.echo(f"nothing to do: already at step {simulation.step_index} of {total}")
-        return
-
+    folder_option = "--out" if out is not None else "output folder"
+    _output_folder(out_dir, folder_option)
     try:
-        session = OutputSession(chosen, simulation, out_dir, resumed=resumed)
+        lock = lock_output_folder(out_dir)
+        removed = remove_temporaries(out_dir)
+    except OutputFolderBusy:
+        _fail(f"{folder_option} = {str(out_dir)!r}: another elastoflow run is writing there; "
+              "wait for it to end or choose another folder")
     except OSError as error:
-        _fail(f"--out = {str(out_dir)!r}: cannot write the outputs there "
-              f"({error.strerror or error}: {error.filename or ''})")
-    failure: BaseException | None = None
-    unfinished: OSError | None = None
-    stopped = False
-    mid_step = False
-    written: list[Path] = []
+        _fail(f"{folder_option} = {str(out_dir)!r}: cannot write there "
+              f"({error.strerror or error}); choose a writable folder")
     try:
-        with _StopRequest() as stop:
-            _step_loop(simulation, session, total, stop, quiet)
-            stopped = stop.requested
-    except KeyboardInterrupt:
-        stopped = mid_step = True
-    except Exception as error:  # noqa: BLE001 - reported with its step, then exit 1
-        failure = error
-    finally:
-        # A failed or hard-interrupted step may leave a half-updated state: keep only the
-        # checkpoints taken between steps.
+        if removed:
+            typer.echo(f"removed {len(removed)} temporary files left by an interrupted run",
+                       err=True)
+
+        if checkpoint is not None:
+            try:
+                load_checkpoint(checkpoint, simulation, saved)
+            except CheckpointError as error:
+                _fail(f"--resume: {error}; run again without --resume to start over")
+            typer.echo(f"resuming from {checkpoint} (step {simulation.step_index}, "
+                       f"t = {simulation.time:.4g} s)")
+        else:
+            earlier = checkpoints_by_step(checkpoints)
+            if earlier and not overwrite:
+                _fail(f"{folder_option} = {str(out_dir)!r} holds checkpoints of an earlier run (the "
+                      f"newest at step {earlier[-1][0]}); continue it with --resume, choose "
+                      "another --out, or pass --overwrite to delete them and start over")
+            for _, path in earlier:
+                path.unlink()
+        if simulation.step_index >= total:
+            typer.echo(f"nothing to do: already at step {simulation.step_index} of {total}")
+            return
+
+        resume_words = ["elastoflow", "run", scene, "--out", str(out_dir), "--resume", "--steps",
+                        str(total), *_option_words(options)]
+        resume_command = " ".join(shlex.quote(word) for word in resume_words)
+        run_info = {"scene": scene_to_toml(chosen),
+                    "options": json.dumps({**options, "steps": total})}
+        if "video_range" in (saved_record := run_record(saved)):
+            run_info["video_range"] = saved_record["video_range"]
+        compiling = _compile_notice(quiet)
         try:
-            written = session.close(final_checkpoint=failure is None and not mid_step)
+            with compiling:
+                session = OutputSession(chosen, simulation, out_dir, resumed=checkpoint is not None,
+                                        run=run_info)
         except OSError as error:
-            # A full or read-only file system: say so instead of a traceback.
-            unfinished = error
+            _fail(f"--out = {str(out_dir)!r}: cannot write the outputs there "
+                  f"({error.strerror or error}: {error.filename or ''})")
+        failure: BaseException | None = None
+        unfinished: OSError | None = None
+        stopped = False
+        mid_step = False
+        written: list[Path] = []
+        try:
+            with _StopRequest() as stop:
+                _step_loop(simulation, session, total, stop, quiet, compiling)
+                stopped = stop.requested
+        except KeyboardInterrupt:
+            stopped = mid_step = True
+        except Exception as error:  # noqa: BLE001 - reported with its step, then exit 1
+            failure = error
+        finally:
+            # A failed or hard-interrupted step may leave a half-updated state: go back to the
+            # last step whose outputs were all written, and save that.
+            recovered = (failure is not None or mid_step) and session.recover()
+            try:
+                written = session.close(final_checkpoint=failure is None or recovered,
+                                        failed=failure is not None or mid_step)
+            except OSError as error:
+                # A full or read-only file system: say so instead of a traceback.
+                unfinished = error
 
-    if session.video_note:
-        typer.echo(f"note: {session.video_note}", err=True)
-    for path in written:
-        typer.echo(f"wrote {path}")
-    problems = []
-    if failure is not None:
-        where = f"step {simulation.step_index + 1} (t = {simulation.time:.6g} s)"
-        message = str(failure)
-        if not message.startswith("step"):
-            message = f"{where}: {type(failure).__name__}: {message}"
-        problems.append(f"run failed at {message}")
-    if unfinished is not None:
-        problems.append(f"cannot finish the outputs in {out_dir} after step "
-                        f"{simulation.step_index}: {unfinished.strerror or unfinished}"
-                        + (f" ({unfinished.filename})" if unfinished.filename else ""))
-    if problems:
-        _fail(problems, EXIT_RUN_FAILED)
-    if stopped:
-        typer.echo(f"stopped at step {simulation.step_index} of {total}; resume with:\n"
-                   f"  elastoflow run {scene} --out {out_dir} --resume --steps {total}")
-        raise typer.Exit(130)
+        if session.video_note:
+            typer.echo(f"note: {session.video_note}", err=True)
+        for path in written:
+            typer.echo(f"wrote {path}")
+        problems = []
+        if failure is not None:
+            where = f"step {simulation.step_index + 1} (t = {simulation.time:.6g} s)"
+            message = str(failure)
+            if not message.startswith("step"):
+                message = f"{where}: {type(failure).__name__}: {message}"
+            problems.append(f"run failed at {message}")
+        if unfinished is not None:
+            problems.append(f"cannot finish the outputs in {out_dir} after step "
+                            f"{simulation.step_index}: {unfinished.strerror or unfinished}"
+                            + (f" ({unfinished.filename})" if unfinished.filename else ""))
+        if problems:
+            for line in problems:
+                typer.echo(f"error: {line}", err=True)
+            last = session.last_checkpoint or find_resume_checkpoint(out_dir)
+            if last is not None:
+                changed = "" if isinstance(failure, OSError | None) else (
+                    " (after changing the scene, add --force-resume)")
+                typer.echo(f"note: the last good state is saved in {last}; resume with{changed}:\n"
+                           f"  {resume_command}", err=True)
+            raise typer.Exit(EXIT_RUN_FAILED)
+        if stopped:
+            typer.echo(f"stopped at step {simulation.step_index} of {total}; resume with:\n"
+                       f"  {resume_command}")
+            raise typer.Exit(130)
+    finally:
+        # Also on exit 2 below: a run in process (tests) must not keep the folder locked.
+        lock.close()
 
 
-def _step_loop(simulation: Any, session: Any, total: int, stop: _StopRequest, quiet: bool) -> None:
+class _CompileNotice:
+    """Says, before the wait, that the kernels are being compiled (no disk cache yet), and
+    shows a spinner while the first frame and the first step run."""
+
+    def __init__(self, active: bool, quiet: bool) -> None:
+        self.active = active
+        self._status: Any = None
+        if active and not quiet:
+            from rich.console import Console
+
+            console = Console(stderr=True)
+            message = ("compiling kernels (first run, about a minute; `elastoflow warmup` does "
+                       "it ahead)...")
+            if console.is_terminal:
+                self._status = console.status(message, spinner="dots")
+            else:
+                typer.echo(message, err=True)
+
+    def __enter__(self) -> Self:
+        if self._status is not None:
+            self._status.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        pass
+
+    def done(self) -> None:
+        """The compiling is over (the first step has run): stop the spinner."""
+        if self._status is not None:
+            self._status.stop()
+            self._status = None
+        self.active = False
+
+
+def _compile_notice(quiet: bool) -> _CompileNotice:
+    from elastoflow._warmup import kernels_need_compiling
+
+    return _CompileNotice(kernels_need_compiling(), quiet)
+
+
+def _step_loop(simulation: Any, session: Any, total: int, stop: _StopRequest, quiet: bool,
+               compiling: _CompileNotice | None = None) -> None:
     from rich.progress import (
         BarColumn,
         MofNCompleteColumn,
@@ -256,6 +434,13 @@ def _step_loop(simulation: Any, session: Any, total: int, stop: _StopRequest, qu
         TimeRemainingColumn,
     )
 
+    if compiling is not None and compiling.active:
+        try:
+            # The first step compiles what the first frame did not, under the spinner.
+            report = simulation.step()
+            session.after_step(simulation, report)
+        finally:
+            compiling.done()
     start = simulation.step_index
     progress = Progress(
         TextColumn("[bold]{task.description}"), BarColumn(), MofNCompleteColumn(),

@@ -1,20 +1,30 @@
 """Writing results: field snapshots (npz, VTK, XDMF), extruded meshes (OBJ, PLY), probes (CSV,
 PNG), checkpoints, and the output session that runs them between steps.
 
-Every file is written atomically (a temporary file in the same folder, then ``os.replace``):
-a reader, or a run stopped with Ctrl-C, never sees a partial file. Physics code never imports
-this package.
+Every file is complete at any time: data files are written atomically (a temporary file in the
+same folder, then ``os.replace``), the probes CSV and the XDMF series are streams extended by
+single writes, the video is written in complete segments. A run killed at any point leaves
+complete files, and a resumed run removes the temporaries and continues every output
+(docs/reliability.md). Physics code never imports this package.
 """
 
-from elastoflow.io._atomic import atomic_path, write_bytes_atomic, write_text_atomic
+from elastoflow.io._atomic import (
+    atomic_path,
+    remove_temporaries,
+    write_bytes_atomic,
+    write_text_atomic,
+)
 from elastoflow.io._checkpoint import (
     CheckpointError,
     checkpoint_path,
+    checkpoints_by_step,
     latest_checkpoint,
     load_checkpoint,
     read_checkpoint,
+    run_record,
     save_checkpoint,
 )
+from elastoflow.io._folder import OutputFolderBusy, folder_name, lock_output_folder
 from elastoflow.io._fields import FIELD_FORMATS, FieldWriter, saved_frames, snapshot_arrays
 from elastoflow.io._meshes import (
     boundary_edges_of,
@@ -35,6 +45,7 @@ __all__ = [
     "FIELD_FORMATS",
     "CheckpointError",
     "FieldWriter",
+    "OutputFolderBusy",
     "OutputSession",
     "ProbeRecorder",
     "RangeTracker",
@@ -42,13 +53,18 @@ __all__ = [
     "atomic_path",
     "boundary_edges_of",
     "checkpoint_path",
+    "checkpoints_by_step",
     "extrude_surface",
     "find_resume_checkpoint",
+    "folder_name",
     "latest_checkpoint",
     "load_checkpoint",
+    "lock_output_folder",
     "plot_probes",
     "read_checkpoint",
     "read_probes",
+    "remove_temporaries",
+    "run_record",
     "save_checkpoint",
     "saved_frames",
     "snapshot_arrays",

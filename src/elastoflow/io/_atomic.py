@@ -1,14 +1,36 @@
-"""Atomic file writing: a temporary file in the same folder, then ``os.replace``."""
+"""Atomic file writing: a temporary file in the same folder, then ``os.replace``; and the
+removal of the temporaries a killed run leaves behind."""
 
 from __future__ import annotations
 
 import os
-import tempfile
+import re
+import secrets
+import shutil
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
 TEMPORARY_MARKER = ".tmp"
+
+# The names of every temporary elastoflow writes: ``.{stem}.{...}.tmp{suffix}`` files (atomic
+# writes, video encoder output) and ``.xdmf.{pid}.tmp`` folders (XDMF series of versions before
+# the series became a stream). Nothing else in an output folder starts with a dot and holds
+# ``.tmp``.
+_TEMPORARY_NAME = re.compile(r"^\..+\.tmp(\.[A-Za-z0-9]+)?$")
+
+
+def _create_exclusive(directory: Path, prefix: str, suffix: str) -> Path:
+    """Create a new empty file ``directory/prefix<random>suffix`` with mode 0666 less the
+    umask (``tempfile.mkstemp`` would make it 0600, and the rename would keep that)."""
+    while True:
+        path = directory / f"{prefix}{os.getpid()}.{secrets.token_hex(4)}{suffix}"
+        try:
+            handle = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)
+        except FileExistsError:
+            continue
+        os.close(handle)
+        return path
 
 
 @contextmanager
@@ -17,14 +39,12 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
     on normal exit it replaces ``path``, on an exception it is deleted.
 
     Readers therefore see either the old file or the complete new one, never a partial file.
+    The file gets the permissions of any new file (0666 less the umask).
     """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    handle, name = tempfile.mkstemp(
-        prefix=f".{path.stem}.", suffix=f"{TEMPORARY_MARKER}{path.suffix}", dir=path.parent
-    )
-    os.close(handle)
-    temporary = Path(name)
+    temporary = _create_exclusive(path.parent, f".{path.stem}.",
+                                  f"{TEMPORARY_MARKER}{path.suffix}")
     try:
         yield temporary
         os.replace(temporary, path)
@@ -33,12 +53,43 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
             temporary.unlink()
 
 
-def write_bytes_atomic(path: str | Path, data: bytes) -> None:
-    """Write ``data`` to ``path`` atomically."""
-    with atomic_path(path) as temporary:
-        temporary.write_bytes(data)
+def write_bytes_atomic(path: str | Path, data: bytes, *, sync: bool = False) -> None:
+    """Write ``data`` to ``path`` atomically; ``sync``: flush it to the disk before the
+    rename (so that it survives a power cut, not only a killed process)."""
+    with atomic_path(path) as temporary, open(temporary, "wb") as handle:
+        handle.write(data)
+        if sync:
+            handle.flush()
+            os.fsync(handle.fileno())
 
 
 def write_text_atomic(path: str | Path, text: str) -> None:
     """Write ``text`` (UTF-8) to ``path`` atomically."""
     write_bytes_atomic(path, text.encode("utf-8"))
+
+
+def is_temporary(path: Path) -> bool:
+    """Whether ``path`` is named like a temporary elastoflow writes (see `remove_temporaries`)."""
+    return bool(_TEMPORARY_NAME.match(path.name))
+
+
+def remove_temporaries(folder: str | Path) -> list[Path]:
+    """Delete every temporary file and folder under ``folder`` left by a run that was killed
+    (``.video.<pid>.tmp.mp4``, ``.fluid_000010.<pid>.<random>.tmp.vtu``, ``.xdmf.<pid>.tmp/``);
+    returns what was removed. Only for a folder no other run is writing to (see
+    `lock_output_folder`)."""
+    removed: list[Path] = []
+    folder = Path(folder)
+    if not folder.is_dir():
+        return removed
+    for root, directories, files in os.walk(folder):
+        for name in list(directories):
+            if _TEMPORARY_NAME.match(name):
+                shutil.rmtree(Path(root) / name, ignore_errors=True)
+                removed.append(Path(root) / name)
+                directories.remove(name)
+        for name in files:
+            if _TEMPORARY_NAME.match(name):
+                (Path(root) / name).unlink(missing_ok=True)
+                removed.append(Path(root) / name)
+    return removed

@@ -1,8 +1,13 @@
-"""Checkpoints: `Simulation.checkpoint()` arrays in one ``.npz``, written atomically."""
+"""Checkpoints: `Simulation.checkpoint()` arrays in one ``.npz``, written atomically, with
+what a resume needs besides the state (the scene, the run's options, the video's colour range)
+under keys starting with ``run_``."""
 
 from __future__ import annotations
 
+import json
+import os
 import re
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -18,12 +23,44 @@ def checkpoint_path(folder: str | Path, step: int) -> Path:
     return Path(folder) / f"checkpoint_{step:08d}.npz"
 
 
-def save_checkpoint(path: str | Path, simulation: Any) -> Path:
-    """Write ``simulation.checkpoint()`` to ``path`` (temporary file, then rename)."""
-    data = simulation.checkpoint()
+def save_checkpoint(path: str | Path, simulation: Any, *,
+                    state: Mapping[str, np.ndarray] | None = None,
+                    run: Mapping[str, Any] | None = None) -> Path:
+    """Write ``simulation.checkpoint()`` (or ``state``, arrays it returned earlier) to ``path``:
+    a temporary file, flushed to the disk, then renamed.
+
+    Args:
+        path: The ``.npz`` file.
+        simulation: The `Simulation`.
+        state: Arrays of an earlier ``simulation.checkpoint()`` to save instead of the current
+            state (the last good state of a failed run).
+        run: Strings, numbers or arrays saved beside the state as ``run_{key}`` (the scene's
+            TOML, the run's options as JSON); read back with `run_record`.
+    """
+    data = dict(simulation.checkpoint() if state is None else state)
+    for key, value in (run or {}).items():
+        data[f"run_{key}"] = np.asarray(value)
     with atomic_path(path) as temporary, open(temporary, "wb") as handle:
         np.savez(handle, **data)
+        handle.flush()
+        os.fsync(handle.fileno())
     return Path(path)
+
+
+def run_record(data: Mapping[str, np.ndarray]) -> dict[str, Any]:
+    """The ``run`` entries of a checkpoint read by `read_checkpoint`, without the ``run_``
+    prefix: strings as ``str``, arrays as arrays; ``options`` (JSON) as a dict. Empty for a
+    checkpoint written before the run record existed."""
+    record: dict[str, Any] = {}
+    for key, value in data.items():
+        if key.startswith("run_"):
+            record[key[4:]] = str(value) if value.dtype.kind == "U" else np.array(value)
+    if "options" in record:
+        try:
+            record["options"] = json.loads(record["options"])
+        except ValueError:
+            record["options"] = {}
+    return record
 
 
 class CheckpointError(ValueError):
@@ -71,24 +108,34 @@ def read_checkpoint(path: str | Path) -> dict[str, np.ndarray]:
     return data
 
 
-def load_checkpoint(path: str | Path, simulation: Any) -> None:
+def load_checkpoint(path: str | Path, simulation: Any,
+                    data: Mapping[str, np.ndarray] | None = None) -> None:
     """Restore ``simulation`` from a checkpoint file (bit-exact).
+
+    ``data``: the file's arrays, if `read_checkpoint` has read them already.
 
     Raises:
         CheckpointError: The file is damaged (see `read_checkpoint`) or does not fit the
             simulation (other bodies, other grid).
     """
-    data = read_checkpoint(path)
+    if data is None:
+        data = read_checkpoint(path)
+    state = {key: value for key, value in data.items() if not key.startswith("run_")}
     try:
-        simulation.restore(data)
+        simulation.restore(state)
     except (ValueError, KeyError, IndexError, TypeError) as error:
         raise CheckpointError(f"checkpoint {path} does not fit this scene: {error}") from None
 
 
-def latest_checkpoint(folder: str | Path) -> Path | None:
-    """The checkpoint with the highest step in ``folder``, or None."""
+def checkpoints_by_step(folder: str | Path) -> list[tuple[int, Path]]:
+    """``(step, path)`` of every checkpoint in ``folder``, oldest first."""
     folder = Path(folder)
     if not folder.is_dir():
-        return None
-    found = [(int(m.group(1)), p) for p in folder.iterdir() if (m := _NAME.match(p.name))]
-    return max(found)[1] if found else None
+        return []
+    return sorted((int(m.group(1)), p) for p in folder.iterdir() if (m := _NAME.match(p.name)))
+
+
+def latest_checkpoint(folder: str | Path) -> Path | None:
+    """The checkpoint with the highest step in ``folder``, or None."""
+    found = checkpoints_by_step(folder)
+    return found[-1][1] if found else None

@@ -2,14 +2,16 @@
 
 Every snapshot holds, at cell centres, velocity, pressure, dye, vorticity and the solid flag,
 plus each body's current mesh. ParaView opens ``fluid.pvd`` / ``body0.pvd`` (or
-``fluid.xdmf``) as a time series.
+``fluid.xdmf``, read with the XDMF3 reader) as a time series.
 """
 
 from __future__ import annotations
 
+import contextlib
+import errno
 import json
 import os
-import shutil
+import re
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -80,18 +82,30 @@ def _cell_data(data: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
     }
 
 
+_XDMF_TAIL = "  </Grid>\n</Domain>\n</Xdmf>\n"
+_XDMF_ATTRIBUTES = (("velocity", "Vector", 3), ("pressure", "Scalar", 0), ("dye", "Scalar", 0),
+                    ("vorticity", "Scalar", 0), ("solid", "Scalar", 0))
+_STEP_FILE = re.compile(r"^(?:step|fluid|body\d+)_(\d{6,})\.(?:npz|vtu|h5)$")
+
+
 class FieldWriter:
-    """Writes snapshots to ``folder`` in the chosen formats, every file atomically.
+    """Writes snapshots to ``folder`` in the chosen formats; every file is complete at any time.
 
     Files: ``step_{step:06d}.npz``; ``fluid_{step:06d}.vtu``, ``body{k}_{step:06d}.vtu`` with the
-    ``fluid.pvd`` / ``body{k}.pvd`` collections; ``fluid.xdmf`` + ``fluid.h5`` (finished by
-    `close`; a resumed run writes ``fluid_from_{step}.xdmf``). ``index.json`` lists the saved steps and times (used to resume a series).
+    ``fluid.pvd`` / ``body{k}.pvd`` collections; ``fluid.xdmf`` naming ``fluid_mesh.h5`` (the
+    cells) and one ``fluid_{step:06d}.h5`` per snapshot (the fields). ``index.json`` lists the
+    saved steps and times. Each data file is written atomically; ``fluid.xdmf`` is a stream: a
+    snapshot is added with one write that puts its entry where the closing tags were and the
+    closing tags after it, so the file is complete XML between any two writes, also after the
+    process is killed. A resumed run (``resume_step``) drops the files of later steps and
+    continues the same series.
 
     Args:
         folder: Output folder (created).
         grid: The `Grid2D`.
         formats: Any of ``"npz"``, ``"vtk"``, ``"xdmf"``.
-        resume_step: Keep the saved frames up to this step (a resumed run); None starts fresh.
+        resume_step: Keep the saved frames up to this step and delete later ones (a resumed
+            run); None starts fresh.
     """
 
     def __init__(self, folder: str | Path, grid: Any, formats: Sequence[str] = ("npz",),
@@ -107,14 +121,114 @@ class FieldWriter:
         self._index: list[tuple[int, float]] = []
         self._body_count = 0
         index_path = self.folder / "index.json"
-        if resume_step is not None and index_path.exists():
-            saved = json.loads(index_path.read_text())
-            self._index = [(int(s), float(t)) for s, t in saved["frames"] if int(s) <= resume_step]
-            self._body_count = int(saved.get("body_count", 0))
-        self._xdmf: Any = None
-        self._xdmf_folder: Path | None = None
-        # A resumed run starts a new XDMF series rather than rewriting the earlier one.
-        self.xdmf_name = "fluid" if not resume_step else f"fluid_from_{resume_step:06d}"
+        if resume_step is not None:
+            if index_path.exists():
+                try:
+                    saved = json.loads(index_path.read_text())
+                    self._index = [(int(s), float(t)) for s, t in saved["frames"]
+                                   if int(s) <= resume_step]
+                    self._body_count = int(saved.get("body_count", 0))
+                except (ValueError, KeyError, TypeError):
+                    self._index = []
+            for path in self.folder.iterdir():
+                match = _STEP_FILE.match(path.name)
+                if match and int(match.group(1)) > resume_step:
+                    path.unlink()
+        self.xdmf_name = "fluid"
+        self._xdmf: int | None = None
+        self._xdmf_steps: list[int] = []
+        self._xdmf_size = 0
+        if "xdmf" in self.formats:
+            self._start_xdmf()
+
+    # -- XDMF ----------------------------------------------------------------------------
+
+    def _start_xdmf(self) -> None:
+        """Write the mesh file and the XDMF file of the snapshots kept so far; open the stream."""
+        import h5py
+
+        with atomic_path(self.folder / f"{self.xdmf_name}_mesh.h5") as temporary, \
+                h5py.File(temporary, "w") as mesh:
+            mesh.create_dataset("points", data=self._points)
+            mesh.create_dataset("quads", data=self._quads)
+        kept = [(s, t) for s, t in self._index if (self.folder / self._xdmf_data(s)).exists()]
+        self._xdmf_steps = [s for s, _ in kept]
+        text = self._xdmf_head() + "".join(self._xdmf_entry(s, t) for s, t in kept) + _XDMF_TAIL
+        path = self.folder / f"{self.xdmf_name}.xdmf"
+        write_text_atomic(path, text)
+        self._xdmf = os.open(path, os.O_WRONLY)
+        self._xdmf_size = os.fstat(self._xdmf).st_size
+
+    def _xdmf_data(self, step: int) -> str:
+        return f"{self.xdmf_name}_{step:06d}.h5"
+
+    def _xdmf_head(self) -> str:
+        nx, ny = self.grid.nx, self.grid.ny
+        mesh = f"{self.xdmf_name}_mesh.h5"
+        return (
+            '<?xml version="1.0"?>\n'
+            '<Xdmf xmlns:xi="http://www.w3.org/2003/XInclude" Version="3.0">\n<Domain>\n'
+            '  <Grid Name="mesh" GridType="Uniform">\n'
+            '    <Geometry GeometryType="XYZ"><DataItem DataType="Float" '
+            f'Dimensions="{len(self._points)} 3" Format="HDF" Precision="8">{mesh}:/points'
+            "</DataItem></Geometry>\n"
+            f'    <Topology TopologyType="Quadrilateral" NumberOfElements="{nx * ny}">'
+            f'<DataItem DataType="Int" Dimensions="{nx * ny} 4" Format="HDF" Precision="8">'
+            f"{mesh}:/quads</DataItem></Topology>\n"
+            "  </Grid>\n"
+            '  <Grid Name="TimeSeries" GridType="Collection" CollectionType="Temporal">\n'
+        )
+
+    def _xdmf_entry(self, step: int, time: float) -> str:
+        cells = self.grid.nx * self.grid.ny
+        data = self._xdmf_data(step)
+        lines = [f'    <Grid Name="step_{step:06d}">',
+                 '      <xi:include xpointer="xpointer(//Grid[@Name=&quot;mesh&quot;]/*[self::'
+                 'Topology or self::Geometry])"/>',
+                 f'      <Time Value="{time!r}"/>']
+        for name, kind, width in _XDMF_ATTRIBUTES:
+            dimensions = f"{cells} {width}" if width else f"{cells}"
+            number = ('DataType="Int" Precision="4"' if name == "solid"
+                      else 'DataType="Float" Precision="8"')
+            lines.append(f'      <Attribute Name="{name}" AttributeType="{kind}" Center="Cell">'
+                         f'<DataItem {number} Dimensions="{dimensions}" Format="HDF">'
+                         f"{data}:/{name}</DataItem></Attribute>")
+        lines.append("    </Grid>\n")
+        return "\n".join(lines)
+
+    def _write_xdmf(self, step: int, time: float, data: dict[str, np.ndarray]) -> None:
+        import h5py
+
+        with atomic_path(self.folder / self._xdmf_data(step)) as temporary, \
+                h5py.File(temporary, "w") as snapshot:
+            for name, values in _cell_data(data).items():
+                snapshot.create_dataset(name, data=values)
+        if self._xdmf is None:
+            raise ValueError(f"{self.folder}: the field writer is closed")
+        if self._xdmf_steps and step <= self._xdmf_steps[-1]:
+            # The same step again (or an earlier one): rewrite the series without it.
+            self._index = [(s, t) for s, t in self._index if s < step]
+            os.close(self._xdmf)
+            self._xdmf = None
+            self._start_xdmf()
+            assert self._xdmf is not None
+        # One write replaces the closing tags with the entry and the closing tags.
+        offset = self._xdmf_size - len(_XDMF_TAIL)
+        chunk = (self._xdmf_entry(step, time) + _XDMF_TAIL).encode("utf-8")
+        try:
+            written = os.pwrite(self._xdmf, chunk, offset)
+            if written != len(chunk):
+                raise OSError(errno.ENOSPC, "short write", str(self.folder / f"{self.xdmf_name}.xdmf"))
+        except OSError:
+            # Put the closing tags back where they were (those bytes need no new space).
+            with contextlib.suppress(OSError):
+                os.pwrite(self._xdmf, _XDMF_TAIL.encode("utf-8"), offset)
+                os.ftruncate(self._xdmf, self._xdmf_size)
+            raise
+        self._xdmf_size = offset + len(chunk)
+        self._xdmf_steps.append(step)
+
+    # -- snapshots -----------------------------------------------------------------------
 
     def write(self, data: dict[str, np.ndarray]) -> None:
         """Save one snapshot (the arrays of `snapshot_arrays`)."""
@@ -126,7 +240,7 @@ class FieldWriter:
         if "vtk" in self.formats:
             self._write_vtk(step, data)
         if "xdmf" in self.formats:
-            self._write_xdmf(time, data)
+            self._write_xdmf(step, time, data)
         self._index = [(s, t) for s, t in self._index if s != step] + [(step, time)]
         if "vtk" in self.formats:
             self._write_collections()
@@ -163,33 +277,24 @@ class FieldWriter:
                 f"  <Collection>\n{entries}\n  </Collection>\n</VTKFile>\n"
             ))
 
-    def _write_xdmf(self, time: float, data: dict[str, np.ndarray]) -> None:
-        import h5py
-        import meshio
+    @property
+    def steps(self) -> list[int]:
+        """The steps saved so far (with those kept from before a resume)."""
+        return [s for s, _ in self._index]
 
-        if self._xdmf is None:
-            # The XDMF file names its HDF5 file, so both are written in a private folder and
-            # moved into place together when the series is closed.
-            self._xdmf_folder = self.folder / f".xdmf.{os.getpid()}.tmp"
-            self._xdmf_folder.mkdir(exist_ok=True)
-            self._xdmf = meshio.xdmf.TimeSeriesWriter(str(self._xdmf_folder / f"{self.xdmf_name}.xdmf"))
-            # meshio's __enter__ would open the HDF5 file in the working directory; open it
-            # beside the XDMF file instead (the XDMF refers to it by base name).
-            self._xdmf.h5_filename = str(self._xdmf_folder / f"{self.xdmf_name}.h5")
-            self._xdmf.h5_file = h5py.File(self._xdmf.h5_filename, "w")
-            self._xdmf.write_points_cells(self._points, [("quad", self._quads)])
-        self._xdmf.write_data(time, cell_data={k: [v] for k, v in _cell_data(data).items()})
+    def sync(self) -> None:
+        """Put the XDMF series on the disk (fsync); the other files are complete once renamed."""
+        if self._xdmf is not None:
+            os.fsync(self._xdmf)
 
     def close(self) -> None:
-        """Finish the XDMF series (if any) and move it into place."""
+        """Sync and close the XDMF series (idempotent)."""
         if self._xdmf is not None:
-            self._xdmf.__exit__(None, None, None)
-            self._xdmf = None
-            assert self._xdmf_folder is not None
-            for name in (f"{self.xdmf_name}.h5", f"{self.xdmf_name}.xdmf"):
-                os.replace(self._xdmf_folder / name, self.folder / name)
-            shutil.rmtree(self._xdmf_folder, ignore_errors=True)
-            self._xdmf_folder = None
+            try:
+                self.sync()
+            finally:
+                os.close(self._xdmf)
+                self._xdmf = None
 
 
 def saved_frames(folder: str | Path) -> list[Path]:

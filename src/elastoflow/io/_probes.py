@@ -2,8 +2,11 @@
 
 from __future__ import annotations
 
+import contextlib
 import csv
+import errno
 import io
+import os
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
@@ -65,13 +68,19 @@ def _resolve_node(sim: Any, spec: Any) -> int:
 
 
 class ProbeRecorder:
-    """Samples the probes of a scene after each step and writes ``probes.csv`` / ``probes.png``.
+    """Samples the probes of a scene after each step into ``probes.csv``, a stream: each row is
+    appended with one ``write`` as it is taken, so a killed run leaves a CSV of complete rows up
+    to its last step; `sync` (at every checkpoint) puts them on the disk. A write that fails
+    (a full disk) is undone to the last complete row before the error is raised. `plot` draws
+    ``probes.png`` at the end.
 
     Args:
         probes: `elastoflow.scenes.ProbeSpec` items (kind, body, node or point).
         simulation: The running `Simulation` (bodies are looked up once).
         path: CSV file; the plot goes beside it with suffix ``.png``.
-        resume_step: Keep the rows of an existing CSV up to this step (a resumed run).
+        resume_step: Keep the rows of an existing CSV up to this step (a resumed run); rows
+            after it, and a last row cut short by a kill, are dropped. An existing CSV with
+            other columns is kept as ``probes_until_{step}.csv``. None starts a new CSV.
     """
 
     def __init__(self, probes: Sequence[Any], simulation: Any, path: str | Path,
@@ -91,30 +100,96 @@ class ProbeRecorder:
             self._samplers.append(sampler)
         self.rows: list[list[float]] = []
         if resume_step is not None and self.path.exists():
-            self.rows = [row for row in read_probes(self.path)[1] if row[0] <= resume_step]
+            columns, rows = _read_complete_rows(self.path)
+            if columns == self.columns:
+                self.rows = [row for row in rows if row[0] <= resume_step]
+            else:
+                os.replace(self.path, self.path.with_name(
+                    f"{self.path.stem}_until_{resume_step:06d}{self.path.suffix}"))
+        write_text_atomic(self.path, "".join(
+            [_line(self.columns)] + [self._format(row) for row in self.rows]))
+        self._handle: int | None = os.open(self.path, os.O_WRONLY | os.O_APPEND)
+        self._size = os.fstat(self._handle).st_size
+
+    @staticmethod
+    def _format(row: list[float]) -> str:
+        return _line([str(int(row[0])), *(f"{v:.10g}" for v in row[1:])])
 
     def record(self, simulation: Any, report: Any = None) -> None:
         """Append one row: step, time and every probe's values."""
         row = [float(simulation.step_index), float(simulation.time)]
         for sampler in self._samplers:
             row.extend(sampler(simulation, report))
+        self._append(self._format(row).encode("utf-8"))
         self.rows.append(row)
 
+    def _append(self, data: bytes) -> None:
+        if self._handle is None:
+            raise ValueError(f"{self.path}: the probe recorder is closed")
+        try:
+            written = os.write(self._handle, data)
+            if written != len(data):
+                raise OSError(errno.ENOSPC, "short write", str(self.path))
+        except OSError as error:
+            # Undo a partial row: the file must end with a complete one. Shrinking a file needs
+            # no free space.
+            with contextlib.suppress(OSError):
+                os.ftruncate(self._handle, self._size)
+            if not error.filename:
+                error.filename = str(self.path)
+            raise
+        self._size += written
+
+    def sync(self) -> None:
+        """Put every row recorded so far on the disk (fsync)."""
+        if self._handle is not None:
+            os.fsync(self._handle)
+
     def write_csv(self) -> Path:
-        """Write all rows so far (atomically)."""
-        buffer = io.StringIO()
-        writer = csv.writer(buffer)
-        writer.writerow(self.columns)
-        for row in self.rows:
-            writer.writerow([int(row[0]), *(f"{v:.10g}" for v in row[1:])])
-        write_text_atomic(self.path, buffer.getvalue())
+        """Make sure every row so far is in the CSV (on the disk); returns its path."""
+        self.sync()
         return self.path
+
+    def close(self) -> None:
+        """Sync and close the CSV (idempotent)."""
+        if self._handle is not None:
+            try:
+                self.sync()
+            finally:
+                os.close(self._handle)
+                self._handle = None
 
     def plot(self) -> Path | None:
         """One panel per probe column against time, saved as PNG (matplotlib, Agg)."""
         if not self.rows or len(self.columns) <= 2:
             return None
         return plot_probes(self.columns, np.asarray(self.rows), self.path.with_suffix(".png"))
+
+
+def _line(values: Sequence[str]) -> str:
+    buffer = io.StringIO()
+    csv.writer(buffer, lineterminator="\n").writerow(values)
+    return buffer.getvalue()
+
+
+def _read_complete_rows(path: Path) -> tuple[list[str], list[list[float]]]:
+    """Columns and rows of a probes CSV, without a last row cut short (no line end, or fewer
+    values than columns) or any row that does not parse."""
+    text = path.read_text(encoding="utf-8", errors="replace")
+    lines = text.split("\n")
+    complete = lines[:-1]  # the piece after the last line end is not a complete row
+    if not complete:
+        return [], []
+    columns = next(csv.reader([complete[0]]))
+    rows = []
+    for values in csv.reader(complete[1:]):
+        if len(values) != len(columns):
+            continue
+        try:
+            rows.append([float(v) for v in values])
+        except ValueError:
+            continue
+    return columns, rows
 
 
 def read_probes(path: str | Path) -> tuple[list[str], list[list[float]]]:

@@ -2,17 +2,26 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import re
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from elastoflow.io._atomic import write_text_atomic
-from elastoflow.io._checkpoint import checkpoint_path, latest_checkpoint, save_checkpoint
+from elastoflow.io._checkpoint import (
+    checkpoint_path,
+    checkpoints_by_step,
+    latest_checkpoint,
+    save_checkpoint,
+)
 from elastoflow.io._fields import FieldWriter, snapshot_arrays
 from elastoflow.io._meshes import write_extruded_meshes
 from elastoflow.io._probes import ProbeRecorder
 
 KEEP_CHECKPOINTS = 3
+_MESH_FILE = re.compile(r"^body\d+_(\d{6,})\.(?:obj|ply)$")
 
 
 class RangeTracker:
@@ -32,22 +41,34 @@ class OutputSession:
     """Video, field snapshots, extruded meshes, probes and checkpoints of one run.
 
     Call `after_step` after every step (it is a ``callback(simulation, report)``), and `close`
-    at the end, also after an error or Ctrl-C: it finishes the video, writes the probes and a
-    final checkpoint, so everything up to the last completed step is kept.
+    at the end, also after an error or Ctrl-C: it finishes the video, the probes and a final
+    checkpoint, so everything up to the last completed step is kept. After a failed step (or
+    a failed output), call `recover` before `close`: it puts the simulation back to the state
+    after the last step whose outputs were all written, so that the final checkpoint holds a
+    good state and no file is written from a diverged one.
 
-    Layout of ``out_dir``: ``scene.toml``, ``video.mp4`` (``video_from_{step}.mp4`` after a
-    resume), ``fields/``, ``meshes/``, ``probes.csv`` + ``probes.png``, ``checkpoints/``.
+    Every output is complete at any time and continues on resume: a checkpoint at step s is
+    taken after every output of step s is written (the video segment cut, probes and XDMF
+    synced), and a session resumed from it drops what later steps had written (probe rows,
+    snapshots, meshes, video segments) and appends to the same files.
+
+    Layout of ``out_dir``: ``scene.toml``, ``video.mp4`` (joined at the end from
+    ``video_parts/``), ``fields/``, ``meshes/``, ``probes.csv`` + ``probes.png``,
+    ``checkpoints/``.
 
     Args:
         scene: The `elastoflow.scenes.Scene` (its ``outputs`` say what to write).
         simulation: The `Simulation` being run.
         out_dir: Output folder (created).
-        resumed: The simulation was restored from a checkpoint in ``out_dir``: keep earlier
-            field frames and probe rows up to its step, start a new video segment.
+        resumed: The simulation was restored from a checkpoint in ``out_dir``: keep the
+            outputs up to its step, drop later ones, continue the same files.
+        run: Saved in every checkpoint (see `save_checkpoint`): the scene's TOML and the run's
+            options, read back on resume; ``video_range`` ([low, high]) restores the video's
+            colour range.
     """
 
     def __init__(self, scene: Any, simulation: Any, out_dir: str | Path, *,
-                 resumed: bool = False) -> None:
+                 resumed: bool = False, run: Mapping[str, Any] | None = None) -> None:
         from elastoflow.scenes import scene_to_toml
 
         self.scene = scene
@@ -55,52 +76,75 @@ class OutputSession:
         self.simulation = simulation
         self.out_dir = Path(out_dir)
         self.out_dir.mkdir(parents=True, exist_ok=True)
+        self.run = dict(run or {})
         write_text_atomic(self.out_dir / "scene.toml", scene_to_toml(scene))
         start = simulation.step_index
         resume_step = start if resumed else None
         self.written: list[Path] = []
+        self.last_checkpoint: Path | None = None
         self._video: Any = None
         self._frame_image: Any = None
         self._range = RangeTracker()
+        saved_range = self.run.pop("video_range", None)
+        if resumed and saved_range is not None:
+            self._range.update(float(saved_range[0]), float(saved_range[1]))
+        # The step each frame output was last written at: never twice for one step.
+        self._written_at: dict[str, int] = {}
         if self.outputs.video is not None:
-            from elastoflow.render import VideoWriter
+            from elastoflow.render import SegmentedVideo
 
-            name = f"video_from_{start:06d}.mp4" if resumed and start > 0 else "video.mp4"
-            self._video = VideoWriter(self.out_dir / name, fps=self.outputs.video.fps)
+            self._video = SegmentedVideo(self.out_dir / "video.mp4", fps=self.outputs.video.fps,
+                                         resume_step=resume_step)
         self._fields = None
         if self.outputs.fields is not None:
             self._fields = FieldWriter(self.out_dir / "fields", simulation.grid,
                                        self.outputs.fields.formats, resume_step=resume_step)
+        if resume_step is not None:
+            _drop_later_meshes(self.out_dir / "meshes", resume_step)
         self._probes = None
         if self.outputs.probes:
             self._probes = ProbeRecorder(self.outputs.probes, simulation,
                                          self.out_dir / "probes.csv", resume_step=resume_step)
         self._closed = False
-        if not resumed:
+        self._last_good: dict[str, Any] | None = None
+        if resumed:
+            for name in ("video", "fields", "meshes"):
+                self._written_at[name] = start
+        else:
             self._write_frame_outputs(None, force=True)
+            if self.outputs.checkpoint is not None:
+                # A run killed before its first periodic checkpoint can be resumed too.
+                self.checkpoint()
+        self._remember_good()
 
     # -- per step ------------------------------------------------------------------------
 
-    def _due(self, spec: Any, step: int, force: bool) -> bool:
-        return spec is not None and (force or step % spec.every == 0)
+    def _due(self, name: str, spec: Any, step: int, force: bool) -> bool:
+        return (spec is not None and self._written_at.get(name) != step
+                and (force or step % spec.every == 0))
 
     def _write_frame_outputs(self, report: Any, force: bool = False, video: bool = True) -> None:
         sim, out = self.simulation, self.outputs
         step = sim.step_index
-        if video and self._video is not None and self._due(out.video, step, force):
-            # Drawn into the previous frame's array: the writer has converted that one already.
-            self._frame_image = self.frame(out.video.view, out=self._frame_image)
-            self._video.append(self._frame_image)
-        if self._fields is not None and self._due(out.fields, step, force):
+        if self._fields is not None and self._due("fields", out.fields, step, force):
             interior = getattr(sim, "interior", None)
             self._fields.write(snapshot_arrays(
                 sim.grid, sim.state, sim.bodies, sim.obstacles, time=sim.time, step=step,
                 solid_cells=None if interior is None else interior.solid_cells,
             ))
-        if out.meshes is not None and sim.bodies and self._due(out.meshes, step, force):
+            self._written_at["fields"] = step
+        if (out.meshes is not None and sim.bodies
+                and self._due("meshes", out.meshes, step, force)):
             write_extruded_meshes(self.out_dir / "meshes", step,
                                   [(b.positions, b.mesh.triangles) for b in sim.bodies],
                                   out.meshes.thickness, out.meshes.format)
+            self._written_at["meshes"] = step
+        if video and self._video is not None and self._due("video", out.video, step, force):
+            # Drawn into the previous frame's array: the writer has converted that one already.
+            # Last of the outputs: a frame in the video is never undone by a later failure.
+            self._frame_image = self.frame(out.video.view, out=self._frame_image)
+            self._video.append(self._frame_image)
+            self._written_at["video"] = step
 
     def frame(self, view: str, *, out: Any = None) -> Any:
         """The current picture (RGB array) in ``view``, colour range widening over the run.
@@ -118,54 +162,113 @@ class OutputSession:
     def after_step(self, simulation: Any, report: Any) -> None:
         """The per-step callback: writes whatever is due at this step."""
         step = simulation.step_index
-        self._write_frame_outputs(report)
         if self._probes is not None and step % self.outputs.probes_every == 0:
             self._probes.record(simulation, report)
+        self._write_frame_outputs(report)
         checkpoint = self.outputs.checkpoint
         if checkpoint is not None and step % checkpoint.every == 0:
             self.checkpoint()
+        self._remember_good()
 
     __call__ = after_step
 
+    def _remember_good(self) -> None:
+        # Every output of this step is written: this is the state `recover` goes back to.
+        self._last_good = self.simulation.checkpoint()
+
+    def recover(self) -> bool:
+        """Put the simulation back to the state after the last step whose outputs were all
+        written (after a failed step or output); returns whether it did."""
+        if self._last_good is None:
+            return False
+        self.simulation.restore(self._last_good)
+        return True
+
     def checkpoint(self) -> Path:
-        """Save a checkpoint now and drop all but the newest few."""
+        """Make every output complete up to now (cut the video segment, sync probes and
+        XDMF), then save a checkpoint and drop all but the newest few."""
+        step = self.simulation.step_index
+        if self._video is not None:
+            self._video.cut(step)
+        if self._probes is not None:
+            self._probes.sync()
+        if self._fields is not None:
+            self._fields.sync()
+        run = dict(self.run)
+        if np.isfinite([self._range.low, self._range.high]).all():
+            run["video_range"] = np.array([self._range.low, self._range.high])
         folder = self.out_dir / "checkpoints"
-        path = save_checkpoint(checkpoint_path(folder, self.simulation.step_index), self.simulation)
-        for old in sorted(folder.glob("checkpoint_*.npz"))[:-KEEP_CHECKPOINTS]:
+        path = save_checkpoint(checkpoint_path(folder, step), self.simulation, run=run)
+        self.last_checkpoint = path
+        older = [p for s, p in checkpoints_by_step(folder) if s < step]
+        for old in older[:max(0, len(older) - (KEEP_CHECKPOINTS - 1))]:
             old.unlink()
         return path
 
     # -- the end -------------------------------------------------------------------------
 
-    def close(self, *, final_checkpoint: bool = True) -> list[Path]:
-        """Finish every output; returns the main files written (video, probes, checkpoint)."""
+    def close(self, *, final_checkpoint: bool = True, failed: bool = False) -> list[Path]:
+        """Finish every output; returns the main files written (video, probes, checkpoint).
+
+        ``failed``: the run failed (after `recover`): no output is drawn from the current
+        state, only the checkpoint is saved. Every part is attempted; the first `OSError`
+        (a full or read-only disk) is raised at the end.
+        """
         if self._closed:
             return self.written
         self._closed = True
-        # The last state is always saved, also when the run stops between two output steps.
-        self._write_frame_outputs(None, force=True, video=False)
+        errors: list[OSError] = []
+
+        def attempt(action: Any) -> Any:
+            try:
+                return action()
+            except OSError as error:
+                errors.append(error)
+                return None
+
+        sim = self.simulation
+        if not failed:
+            # The last state is always saved, also when the run stops between output steps.
+            attempt(lambda: self._write_frame_outputs(None, force=True, video=False))
         if self._video is not None:
-            path = self._video.close()
+            attempt(lambda: self._video.cut(sim.step_index))
+        for closable in (self._probes, self._fields):
+            if closable is not None:
+                attempt(closable.close)
+        if final_checkpoint and not errors:
+            path = attempt(self.checkpoint)
             if path is not None:
                 self.written.append(path)
+        if self._video is not None:
+            video = attempt(lambda: self._video.close(sim.step_index))
+            if video is not None:
+                self.written.insert(0, video)
         if self._fields is not None:
-            self._fields.close()
             self.written.append(self._fields.folder)
         if self._probes is not None and self._probes.rows:
-            self.written.append(self._probes.write_csv())
-            plot = self._probes.plot()
+            self.written.append(self._probes.path)
+            plot = attempt(self._probes.plot)
             if plot is not None:
                 self.written.append(plot)
-        if self.outputs.meshes is not None and self.simulation.bodies:
+        if self.outputs.meshes is not None and sim.bodies:
             self.written.append(self.out_dir / "meshes")
-        if final_checkpoint:
-            self.written.append(self.checkpoint())
+        if errors:
+            raise errors[0]
         return self.written
 
     @property
     def video_note(self) -> str | None:
-        """Why the video is a GIF, if ffmpeg failed."""
+        """Why the video is a GIF or left in segments, if ffmpeg failed."""
         return None if self._video is None else self._video.fallback_reason
+
+
+def _drop_later_meshes(folder: Path, step: int) -> None:
+    if not folder.is_dir():
+        return
+    for path in folder.iterdir():
+        match = _MESH_FILE.match(path.name)
+        if match and int(match.group(1)) > step:
+            path.unlink()
 
 
 def find_resume_checkpoint(out_dir: str | Path) -> Path | None:

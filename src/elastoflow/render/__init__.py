@@ -16,17 +16,19 @@ from elastoflow.render._frame import (
     triangle_edges,
     view_values,
 )
-from elastoflow.render._video import VideoWriter
+from elastoflow.render._video import SegmentedVideo, VideoWriter, join_videos
 
 __all__ = [
     "BODY_EDGE_COLOR",
     "BODY_FILL_COLOR",
     "OBSTACLE_FILL_COLOR",
     "VIEWS",
+    "SegmentedVideo",
     "VideoWriter",
     "apply_colormap",
     "colormap_lut",
     "default_value_range",
+    "join_videos",
     "render_frame",
     "speed_at_cells",
     "triangle_edges",

@@ -267,3 +267,120 @@ class _Encoder:
             self._stdin.close()
         with contextlib.suppress(subprocess.TimeoutExpired):
             self._process.wait(timeout=5.0)
+
+
+_PART = "upto_"
+
+
+class SegmentedVideo:
+    """A video that survives a killed run: written as segments, each a complete file, and
+    joined into one file at the end.
+
+    Frames go to a `VideoWriter` on ``{stem}_parts/``; `cut` (called at every checkpoint)
+    finishes the segment and names it after the last step it holds,
+    ``{stem}_parts/upto_{step:08d}.mp4``, so after a kill the folder holds complete segments up
+    to the last checkpoint (the frames after it are in a temporary file, which a resume
+    removes, and drawn again by the resumed run). `close` cuts the last segment and joins them
+    all into ``path`` with ffmpeg's concat demuxer (stream copy, no re-encoding). The segments
+    are kept, so that a later resume from any kept checkpoint continues the same video.
+
+    Args:
+        path: The joined video (``.mp4``).
+        fps: Frames per second.
+        resume_step: Keep the segments up to this step and delete later ones (a resumed run);
+            None deletes every segment (a new run).
+    """
+
+    def __init__(self, path: str | Path, fps: int = 30, *, resume_step: int | None = None
+                 ) -> None:
+        self.path = Path(path)
+        self.fps = int(fps)
+        self.parts = self.path.with_name(f"{self.path.stem}_parts")
+        self.parts.mkdir(parents=True, exist_ok=True)
+        for part in self.parts.iterdir():
+            step = _part_step(part)
+            if part.is_file() and (step is None or resume_step is None or step > resume_step):
+                part.unlink()
+        self.fallback_reason: str | None = None
+        self._writer: VideoWriter | None = None
+
+    def append(self, frame: np.ndarray) -> None:
+        """Add one RGB frame (H, W, 3) uint8 to the current segment."""
+        if self._writer is None:
+            self._writer = VideoWriter(self.parts / "current.mp4", fps=self.fps)
+        self._writer.append(frame)
+
+    def cut(self, step: int) -> Path | None:
+        """Finish the current segment as the one up to ``step``; returns it (None if no frames
+        since the last cut)."""
+        writer, self._writer = self._writer, None
+        if writer is None:
+            return None
+        written = writer.close()
+        self.fallback_reason = writer.fallback_reason or self.fallback_reason
+        if written is None:
+            return None
+        part = self.parts / f"{_PART}{step:08d}{written.suffix}"
+        os.replace(written, part)
+        return part
+
+    def segments(self) -> list[Path]:
+        """The finished segments, in step order."""
+        found = [(step, p) for p in self.parts.iterdir() if (step := _part_step(p)) is not None]
+        return [p for _, p in sorted(found)]
+
+    def close(self, step: int) -> Path | None:
+        """Cut the last segment at ``step`` and join every segment into `path`; returns the
+        file written (None without frames; the folder of segments when they cannot be joined,
+        which `fallback_reason` then explains)."""
+        self.cut(step)
+        segments = self.segments()
+        if not segments:
+            return None
+        if any(p.suffix != ".mp4" for p in segments):
+            self.fallback_reason = (f"some segments are GIFs (ffmpeg failed); the video is left "
+                                    f"as segments in {self.parts}")
+            return self.parts
+        join_videos(segments, self.path)
+        return self.path
+
+
+def _part_step(path: Path) -> int | None:
+    name = path.name
+    if not name.startswith(_PART) or path.suffix not in (".mp4", ".gif"):
+        return None
+    digits = name[len(_PART):-len(path.suffix)]
+    return int(digits) if digits.isdigit() else None
+
+
+def join_videos(segments: list[Path], path: str | Path) -> Path:
+    """Join mp4 files of one encoding into ``path`` (atomically) without re-encoding."""
+    import shutil
+    import tempfile
+
+    import imageio_ffmpeg
+
+    path = Path(path)
+    temporary = path.with_name(f".{path.stem}.{os.getpid()}.tmp{path.suffix}")
+    try:
+        if len(segments) == 1:
+            shutil.copyfile(segments[0], temporary)
+        else:
+            with tempfile.NamedTemporaryFile("w", suffix=".txt", delete=False) as listing:
+                for segment in segments:
+                    escaped = str(Path(segment).resolve()).replace("'", "'\\''")
+                    listing.write(f"file '{escaped}'\n")
+            try:
+                result = subprocess.run(
+                    [imageio_ffmpeg.get_ffmpeg_exe(), "-y", "-v", "error", "-f", "concat",
+                     "-safe", "0", "-i", listing.name, "-c", "copy", "-f", "mp4", str(temporary)],
+                    stdin=subprocess.DEVNULL, capture_output=True, text=True, check=False)
+            finally:
+                os.unlink(listing.name)
+            if result.returncode != 0:
+                raise OSError(f"joining the video segments failed: {result.stderr.strip()}")
+        os.replace(temporary, path)
+    finally:
+        if temporary.exists():
+            temporary.unlink()
+    return path
