@@ -47,6 +47,7 @@ class SweepProgress:
 
     total: int
     skipped: int = 0
+    """Done in an earlier run of the sweep (its failed points count as failed)."""
     done: int = 0
     failed: int = 0
     lost: int = 0
@@ -224,7 +225,8 @@ def run_sweep(plan: SweepPlan, out: Path, client: Any, *, retry_failed: bool = F
                     old.unlink()
             rows[point.index] = _pending_row(point, out)
             pending.append(point)
-    progress = SweepProgress(total=len(plan.points), skipped=len(plan.points) - len(pending))
+    progress = SweepProgress(total=len(plan.points))
+    progress.skipped = sum(1 for row in rows.values() if row.get("status") == "done")
     progress.failed = sum(1 for row in rows.values() if row.get("status") == "failed")
     summary = out / "summary.parquet"
     names = plan.parameter_names

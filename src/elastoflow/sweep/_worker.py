@@ -8,6 +8,7 @@ another worker, and `run_point` resumes it from the newest checkpoint in its fol
 
 from __future__ import annotations
 
+import fcntl
 import json
 import math
 import os
@@ -19,7 +20,10 @@ from typing import Any
 
 import numpy as np
 
-from elastoflow.sweep._results import RESULT_FILE, scalar_results
+from elastoflow.sweep._results import RESULT_FILE, read_result, scalar_results
+
+LOCK_FILE = ".lock"
+"""Held (flock) by the process running the point."""
 
 RUNNING_FILE = "running.json"
 """In a point's folder while it runs: process id, host, worker and attempt."""
@@ -137,8 +141,21 @@ def run_point(task: PointTask) -> dict[str, Any]:
         ``wall_time [s]``, ``steps``, ``time [s]``, ``attempts``, ``resumed_from_step``,
         ``worker``, ``folder``, ``results`` (`scalar_results` of the probes).
     """
-    began = _time.perf_counter()
     folder = Path(task.folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    with open(folder / LOCK_FILE, "a") as lock:
+        # A run of the same point still going (a sweep stopped with Ctrl-C and started again
+        # while its tasks finish on a remote cluster) is waited for, never run over; the
+        # kernel drops the lock of a killed process.
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        previous = read_result(folder)
+        if previous is not None and previous.get("status") == "done":
+            return previous
+        return _run_locked(task, folder)
+
+
+def _run_locked(task: PointTask, folder: Path) -> dict[str, Any]:
+    began = _time.perf_counter()
     attempt = _start(folder)
     try:
         import numba

@@ -1,0 +1,236 @@
+"""``elastoflow sweep`` against a real Dask cluster: a ``dask scheduler`` and two ``dask worker``
+processes started on localhost (not an in-process cluster), the command run as a user runs it.
+
+Checks: every point's result (a blown-up point recorded with its message), the Parquet summary
+and the Zarr store read back with pandas and xarray, a second run that skips finished points,
+a worker killed with SIGKILL mid-point whose point resumes from its checkpoint on a worker and
+completes with its whole probe record.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+pd = pytest.importorskip("pandas")
+xr = pytest.importorskip("xarray")
+distributed = pytest.importorskip("distributed")
+
+SCENE = """
+name = "cavity_{n}"
+[domain]
+lx = 1.0
+ly = 1.0
+nx = {n}
+[fluid]
+viscosity = 0.01
+[boundaries]
+top = {{ type = "moving", velocity = 1.0 }}
+[time]
+dt = 0.01
+steps = {steps}
+substeps = 1
+[outputs]
+probes = [{{ kind = "kinetic_energy" }}, {{ kind = "pressure_iterations" }}]
+"""
+
+_ENV = {**os.environ, "NUMBA_NUM_THREADS": "1", "OMP_NUM_THREADS": "1"}
+
+
+def _dask() -> str:
+    return str(Path(sys.executable).parent / "dask")
+
+
+@pytest.fixture()
+def scheduler(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Path]:
+    """The scheduler file of a scheduler and two single-thread workers on 127.0.0.1."""
+    folder = tmp_path_factory.mktemp("dask")
+    address_file = folder / "scheduler.json"
+    log = open(folder / "cluster.log", "w")  # noqa: SIM115 - open for the fixture's lifetime
+    processes = [subprocess.Popen(
+        [_dask(), "scheduler", "--host", "127.0.0.1", "--port", "0", "--no-dashboard",
+         "--scheduler-file", str(address_file)], stdout=log, stderr=subprocess.STDOUT, env=_ENV)]
+    try:
+        deadline = time.monotonic() + 60
+        while not address_file.exists() and time.monotonic() < deadline:
+            time.sleep(0.2)
+        for k in range(2):
+            processes.append(subprocess.Popen(
+                [_dask(), "worker", "--scheduler-file", str(address_file), "--nthreads", "1",
+                 "--nworkers", "1", "--no-dashboard", "--host", "127.0.0.1", "--name",
+                 f"worker{k}", "--local-directory", str(folder / f"worker{k}")],
+                stdout=log, stderr=subprocess.STDOUT, env=_ENV))
+        with distributed.Client(scheduler_file=str(address_file), timeout="60s") as client:
+            client.wait_for_workers(2, timeout=90)
+        yield address_file
+    finally:
+        try:
+            with distributed.Client(scheduler_file=str(address_file), timeout="10s") as client:
+                client.shutdown()
+        except (OSError, TimeoutError):
+            pass
+        for process in reversed(processes):
+            if process.poll() is None:
+                process.terminate()
+        for process in reversed(processes):
+            try:
+                process.wait(timeout=20)
+            except subprocess.TimeoutExpired:
+                process.kill()
+        log.close()
+
+
+def _sweep(folder: Path, steps: int, n: int, body: str) -> Path:
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / "cavity.toml").write_text(SCENE.format(n=n, steps=steps))
+    path = folder / "sweep.toml"
+    path.write_text(f'name = "test"\nscene = "cavity.toml"\n{body}')
+    return path
+
+
+def _run(sweep: Path, out: Path, scheduler: Path, *extra: str) -> subprocess.CompletedProcess:
+    return subprocess.run(
+        [sys.executable, "-m", "elastoflow.cli", "sweep", str(sweep), "--out", str(out),
+         "--scheduler", str(scheduler), *extra], capture_output=True, text=True, env=_ENV,
+        timeout=300)
+
+
+def test_sweep_on_a_scheduler_and_two_worker_processes(tmp_path: Path, scheduler: Path) -> None:
+    # One test, so that pytest-xdist never starts a second cluster in its other process.
+    _results_summary_zarr_and_rerun(tmp_path / "results", scheduler)
+    _worker_killed_mid_point_resumes_from_its_checkpoint(tmp_path / "killed", scheduler)
+
+
+def _results_summary_zarr_and_rerun(tmp_path: Path, scheduler: Path) -> None:
+    sweep = _sweep(tmp_path, steps=30, n=16, body="""
+[[points]]
+"fluid.viscosity" = 0.01
+[[points]]
+"fluid.viscosity" = 0.02
+[[points]]
+"fluid.viscosity" = 0.01
+"boundaries.top.velocity" = 2.0
+[[points]]
+"fluid.viscosity" = 0.02
+"boundaries.top.velocity" = 2.0
+[[points]]
+"fluid.viscosity" = 0.01
+"time.dt" = 5.0
+[run]
+checkpoint_every = 10
+probe_plot = false
+[snapshots]
+times = [0.1, 0.25]
+fields = ["velocity_x", "vorticity"]
+""")
+    out = tmp_path / "out"
+    first = _run(sweep, out, scheduler)
+    # A blown-up point makes the sweep exit 1 after every other point finished.
+    assert first.returncode == 1, first.stdout + first.stderr
+    assert "4 of 5 points done, 1 failed, 0 lost" in first.stdout
+    assert "point 4: step 1" in first.stderr and "CFL" in first.stderr
+
+    summary = pd.read_parquet(out / "summary.parquet")
+    assert summary["point"].tolist() == [0, 1, 2, 3, 4]
+    assert summary["status"].tolist() == ["done"] * 4 + ["failed"]
+    assert summary["fluid.viscosity"].tolist() == [0.01, 0.02, 0.01, 0.02, 0.01]
+    assert summary["steps"].tolist()[:4] == [30] * 4
+    assert (summary["wall_time [s]"] > 0).all()
+    assert "CFL" in summary["message"][4]
+    energy = summary["fluid_kinetic_energy_final [J/m]"]
+    # A faster lid, more energy; early on, a more viscous fluid carries more of the lid's.
+    assert energy[2] > energy[0] > 0.0 and energy[3] > energy[1] > energy[0]
+    assert set(summary["worker"][:4]) <= {w for w in summary["worker"] if w.startswith("tcp://")}
+    for k in range(4):
+        probes = pd.read_csv(out / "points" / f"point_{k:05d}" / "probes.csv")
+        assert probes["fluid_kinetic_energy [J/m]"].iloc[-1] == pytest.approx(energy[k],
+                                                                             rel=1e-8)
+
+    fields = xr.open_zarr(out / "fields.zarr")
+    assert fields["vorticity"].dims == ("point", "time", "x", "y")
+    assert fields["vorticity"].shape == (5, 2, 16, 16)
+    assert fields["time"].values.tolist() == [0.1, 0.25]
+    assert fields["fluid.viscosity"].values.tolist() == [0.01, 0.02, 0.01, 0.02, 0.01]
+    assert fields["status"].values.tolist() == ["done"] * 4 + ["failed"]
+    assert np.isfinite(fields["velocity_x"].values[:4]).all()
+    assert np.isnan(fields["velocity_x"].values[4]).all()
+    np.testing.assert_allclose(fields["snapshot_time"].values[:4], [[0.1, 0.25]] * 4)
+    with np.load(out / "points" / "point_00002" / "snapshots" / "snapshot_001.npz") as saved:
+        np.testing.assert_array_equal(fields["vorticity"].values[2, 1],
+                                      saved["vorticity"].astype(np.float32))
+
+    # The same sweep again: nothing runs, nothing is rewritten.
+    stamps = {p: p.stat().st_mtime_ns for p in out.glob("points/*/result.json")}
+    second = _run(sweep, out, scheduler)
+    assert second.returncode == 1
+    assert "4/5 done (4 before), 1 failed, 0 running, 0 queued" in second.stderr
+    assert "4 of 5 points done, 1 failed" in second.stdout
+    assert {p: p.stat().st_mtime_ns for p in out.glob("points/*/result.json")} == stamps
+    pd.testing.assert_frame_equal(pd.read_parquet(out / "summary.parquet"), summary)
+
+    # An edited sweep in the same folder is refused, one line per changed point.
+    sweep.write_text(sweep.read_text().replace('"fluid.viscosity" = 0.02', '"fluid.viscosity" = 0.03'))
+    third = _run(sweep, out, scheduler)
+    assert third.returncode == 2
+    assert third.stderr.count("other parameters") == 2
+
+
+def _worker_killed_mid_point_resumes_from_its_checkpoint(tmp_path: Path,
+                                                         scheduler: Path) -> None:
+    steps, every = 1200, 100
+    sweep = _sweep(tmp_path, steps=steps, n=32, body=f"""
+[grid]
+"boundaries.top.velocity" = [0.5, 1.0, 1.5, 2.0]
+[run]
+checkpoint_every = {every}
+probe_plot = false
+""")
+    out = tmp_path / "out"
+    process = subprocess.Popen(
+        [sys.executable, "-m", "elastoflow.cli", "sweep", str(sweep), "--out", str(out),
+         "--scheduler", str(scheduler)], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+        text=True, env=_ENV)
+    killed: tuple[int, Path] | None = None
+    deadline = time.monotonic() + 120
+    try:
+        while killed is None and time.monotonic() < deadline and process.poll() is None:
+            for folder in sorted(out.glob("points/point_*")):
+                running = folder / "running.json"
+                saved = [int(p.stem.split("_")[1])
+                         for p in (folder / "checkpoints").glob("checkpoint_*.npz")]
+                if (running.exists() and not (folder / "result.json").exists()
+                        and max(saved, default=0) > 0):
+                    pid = json.loads(running.read_text())["pid"]
+                    os.kill(pid, signal.SIGKILL)
+                    killed = (pid, folder)
+                    break
+            time.sleep(0.05)
+        stdout, stderr = process.communicate(timeout=300)
+    finally:
+        if process.poll() is None:
+            process.kill()
+    assert killed is not None, "no point was caught between a checkpoint and its end"
+    assert process.returncode == 0, stdout + stderr
+    assert "4 of 4 points done, 0 failed, 0 lost" in stdout
+
+    summary = pd.read_parquet(out / "summary.parquet")
+    assert (summary["status"] == "done").all() and (summary["steps"] == steps).all()
+    row = summary[summary["folder"] == killed[1].name].iloc[0]
+    assert row["attempts"] == 2
+    assert 0 < row["resumed_from_step"] < steps and row["resumed_from_step"] % every == 0
+    # The resumed point's probe record is whole: every step once, in order.
+    probes = pd.read_csv(killed[1] / "probes.csv")
+    assert probes["step"].tolist() == list(range(1, steps + 1))
+    # and its result is the uninterrupted run's (resume is bit-exact): the same point again.
+    assert not (killed[1] / "running.json").exists()
+    others = summary[summary["folder"] != killed[1].name]
+    assert (others["attempts"] == 1).all()
