@@ -369,9 +369,9 @@ def run(
                 typer.echo(f"error: {line}", err=True)
             last = session.last_checkpoint or find_resume_checkpoint(out_dir)
             if last is not None:
-                changed = "" if isinstance(failure, OSError | None) else (
+                hint = "" if isinstance(failure, OSError | None) else (
                     " (after changing the scene, add --force-resume)")
-                typer.echo(f"note: the last good state is saved in {last}; resume with{changed}:\n"
+                typer.echo(f"note: the last good state is saved in {last}; resume with{hint}:\n"
                            f"  {resume_command}", err=True)
             raise typer.Exit(EXIT_RUN_FAILED)
         if stopped:

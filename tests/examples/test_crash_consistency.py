@@ -204,7 +204,8 @@ def _wait_for_step(process: subprocess.Popen[str], probes: Path, step: int) -> N
     raise AssertionError(f"step {step} not reached")
 
 
-@pytest.mark.parametrize("seed", [1, 2, 3])
+@pytest.mark.parametrize("seed", [1, pytest.param(2, marks=pytest.mark.slow),
+                                  pytest.param(3, marks=pytest.mark.slow)])
 def test_sigkill_at_a_random_step_then_resume(seed: int, scene: Path, tmp_path: Path,
                                               straight: Path) -> None:
     step = random.Random(seed).randrange(2, STEPS - 4)
@@ -224,7 +225,8 @@ def test_sigkill_at_a_random_step_then_resume(seed: int, scene: Path, tmp_path: 
     _assert_same_outputs(out, straight)
 
 
-@pytest.mark.parametrize("twice", [False, True], ids=["once", "twice"])
+@pytest.mark.parametrize("twice", [False, pytest.param(True, marks=pytest.mark.slow)],
+                         ids=["once", "twice"])
 def test_sigint_then_the_printed_resume_command(twice: bool, scene: Path, tmp_path: Path,
                                                 straight: Path) -> None:
     step = random.Random(7 + twice).randrange(3, STEPS - 4)
