@@ -234,3 +234,22 @@ probe_plot = false
     assert not (killed[1] / "running.json").exists()
     others = summary[summary["folder"] != killed[1].name]
     assert (others["attempts"] == 1).all()
+
+
+def test_example_study_checks_and_bad_points_exit_2(tmp_path: Path) -> None:
+    from typer.testing import CliRunner
+
+    from elastoflow.cli import app
+
+    root = Path(__file__).resolve().parents[2]
+    checked = CliRunner().invoke(app, ["sweep", str(root / "examples" / "sweep_strouhal.toml"),
+                                       "--check"])
+    assert checked.exit_code == 0, checked.output
+    assert "ok: strouhal: 5 points" in checked.output
+    assert "point 4 (fluid.viscosity = 0.005): 3750 steps" in checked.output
+
+    bad = _sweep(tmp_path, steps=10, n=8, body='[grid]\n"fluid.viscosity" = [0.01, -1.0]\n')
+    refused = CliRunner().invoke(app, ["sweep", str(bad), "--out", str(tmp_path / "out")])
+    assert refused.exit_code == 2
+    assert "point 1 (fluid.viscosity = -1.0)" in refused.output
+    assert not (tmp_path / "out").exists()

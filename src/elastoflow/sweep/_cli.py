@@ -100,7 +100,7 @@ def sweep_command(
     except OSError as error:
         _fail([f"--out = {str(folder)!r}: cannot write there ({error.strerror or error})"])
     typer.echo(f"sweep {spec.name}: {len(plan.points)} points -> {folder}")
-    line = _ProgressLine(quiet)
+    progress_line = _ProgressLine(quiet)
     try:
         with open_client(scheduler, workers=workers, dashboard=dashboard) as client:
             workers_now = len(client.nthreads())
@@ -108,12 +108,12 @@ def sweep_command(
             typer.echo(f"dask: {client.scheduler.address}, {workers_now} workers, "
                        f"dashboard {link}")
             outcome = run_sweep(plan, folder, client, retry_failed=retry_failed,
-                                on_progress=line)
+                                on_progress=progress_line)
     except (OSError, TimeoutError) as error:
-        line.end()
+        progress_line.end()
         _fail([f"--scheduler = {scheduler!r}: cannot reach it ({error})"] if scheduler else
               [f"cannot start the local Dask cluster: {error}"], _EXIT_FAILED)
-    line.end()
+    progress_line.end()
     typer.echo(f"wrote {outcome.summary}")
     if outcome.zarr is not None:
         typer.echo(f"wrote {outcome.zarr}")

@@ -196,6 +196,7 @@ def plan_sweep(spec: SweepSpec, *, build: bool = True) -> SweepPlan:
         if errors:
             problems.append(f"{point.describe()}: {'; '.join(errors)}")
             continue
+        assert scene is not None
         shapes.setdefault(scene.domain.cells, index)
         points.append(point)
     if spec.snapshots is not None and len(shapes) > 1:

@@ -126,15 +126,21 @@ class RunSpec(_Spec):
     """Draw each point's ``probes.png`` (0.3-0.5 s a point: off for many short points)."""
 
 
+SnapshotField = Literal["velocity_x", "velocity_y", "pressure", "dye", "vorticity", "solid"]
+
+
+def _default_snapshot_fields() -> list[SnapshotField]:
+    return ["velocity_x", "velocity_y", "pressure"]
+
+
 class SnapshotSpec(_Spec):
     """Fields of every point at the given times, gathered in ``fields.zarr`` (xarray Dataset
     with dimensions point, time, x, y)."""
 
     times: Annotated[list[NonNegativeFloat], Field(min_length=1), Strict(False)]
     """Simulated times [s]; each is taken at the first step at or after it."""
-    fields: Annotated[list[Literal["velocity_x", "velocity_y", "pressure", "dye", "vorticity",
-                                   "solid"]], Field(min_length=1), Strict(False)] = Field(
-        default_factory=lambda: ["velocity_x", "velocity_y", "pressure"])
+    fields: Annotated[list[SnapshotField], Field(min_length=1), Strict(False)] = Field(
+        default_factory=_default_snapshot_fields)
 
     @model_validator(mode="after")
     def _increasing(self) -> SnapshotSpec:

@@ -77,7 +77,7 @@ def snapshot_path(folder: Path, k: int) -> Path:
     return folder / "snapshots" / f"snapshot_{k:03d}.npz"
 
 
-def _snapshot(simulation: Any, names: tuple[str, ...]) -> dict[str, np.ndarray]:
+def _snapshot(simulation: Any, names: tuple[str, ...]) -> dict[str, Any]:
     """The chosen fields at cell centres, shape (nx, ny) each."""
     from elastoflow.io import snapshot_arrays
 
@@ -160,7 +160,8 @@ def _run_locked(task: PointTask, folder: Path) -> dict[str, Any]:
     try:
         import numba
 
-        numba.set_num_threads(max(1, min(task.numba_threads, numba.config.NUMBA_NUM_THREADS)))
+        most = int(getattr(numba.config, "NUMBA_NUM_THREADS", 1))
+        numba.set_num_threads(max(1, min(task.numba_threads, most)))
     except (ImportError, ValueError):
         pass
     row: dict[str, Any] = {
