@@ -1,18 +1,26 @@
 """Sweep throughput on Dask: 1 and 2 local workers, and the engine's cost per point against the
 same points run one after another in a plain loop.
 
-    python -m benchmarks sweep [--points N] [--steps N] [--size N] [--quick]
+    python -m benchmarks sweep [--points N] [--steps N] [--size N] [--tiny N] [--quick]
 
-The points are lid-driven cavities (``--size``² cells, ``--steps`` steps, lid speeds spread
-over [0.5, 1.5] m/s) with the sweep's normal per-point outputs (probes CSV and plot,
-checkpoints, ``result.json``). Every process compiles nothing: the kernels come from Numba's
-disk cache, loaded once per process before the clock starts (a warm-up point in the loop, a
-two-step run on every worker). Cluster start-up is timed apart.
+Two cases, each run in a plain loop in this process (one Numba thread), then by the engine on
+a local cluster of 1 and of 2 workers:
+
+* ``throughput``: ``--points`` lid-driven cavities (``--size``² cells, ``--steps`` steps, lid
+  speeds spread over [0.5, 1.5] m/s) with the sweep's normal per-point outputs (probes CSV and
+  plot, checkpoints, ``result.json``);
+* ``overhead``: ``--tiny`` cavities of 16² cells and 10 steps without the plot, so that the
+  time is the engine's own: (engine seconds x workers - loop seconds) / points.
+
+Times are the best of ``--repeat`` runs (the machine may be shared). No process compiles: the kernels come from Numba's disk cache, loaded once per process before
+the clock starts (a warm-up run in the loop's process and on every worker). Cluster start-up
+is timed apart.
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import shutil
 import tempfile
 import time
@@ -22,14 +30,14 @@ from typing import Any
 from benchmarks._common import markdown_table, write_results
 
 
-def _spec(size: int, steps: int, points: int) -> Any:
+def _spec(size: int, steps: int, points: int, plot: bool = True) -> Any:
     from elastoflow.sweep import parse_sweep
 
     speeds = [0.5 + k / max(points - 1, 1) for k in range(points)]
     return parse_sweep({"name": "bench", "scene": "cavity",
                         "set": {"domain.nx": size, "time.steps": steps},
                         "grid": {"boundaries.top.velocity": speeds},
-                        "run": {"checkpoint_every": max(1, steps // 4)}})
+                        "run": {"checkpoint_every": max(1, steps // 4), "probe_plot": plot}})
 
 
 def _warm_up() -> None:
@@ -43,77 +51,95 @@ def _warm_up() -> None:
     simulation.step()
 
 
-def _loop(plan: Any, out: Path) -> float:
+def _loop(plan: Any, out: Path, repeat: int) -> float:
     from elastoflow.sweep import run_point
     from elastoflow.sweep._engine import _task
 
     _warm_up()
-    began = time.perf_counter()
-    for point in plan.points:
-        run_point(_task(plan, point, out))
-    return time.perf_counter() - began
+    best = float("inf")
+    for attempt in range(repeat):
+        began = time.perf_counter()
+        for point in plan.points:
+            run_point(_task(plan, point, out / str(attempt)))
+        best = min(best, time.perf_counter() - began)
+    return best
 
 
-def _engine(plan: Any, out: Path, workers: int) -> tuple[float, float]:
+def _engine(plan: Any, out: Path, workers: int, repeat: int) -> tuple[float, float]:
     from elastoflow.sweep import open_client, run_sweep
 
     began = time.perf_counter()
+    best = float("inf")
     with open_client(workers=workers, dashboard=False) as client:
         client.wait_for_workers(workers)
         client.run(_warm_up)
         started = time.perf_counter() - began
-        began = time.perf_counter()
-        outcome = run_sweep(plan, out, client)
-        seconds = time.perf_counter() - began
-    assert outcome.progress.done == len(plan.points), outcome.failed_points
-    return started, seconds
+        for attempt in range(repeat):
+            began = time.perf_counter()
+            outcome = run_sweep(plan, out / str(attempt), client)
+            best = min(best, time.perf_counter() - began)
+            assert outcome.progress.done == len(plan.points), outcome.failed_points
+    return started, best
+
+
+def _case(name: str, plan: Any, root: Path, repeat: int) -> list[dict[str, Any]]:
+    import numba
+
+    n = len(plan.points)
+    threads = numba.get_num_threads()
+    numba.set_num_threads(1)  # as on each worker
+    try:
+        loop = _loop(plan, root / f"{name}_loop", repeat)
+    finally:
+        numba.set_num_threads(threads)
+    rows = [{"case": name, "engine": "loop, 1 process", "workers": 1, "points": n,
+             "seconds": loop, "s_per_point": loop / n, "start_s": 0.0,
+             "speedup_vs_1_worker": None, "overhead_per_point_ms": 0.0}]
+    one = None
+    for workers in (1, 2):
+        started, seconds = _engine(plan, root / f"{name}_dask{workers}", workers, repeat)
+        one = seconds if workers == 1 else one
+        rows.append({
+            "case": name, "engine": f"dask, {workers} worker{'s' if workers > 1 else ''}",
+            "workers": workers, "points": n, "seconds": seconds, "s_per_point": seconds / n,
+            "start_s": started, "speedup_vs_1_worker": (one / seconds) if one else None,
+            "overhead_per_point_ms": 1000 * (seconds * workers - loop) / n,
+        })
+    return rows
 
 
 def main(argv: list[str] | None = None) -> list[dict[str, Any]]:
-    import numba
-
     from elastoflow.sweep import plan_sweep
 
     parser = argparse.ArgumentParser(prog="python -m benchmarks sweep")
-    parser.add_argument("--points", type=int, default=8)
+    parser.add_argument("--points", type=int, default=12)
     parser.add_argument("--steps", type=int, default=600)
     parser.add_argument("--size", type=int, default=48)
+    parser.add_argument("--tiny", type=int, default=40)
+    parser.add_argument("--repeat", type=int, default=2, help="best of this many runs each")
     parser.add_argument("--quick", action="store_true", help="2 points of 20 steps at 16^2")
     args = parser.parse_args(argv or [])
     if args.quick:
-        args.points, args.steps, args.size = 2, 20, 16
-    plan = plan_sweep(_spec(args.size, args.steps, args.points))
-    n = len(plan.points)
+        args.points, args.steps, args.size, args.tiny, args.repeat = 2, 20, 16, 2, 1
     root = Path(tempfile.mkdtemp(prefix="bench_sweep_"))
-    rows: list[dict[str, Any]] = []
+    load = os.getloadavg()[0]
     try:
-        # The loop runs with one Numba thread, as each worker does.
-        threads = numba.get_num_threads()
-        numba.set_num_threads(1)
-        try:
-            loop = _loop(plan, root / "loop")
-        finally:
-            numba.set_num_threads(threads)
-        rows.append({"case": "loop, 1 process", "workers": 1, "points": n, "seconds": loop,
-                     "s_per_point": loop / n, "start_s": 0.0, "speedup_vs_1_worker": None,
-                     "overhead_per_point_ms": 0.0})
-        one = None
-        for workers in (1, 2):
-            started, seconds = _engine(plan, root / f"dask{workers}", workers)
-            one = seconds if workers == 1 else one
-            rows.append({
-                "case": f"dask, {workers} worker{'s' if workers > 1 else ''}",
-                "workers": workers, "points": n, "seconds": seconds, "s_per_point": seconds / n,
-                "start_s": started,
-                "speedup_vs_1_worker": (one / seconds) if one else None,
-                "overhead_per_point_ms": 1000 * (seconds * workers - loop) / n,
-            })
+        rows = _case("throughput", plan_sweep(_spec(args.size, args.steps, args.points)), root,
+                     args.repeat)
+        for row in rows:
+            row.update(size=args.size, steps=args.steps)
+        tiny = _case("overhead", plan_sweep(_spec(16, 10, args.tiny, plot=False)), root,
+                     args.repeat)
+        for row in tiny:
+            row.update(size=16, steps=10)
+        rows += tiny
     finally:
         shutil.rmtree(root, ignore_errors=True)
     for row in rows:
-        row.update(size=args.size, steps=args.steps)
-    print(f"{n} cavity points, {args.size}^2 cells, {args.steps} steps each\n")
-    print(markdown_table(rows, ["case", "points", "seconds", "s_per_point", "start_s",
+        row["load_before"] = load  # other work on the machine skews the speed-up
+    print(f"load average before: {load:.2f}; best of {args.repeat}; throughput: {args.points} cavities, {args.size}^2 cells, {args.steps} steps each; "
+          f"overhead: {args.tiny} cavities, 16^2 cells, 10 steps each\n")
+    print(markdown_table(rows, ["case", "engine", "points", "seconds", "s_per_point", "start_s",
                                 "speedup_vs_1_worker", "overhead_per_point_ms"]))
     print("\noverhead_per_point_ms: (engine seconds x workers - loop seconds) / points: the "
           "engine's cost per point in worker time")

@@ -49,9 +49,11 @@ def main(argv: list[str]) -> int:
     fields = xr.open_zarr(folder / "fields.zarr")
     vorticity = fields["vorticity"].isel(time=-1)
     count = vorticity.sizes["point"]
-    figure = plt.figure(figsize=(9, 3.2 + 1.2 * count))
-    grid = figure.add_gridspec(1 + count, 1, height_ratios=[3.0] + [1.2] * count)
-    axis = figure.add_subplot(grid[0])
+    columns = 3
+    rows = (count + columns - 1) // columns
+    figure = plt.figure(figsize=(10, 3.6 + 1.9 * rows))
+    grid = figure.add_gridspec(1 + rows, columns, height_ratios=[3.2] + [1.7] * rows)
+    axis = figure.add_subplot(grid[0, :])
     curve = np.linspace(50, 200, 200)
     axis.plot(curve, williamson(curve), "k-", lw=1, label="Williamson (1988), experiments")
     axis.plot(summary["Re"], summary["St"], "o", color="tab:red",
@@ -60,12 +62,12 @@ def main(argv: list[str]) -> int:
     axis.set_ylabel("St = f D / U")
     axis.grid(alpha=0.3)
     axis.legend(loc="lower right")
+    extent = (0.0, float(fields.x[-1] + fields.x[0]), 0.0, float(fields.y[-1] + fields.y[0]))
     for k in range(count):
-        panel = figure.add_subplot(grid[1 + k])
+        panel = figure.add_subplot(grid[1 + k // columns, k % columns])
         field = vorticity.isel(point=k)
         panel.imshow(field.T.values, origin="lower", cmap="RdBu_r", vmin=-3, vmax=3,
-                     extent=(0, float(fields.x[-1] + fields.x[0]), 0,
-                             float(fields.y[-1] + fields.y[0])), aspect="equal")
+                     extent=extent, aspect="equal")
         panel.set_axis_off()
         reynolds = SPEED * DIAMETER / float(field["fluid.viscosity"])
         panel.set_title(f"Re = {reynolds:.0f}: vorticity at t = {float(field.time):.0f} s",

@@ -101,6 +101,7 @@ def sweep_command(
         _fail([f"--out = {str(folder)!r}: cannot write there ({error.strerror or error})"])
     typer.echo(f"sweep {spec.name}: {len(plan.points)} points -> {folder}")
     progress_line = _ProgressLine(quiet)
+    resume = f"elastoflow sweep {sweep_file}" + (f" --out {out}" if out else "")
     try:
         with open_client(scheduler, workers=workers, dashboard=dashboard) as client:
             workers_now = len(client.nthreads())
@@ -109,6 +110,11 @@ def sweep_command(
                        f"dashboard {link}")
             outcome = run_sweep(plan, folder, client, retry_failed=retry_failed,
                                 on_progress=progress_line)
+    except KeyboardInterrupt:
+        # Ctrl-C while the cluster starts or closes: the points' folders are as they were.
+        progress_line.end()
+        typer.echo(f"stopped; resume with:\n  {resume}")
+        raise typer.Exit(_EXIT_STOPPED) from None
     except (OSError, TimeoutError) as error:
         progress_line.end()
         _fail([f"--scheduler = {scheduler!r}: cannot reach it ({error})"] if scheduler else
@@ -121,8 +127,7 @@ def sweep_command(
     typer.echo(f"{progress.skipped + progress.done} of {progress.total} points done, "
                f"{progress.failed} failed, {progress.lost} lost")
     if outcome.stopped:
-        command = f"elastoflow sweep {sweep_file}" + (f" --out {out}" if out else "")
-        typer.echo(f"stopped; resume with:\n  {command}")
+        typer.echo(f"stopped; resume with:\n  {resume}")
         raise typer.Exit(_EXIT_STOPPED)
     if outcome.failed_points:
         shown = outcome.failed_points[:10]

@@ -112,21 +112,26 @@ def open_client(scheduler: str | None = None, *, workers: int | None = None,
 
     if scheduler is not None:
         if scheduler.endswith(".json") and Path(scheduler).is_file():
-            client = Client(scheduler_file=scheduler, timeout="30s")
+            client = Client(scheduler_file=scheduler, timeout="20s")
         else:
-            client = Client(scheduler, timeout="30s")
+            client = Client(scheduler, timeout="20s")
         try:
             yield client
         finally:
             client.close()
         return
+    import dask
+
     count = workers or local_worker_count()
     # Numba's pool reads NUMBA_NUM_THREADS when the worker first imports numba; one thread
     # per worker process keeps the workers off each other's cores.
     env = {"NUMBA_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1"}
-    cluster = LocalCluster(n_workers=count, threads_per_worker=1, processes=True,
-                           dashboard_address=":8787" if dashboard else None, env=env,
-                           silence_logs=40)
+    # The workers' statistical profiler samples the running thread's stack every 10 ms under
+    # the GIL; a point's steps are long single calls that gain nothing from it.
+    with dask.config.set({"distributed.worker.profile.enabled": False}):
+        cluster = LocalCluster(n_workers=count, threads_per_worker=1, processes=True,
+                               dashboard_address=":8787" if dashboard else None, env=env,
+                               silence_logs=40)
     client = Client(cluster)
     try:
         yield client
