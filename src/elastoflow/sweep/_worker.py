@@ -8,12 +8,13 @@ another worker, and `run_point` resumes it from the newest checkpoint in its fol
 
 from __future__ import annotations
 
-import fcntl
+import contextlib
 import json
 import math
 import os
 import socket
 import time as _time
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -21,9 +22,6 @@ from typing import Any
 import numpy as np
 
 from elastoflow.sweep._results import RESULT_FILE, read_result, scalar_results
-
-LOCK_FILE = ".lock"
-"""Held (flock) by the process running the point."""
 
 RUNNING_FILE = "running.json"
 """In a point's folder while it runs: process id, host, worker and attempt."""
@@ -141,17 +139,38 @@ def run_point(task: PointTask) -> dict[str, Any]:
         ``wall_time [s]``, ``steps``, ``time [s]``, ``attempts``, ``resumed_from_step``,
         ``worker``, ``folder``, ``results`` (`scalar_results` of the probes).
     """
+    from elastoflow.io import remove_temporaries
+
     folder = Path(task.folder)
     folder.mkdir(parents=True, exist_ok=True)
-    with open(folder / LOCK_FILE, "a") as lock:
-        # A run of the same point still going (a sweep stopped with Ctrl-C and started again
-        # while its tasks finish on a remote cluster) is waited for, never run over; the
-        # kernel drops the lock of a killed process.
-        fcntl.flock(lock, fcntl.LOCK_EX)
+    with _folder_lock(folder):
         previous = read_result(folder)
         if previous is not None and previous.get("status") == "done":
             return previous
+        # What a killed run of this point was writing when it died.
+        remove_temporaries(folder)
         return _run_locked(task, folder)
+
+
+@contextlib.contextmanager
+def _folder_lock(folder: Path) -> Iterator[None]:
+    """The output folder's lock (`elastoflow.io.lock_output_folder`, as ``elastoflow run``
+    takes it), waited for: a run of the same point still going (a sweep stopped with Ctrl-C
+    and started again while a remote cluster finishes its tasks, or an ``elastoflow run
+    --resume`` in the folder) is never run over. The kernel drops the lock of a killed
+    process."""
+    from elastoflow.io import OutputFolderBusy, lock_output_folder
+
+    while True:
+        try:
+            lock = lock_output_folder(folder)
+            break
+        except OutputFolderBusy:
+            _time.sleep(1.0)
+    try:
+        yield
+    finally:
+        lock.close()
 
 
 def _run_locked(task: PointTask, folder: Path) -> dict[str, Any]:
@@ -228,7 +247,9 @@ def _run(task: PointTask, folder: Path, row: dict[str, Any]) -> None:
     except Exception as error:  # noqa: BLE001 - recorded, outputs closed, then re-raised
         failure = error
     finally:
-        session.close(final_checkpoint=failure is None)
+        # After a failed step, back to the last step whose outputs were all written, as `run`.
+        recovered = failure is not None and session.recover()
+        session.close(final_checkpoint=failure is None or recovered, failed=failure is not None)
         if recorder.rows:
             recorder.write_csv()
             if task.probe_plot:
