@@ -105,7 +105,7 @@ def sweep_command(
     try:
         with open_client(scheduler, workers=workers, dashboard=dashboard) as client:
             workers_now = len(client.nthreads())
-            link = client.dashboard_link if _has_dashboard(client) else "off"
+            link = client.dashboard_link if scheduler is not None or dashboard else "off"
             typer.echo(f"dask: {client.scheduler.address}, {workers_now} workers, "
                        f"dashboard {link}")
             outcome = run_sweep(plan, folder, client, retry_failed=retry_failed,
@@ -135,9 +135,3 @@ def sweep_command(
         _fail([*shown, *([f"... and {more} more (see the summary)"] if more else [])],
               _EXIT_FAILED)
 
-
-def _has_dashboard(client: Any) -> bool:
-    try:
-        return "dashboard" in client.scheduler_info().get("services", {})
-    except (OSError, TimeoutError, AttributeError):
-        return False

@@ -129,8 +129,11 @@ def open_client(scheduler: str | None = None, *, workers: int | None = None,
     # The workers' statistical profiler samples the running thread's stack every 10 ms under
     # the GIL; a point's steps are long single calls that gain nothing from it.
     with dask.config.set({"distributed.worker.profile.enabled": False}):
+        # Without the dashboard the scheduler's HTTP server (health, metrics) still runs: on
+        # any free port then, leaving 8787 to others.
         cluster = LocalCluster(n_workers=count, threads_per_worker=1, processes=True,
-                               dashboard_address=":8787" if dashboard else None, env=env,
+                               dashboard_address=":8787" if dashboard else ":0",
+                               scheduler_kwargs={"dashboard": dashboard}, env=env,
                                silence_logs=40)
     client = Client(cluster)
     try:

@@ -210,7 +210,7 @@ def _run(task: PointTask, folder: Path, row: dict[str, Any]) -> None:
         find_resume_checkpoint,
         load_checkpoint,
     )
-    from elastoflow.scenes import build_simulation, time_step
+    from elastoflow.scenes import build_simulation, scene_to_toml, time_step
 
     scene = task.scene
     simulation = build_simulation(scene, steps=task.steps, warnings=[])
@@ -226,8 +226,11 @@ def _run(task: PointTask, folder: Path, row: dict[str, Any]) -> None:
     row["resumed_from_step"] = simulation.step_index
     # The probes are recorded here rather than by the session: their CSV is written before
     # each checkpoint, so a point resumed after its worker was killed keeps its whole record.
+    # Saved with every checkpoint as `run` saves it, so that ``elastoflow run
+    # FOLDER/scene.toml --out FOLDER --resume`` can also continue a point by hand.
+    record = {"scene": scene_to_toml(scene), "options": json.dumps({"steps": task.steps})}
     session = OutputSession(apply_output_overrides(scene, probes=False), simulation, folder,
-                            resumed=resumed)
+                            resumed=resumed, run=record)
     recorder = ProbeRecorder(scene.outputs.probes, simulation, folder / "probes.csv",
                              resume_step=simulation.step_index if resumed else None)
     snapshots = _Snapshots(task, folder, time_step(scene))
