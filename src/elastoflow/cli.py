@@ -30,6 +30,7 @@ app = typer.Typer(
         "  elastoflow run bar_in_jet --resume               # continue after Ctrl-C\n\n"
         "  elastoflow dump windmill -o windmill.toml        # a built-in scene as a starting file\n\n"
         "  elastoflow validate windmill.toml                # check a scene file\n\n"
+        "  elastoflow validate turek-hron FSI3              # a published benchmark\n\n"
         "  elastoflow view jet_in_box                       # interactive window\n\n"
         "  elastoflow render out/bar_in_jet --view vorticity  # new video from saved fields\n\n"
         "  elastoflow warmup                                # compile the kernels once, ahead"
@@ -474,13 +475,41 @@ def list_command() -> None:
 
 @app.command()
 def validate(
-    scene: Annotated[str, typer.Argument(help="Scene TOML file (or built-in name).")],
+    scene: Annotated[str, typer.Argument(help="Scene TOML file (or built-in name), or a "
+                                         "benchmark: turek-hron.")],
+    case: Annotated[str | None, typer.Argument(help="The benchmark's case: CFD1-3, CSM1-3, "
+                                               "FSI1-3 (turek-hron).")] = None,
+    resolution: Annotated[int, typer.Option(help="Benchmark: cells per cylinder diameter "
+                                            "(10, 20, 30, ...).")] = 20,
+    duration: Annotated[float | None, typer.Option(help="Benchmark: simulated time [s] "
+                                                   "(default: the case's).")] = None,
+    dt: Annotated[float | None, typer.Option(help="Benchmark: time step [s] (default: CFL "
+                                             "0.5 on the inflow peak).")] = None,
+    scheme: Annotated[str, typer.Option(help="Benchmark: coupling scheme, monolithic or "
+                                        "explicit.")] = "monolithic",
+    out: Annotated[Path, typer.Option("--out", help="Benchmark: folder for the CSV and PNG.")]
+    = Path("out/validation"),
+    json_file: Annotated[bool, typer.Option("--json", help="Benchmark: also write the "
+                                            "quantities as JSON.")] = False,
 ) -> None:
-    """Check a scene: builds everything a run builds (memory estimate, meshes, obstacles,
-    constraints, geometry checks) short of stepping. Prints one line per problem (exit 2) or a
-    summary (exit 0); warnings go to stderr."""
-    from elastoflow.scenes import SceneError, memory_estimate, step_count, time_step
+    """Check a scene, or run a published benchmark.
 
+    A scene: builds everything a run builds (memory estimate, meshes, obstacles, constraints,
+    geometry checks) short of stepping; prints one line per problem (exit 2) or a summary
+    (exit 0); warnings go to stderr.
+
+    A benchmark (``elastoflow validate turek-hron FSI3 --resolution 20``): runs the case in its
+    exact geometry, prints its quantities in the benchmark's format (periodic: mean ± amplitude
+    [frequency] over the last period), writes the time series (CSV) and plots (PNG) to --out.
+    """
+    from elastoflow.scenes import SceneError, memory_estimate, step_count, time_step
+    from elastoflow.validation import BENCHMARKS
+
+    if scene in BENCHMARKS:
+        _benchmark(scene, case, resolution, duration, dt, scheme, out, json_file)
+        return
+    if case is not None:
+        _fail(f"{case!r}: a scene takes no case (benchmarks: {', '.join(BENCHMARKS)})")
     chosen = _scene(scene)
     try:
         dt, steps = time_step(chosen), step_count(chosen)
@@ -493,6 +522,48 @@ def validate(
     typer.echo(f"ok: {chosen.name}: {nx}x{ny} cells, {len(chosen.bodies)} bodies "
                f"({elements} elements), {len(chosen.obstacles)} obstacles, dt = {dt:.4g} s, "
                f"{steps} steps, about {memory:.0f} MB of memory")
+
+
+def _benchmark(name: str, case: str | None, resolution: int, duration: float | None,
+               dt: float | None, scheme: str, out: Path, json_file: bool) -> None:
+    """Run one case of a published benchmark with a progress bar; print and write its results."""
+    from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
+
+    from elastoflow.simulation import SimulationBlowUp
+    from elastoflow.solid import SolidInversionError
+    from elastoflow.validation import CASES, check_resolution, default_setup, get_case, run_case
+    from elastoflow.validation import describe, format_quantities, write_report
+
+    if case is None:
+        _fail(f"{name}: name the case ({', '.join(CASES)})")
+    try:
+        chosen = get_case(case)
+        check_resolution(resolution)
+        setup = default_setup(chosen, resolution, duration=duration, dt=dt, scheme=scheme)
+    except ValueError as error:
+        _fail(str(error))
+    _output_folder(out, "--out")
+    columns = (TextColumn(f"{chosen.name} N={resolution}"), BarColumn(),
+               TextColumn("{task.completed}/{task.total}"), TimeRemainingColumn())
+    with Progress(*columns, transient=True, disable=not sys.stderr.isatty()) as progress:
+        task = progress.add_task("run", total=setup.steps)
+        try:
+            result = run_case(chosen.name, resolution, duration=setup.duration, dt=setup.dt,
+                              scheme=scheme,
+                              progress=lambda done, total: progress.update(
+                                  task, completed=done, total=total))
+        except (SimulationBlowUp, SolidInversionError) as error:
+            _fail(f"{chosen.name} failed: {error}", EXIT_RUN_FAILED)
+    typer.echo(describe(result))
+    for line in format_quantities(result):
+        typer.echo(f"  {line}")
+    try:
+        paths = write_report(result, out, json_file=json_file)
+    except OSError as error:
+        _fail(f"--out = {str(out)!r}: cannot write ({error.strerror or error})")
+    typer.echo("wrote " + ", ".join(str(path) for path in paths))
+    if result.failure is not None:
+        raise typer.Exit(EXIT_RUN_FAILED)
 
 
 @app.command()

@@ -175,6 +175,34 @@ class Simulation:
     def has_boundaries(self) -> bool:
         return bool(self.bodies or self.obstacles)
 
+    def traction_forces(self) -> list[np.ndarray]:
+        """The fluid's traction on each body and obstacle, from the current fields.
+
+        Pressure and viscous stress integrated along the boundary of the last step's map
+        (`elastoflow.coupling.force_traction`), whatever force the coupling scheme itself
+        used: one definition of "the force on an object" for every scheme, obstacles included.
+
+        Returns:
+            Nodal forces [N per metre of depth], one array per object, bodies first (shape
+            (n_nodes, 2), zero on interior nodes) then obstacles (shape (vertices, 2)); all
+            zero before the first step.
+        """
+        from elastoflow.coupling import force_traction
+
+        counts = [len(body.positions) for body in self.bodies]
+        counts += [obstacle.point_count for obstacle in self.obstacles]
+        offsets = np.cumsum([0, *counts])
+        if self.boundary_map is None:
+            nodal = np.zeros((int(offsets[-1]), 2))
+        else:
+            fluid, state = self.fluid_solver, self.state
+            nodal = force_traction(
+                self.grid, self.boundary_map, state.velocity_x, state.velocity_y,
+                state.pressure, fluid.density, fluid.viscosity, self.interior,
+                gravity=fluid.gravity,
+            )
+        return [nodal[offsets[k]:offsets[k + 1]] for k in range(len(counts))]
+
     # -- the coupled step ----------------------------------------------------------------
 
     def step(self) -> StepReport:

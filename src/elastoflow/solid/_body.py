@@ -467,6 +467,105 @@ class ElasticBody:
         """One substep of size ``dt_s`` [s] (``advance(dt_s, 1, external_forces)``)."""
         return self.advance(dt_s, 1, external_forces)
 
+    def static_equilibrium(self, external_forces: np.ndarray | None = None, *,
+                           tolerance: float = 1e-10, max_iterations: int = 100) -> int:
+        """Move the body to rest under its elastic forces, gravity and ``external_forces``.
+
+        Newton's method on ``f_internal(x) + f_external + M g = 0`` with the tangent of the
+        implicit step (`newmark_response`'s matrix with a step so long that the stiffness
+        dominates the mass, which only keeps it regular; compressive stress is left out of it,
+        so convergence is linear, about halving the error per iteration), updates halved
+        while they would invert an element, and the load applied in increments when a full
+        one does not converge.
+        Velocities are set to zero.
+
+        Args:
+            external_forces: Nodal forces [N/m], shape (n, 2); default none.
+            tolerance: Stop when the update is below ``tolerance`` times the body's size.
+            max_iterations: Newton iterations at most per load increment.
+
+        Returns:
+            Newton iterations taken in all.
+
+        Raises:
+            SolidInversionError: No equilibrium found without inverting an element; the body
+                keeps its state from before the call.
+        """
+        n = self.mesh.point_count
+        forces = (np.zeros((n, 2)) if external_forces is None
+                  else np.ascontiguousarray(external_forces, dtype=np.float64))
+        if forces.shape != (n, 2) or not np.all(np.isfinite(forces)):
+            raise ValueError(f"external_forces: must be finite, shape ({n}, 2)")
+        held = self.fixed_mask
+        still = np.zeros((n, 2))
+        size = float(np.ptp(self.mesh.points, axis=0).max())
+        load = forces + self.mass[:, None] * self.gravity
+        # A "step" of s seconds: s^2 K outweighs M by (s omega)^2 in every mode; 1e4 wave
+        # crossings exceed the slowest (bending) period of slender bodies by far.
+        pseudo_step = 1e4 * size / self.material.dilatational_wave_speed
+
+        def residual_at(x: np.ndarray, fraction: float) -> tuple[np.ndarray, float]:
+            r = self._forces_at(x, still) + fraction * load
+            r[held] = 0.0
+            norm = float(np.linalg.norm(r))
+            return r, norm if np.isfinite(norm) else np.inf
+
+        start = self.positions.copy()
+        x = start.copy()
+        total = 0
+        fraction, increment = 0.0, 1.0
+        while fraction < 1.0:
+            target = min(1.0, fraction + increment)
+            trial_x = x.copy()
+            residual, norm = residual_at(trial_x, target)
+            # Round-off floor of the residual: the forces' own size times machine precision.
+            floor = 1e3 * np.finfo(float).eps * (float(np.linalg.norm(load)) + 1e-300)
+            converged = False
+            determinants = np.empty(self.mesh.triangle_count)
+            for _ in range(max_iterations):
+                total += 1
+                response = self._response_at(trial_x, 0.0, pseudo_step, 1.0)
+                update = response.solve(pseudo_step**2 * residual)
+                # The residual is a poor merit function for the first, large updates (it
+                # jumps before it falls): only an inverted element shortens the step.
+                length = 1.0
+                for _ in range(30):
+                    candidate = trial_x + length * update
+                    _kernels.element_determinants(candidate, self.mesh.triangles,
+                                                  self._dm_inverse, determinants)
+                    if determinants.min() > 0.0:
+                        break
+                    length *= 0.5
+                else:
+                    break
+                trial_x = candidate
+                residual, norm = residual_at(trial_x, target)
+                if not np.isfinite(norm):
+                    break
+                if length * float(np.abs(update).max()) <= tolerance * size or norm <= floor:
+                    converged = True
+                    break
+            determinants = np.empty(self.mesh.triangle_count)
+            _kernels.element_determinants(trial_x, self.mesh.triangles, self._dm_inverse,
+                                          determinants)
+            if converged and determinants.min() > 0.0:
+                x, fraction = trial_x, target
+                increment = min(2.0 * increment, 1.0)
+                continue
+            increment *= 0.25
+            if increment < 1e-4:
+                element = int(np.argmin(determinants))
+                self.positions[:] = start
+                raise SolidInversionError(
+                    f"elastic body: no static equilibrium found at {100 * target:.3g} % of "
+                    f"the load (element {element}, det F = {determinants[element]:.3g})",
+                    step=None, substep=0, element=element,
+                    determinant=float(determinants[element]), positions=trial_x,
+                )
+        self.positions[:] = x
+        self.velocities[:] = 0.0
+        return total
+
     def deformation_determinants(self) -> np.ndarray:
         """det F of each element in the current positions, shape (m,)."""
         out = np.empty(self.mesh.triangle_count)

@@ -107,3 +107,34 @@ def test_newmark_keeps_the_energy_of_a_free_vibration(dt: float) -> None:
     for _ in range(200):
         body.advance_newmark(dt, np.zeros_like(body.positions), body.step_response(0.5 * dt))
     assert abs(body.total_energy() - energy) < 5e-3 * energy
+
+
+@pytest.mark.parametrize("path", ["dense", "banded", "sparse_lu"])
+def test_every_factorization_gives_the_same_answer(path: str,
+                                                   monkeypatch: pytest.MonkeyPatch) -> None:
+    """Dense inverse (small bodies), banded Cholesky in reverse Cuthill-McKee order (slender
+    ones) and SuperLU (the rest) agree to round-off on solve, velocity_change and compliance."""
+    from elastoflow.solid import _response
+
+    mesh = mesh_rectangle(0.35, 0.02, counts=(35, 2), pattern="crossed")
+    fixed = nodes_in_box(mesh, (-1.0, -1.0, 1e-9, 1.0))
+    body = ElasticBody(mesh, MATERIAL, fixed_nodes=fixed)
+    body.positions[:] = mesh.points @ np.array([[1.01, 0.03], [0.0, 0.99]])
+    reference = body.step_response(0.005)
+    assert reference._inverse is not None
+    if path != "dense":
+        monkeypatch.setattr(_response, "_DENSE_LIMIT", 0)
+    if path == "sparse_lu":
+        monkeypatch.setattr(_response, "_BANDED_WORK_LIMIT", 0.0)
+    response = body.step_response(0.005)
+    assert (response._banded is not None) == (path == "banded")
+    assert (response._factor is not None) == (path == "sparse_lu")
+    rng = np.random.default_rng(3)
+    force = rng.standard_normal(mesh.points.shape)
+    scale = np.abs(reference.solve(force)).max()
+    assert np.abs(response.solve(force) - reference.solve(force)).max() < 1e-10 * scale
+    assert np.allclose(response.velocity_change(force), reference.velocity_change(force),
+                       rtol=1e-9, atol=1e-12 * scale)
+    dofs = np.flatnonzero(rng.random(2 * mesh.point_count) < 0.3)
+    assert np.allclose(response.compliance(dofs), reference.compliance(dofs), rtol=1e-9,
+                       atol=1e-12 * np.abs(reference.compliance(dofs)).max())

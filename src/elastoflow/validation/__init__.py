@@ -1,0 +1,52 @@
+"""Validation against published benchmarks: one function (and one CLI command) per benchmark,
+which builds the benchmark in its exact geometry, runs it and evaluates its quantities the way
+the benchmark defines them.
+
+``run_case("FSI3", resolution=20)`` runs Turek & Hron's FSI3; `write_report` writes its time
+series (CSV), plots (PNG) and quantities (JSON); ``elastoflow validate turek-hron FSI3`` does
+both.
+"""
+
+from elastoflow.validation._report import (
+    describe,
+    format_quantities,
+    quantities_json,
+    write_report,
+)
+from elastoflow.validation._turek_hron import (
+    CASES,
+    REFERENCE,
+    Case,
+    Result,
+    Setup,
+    build_simulation,
+    check_resolution,
+    default_setup,
+    flag_mesh,
+    get_case,
+    rigid_flag_polygon,
+    run_case,
+)
+
+# Benchmarks that `elastoflow validate NAME CASE` runs.
+BENCHMARKS = ("turek-hron",)
+
+__all__ = [
+    "BENCHMARKS",
+    "CASES",
+    "REFERENCE",
+    "Case",
+    "Result",
+    "Setup",
+    "build_simulation",
+    "check_resolution",
+    "default_setup",
+    "describe",
+    "flag_mesh",
+    "format_quantities",
+    "get_case",
+    "quantities_json",
+    "rigid_flag_polygon",
+    "run_case",
+    "write_report",
+]

@@ -1,0 +1,137 @@
+"""What a validation run prints and writes: the benchmark's table, CSV, PNG and JSON."""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from elastoflow.analysis import PeriodicStatistics
+from elastoflow.io import write_text_atomic
+from elastoflow.validation._turek_hron import REFERENCE, UNITS, Result
+
+_LABELS = {"ux_A": "u_x(A)", "uy_A": "u_y(A)", "drag": "drag", "lift": "lift"}
+
+
+def describe(result: Result) -> str:
+    """One line: case, resolution, grid, scheme, step and wall time."""
+    s = result.setup
+    where = (f"{result.cells[0]}x{result.cells[1]} cells (h = {s.h:g} m)"
+             if result.cells is not None else f"solid only ({s.layers} element layers)")
+    scheme = f", {s.scheme} coupling" if s.case.kind == "FSI" else ""
+    end = float(result.time[-1]) if len(result.time) else 0.0
+    if s.case.kind == "CSM" and not s.case.periodic:
+        stepping = f"static equilibrium by Newton's method ({result.steps} iterations)"
+    else:
+        stepping = f"dt = {s.dt:.4g} s, t = 0-{end:.4g} s ({result.steps} steps)"
+    return (f"Turek-Hron {s.case.name}, resolution {s.resolution}: {where}, "
+            f"{result.elements} flag elements{scheme}, {stepping}, {result.seconds:.1f} s wall")
+
+
+def format_quantities(result: Result) -> list[str]:
+    """The benchmark's quantities in its own units and notation, one per line."""
+    lines = []
+    reference = REFERENCE.get(result.setup.case.name, {})
+    for key, value in result.quantities.items():
+        scale, unit = UNITS[key]
+        label = f"{_LABELS[key]} [{unit}]"
+        if isinstance(value, PeriodicStatistics):
+            text = value.format(scale=scale)
+        else:
+            text = f"{value * scale:.5g}"
+            if key in result.drift:
+                text += f"   (change over the last 10 %: {result.drift[key] * scale:+.3g})"
+        if key in reference:
+            text += (f"   reference {reference[key] * scale:.5g}, "
+                     f"error {100.0 * result.errors[key]:+.2f} %")
+        lines.append(f"{label:<18} {text}")
+    if result.failure is not None:
+        lines.append(f"not evaluated: {result.failure}")
+    return lines
+
+
+def quantities_json(result: Result) -> dict[str, Any]:
+    """The run and its quantities as JSON-ready data (SI units)."""
+    s = result.setup
+    quantities: dict[str, Any] = {}
+    for key, value in result.quantities.items():
+        quantities[key] = (value.as_dict() if isinstance(value, PeriodicStatistics)
+                           else {"value": value, "drift": result.drift.get(key)})
+        if key in result.errors:
+            quantities[key]["reference"] = REFERENCE[s.case.name][key]
+            quantities[key]["relative_error"] = result.errors[key]
+    return {
+        "benchmark": "turek-hron",
+        "case": s.case.name,
+        "resolution": s.resolution,
+        "h": s.h,
+        "dt": s.dt,
+        "duration": float(result.time[-1]) if len(result.time) else 0.0,
+        "steps": result.steps,
+        "scheme": s.scheme if s.case.kind == "FSI" else None,
+        "cells": list(result.cells) if result.cells is not None else None,
+        "flag_elements": result.elements,
+        "wall_seconds": result.seconds,
+        "quantities": quantities,
+        "failure": result.failure,
+    }
+
+
+def write_report(result: Result, folder: str | Path, *, json_file: bool = True) -> list[Path]:
+    """Write ``<case>_n<resolution>.csv`` (time series), ``.png`` (plots) and, with
+    ``json_file``, ``.json`` (quantities) into ``folder``; each file appears whole or not at
+    all. Returns the paths written."""
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    stem = f"{result.setup.case.name.lower()}_n{result.setup.resolution}"
+    keys = list(result.series)
+    text = io.StringIO()
+    writer = csv.writer(text, lineterminator="\n")
+    writer.writerow(["time [s]"] + [f"{key} [{'m' if key.startswith('u') else 'N/m'}]"
+                                    for key in keys])
+    for k, t in enumerate(result.time):
+        writer.writerow([f"{t:.9g}"] + [f"{result.series[key][k]:.9g}" for key in keys])
+    paths = [folder / f"{stem}.csv", folder / f"{stem}.png"]
+    write_text_atomic(paths[0], text.getvalue())
+    _plot(result, paths[1])
+    if json_file:
+        paths.append(folder / f"{stem}.json")
+        write_text_atomic(paths[2], json.dumps(quantities_json(result), indent=2) + "\n")
+    return paths
+
+
+def _plot(result: Result, path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from elastoflow.io import atomic_path
+
+    keys = list(result.series)
+    rows = math.ceil(len(keys) / 2)
+    figure, axes = plt.subplots(rows, min(len(keys), 2), figsize=(10, 3.2 * rows),
+                                squeeze=False)
+    for axis, key in zip(axes.ravel(), keys):
+        scale, unit = UNITS[key]
+        axis.plot(result.time, np.asarray(result.series[key]) * scale, lw=0.8)
+        value = result.quantities.get(key)
+        if isinstance(value, PeriodicStatistics):
+            axis.axvspan(value.start, value.end, color="0.9", zorder=0,
+                         label="last period")
+            axis.legend(loc="upper left", fontsize=8)
+        axis.set_xlabel("t [s]")
+        axis.set_ylabel(f"{_LABELS[key]} [{unit}]")
+        axis.grid(alpha=0.3)
+    for axis in axes.ravel()[len(keys):]:
+        axis.set_visible(False)
+    figure.suptitle(describe(result), fontsize=8)
+    figure.tight_layout()
+    with atomic_path(path) as temporary:
+        figure.savefig(temporary, dpi=110, format="png")
+    plt.close(figure)

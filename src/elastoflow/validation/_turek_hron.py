@@ -1,0 +1,399 @@
+"""The Turek & Hron (2006) FSI benchmark: CFD1-3, CSM1-3, FSI1-3 in their exact geometry.
+
+Channel [0, 2.5] x [0, 0.41] m; rigid cylinder of radius 0.05 m about (0.2, 0.2), a static
+obstacle in the boundary map; an elastic flag [0.2490, 0.6] x [0.19, 0.21] m clamped where it
+meets the cylinder; parabolic inflow of mean speed U with the benchmark's start-up ramp
+``(1 - cos(pi t / 2)) / 2`` over the first 2 s; no slip on the walls; outflow on the right.
+St. Venant-Kirchhoff solid in plane strain. The quantities: the displacement of point A (the
+flag's trailing-edge midpoint, (0.6, 0.2) at rest) and the force (drag, lift) of the fluid on
+cylinder and flag together, by the traction integral. Periodic cases report ``mean ± amplitude
+[frequency]`` over the last full period, steady ones the final value.
+
+Resolution ``N`` means ``N`` cells per cylinder diameter (h = 0.1 / N m); the flag gets N / 5
+crossed element layers through its thickness (elements as large as the cells).
+"""
+
+from __future__ import annotations
+
+import math
+import time as _time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Literal
+
+import numpy as np
+
+from elastoflow.analysis import PeriodicStatistics, periodic_statistics
+
+if TYPE_CHECKING:
+    from elastoflow.simulation import Simulation
+    from elastoflow.solid import ElasticBody, MaterialStVK
+
+CHANNEL = (2.5, 0.41)
+CENTER = (0.2, 0.2)
+RADIUS = 0.05
+DIAMETER = 2.0 * RADIUS
+FLAG_Y = (0.19, 0.21)
+FLAG_RIGHT = 0.6
+# The flag's left end lies on the cylinder: x = 0.2 + sqrt(0.05^2 - 0.01^2).
+FLAG_LEFT = CENTER[0] + math.sqrt(RADIUS**2 - (FLAG_Y[1] - CENTER[1]) ** 2)
+POINT_A = (0.6, 0.2)
+RAMP_TIME = 2.0
+
+# Published values (Turek & Hron 2006, as quoted in ../shared/reference/turek_hron.json).
+REFERENCE: dict[str, dict[str, float]] = {
+    "CFD1": {"drag": 14.29, "lift": 1.119},
+    "CSM1": {"ux_A": -7.187e-3, "uy_A": -66.1e-3},
+}
+
+Kind = Literal["CFD", "CSM", "FSI"]
+
+
+@dataclass(frozen=True)
+class Case:
+    """Parameters of one benchmark case (SI units; Turek & Hron 2006, Tables 1-3).
+
+    Attributes:
+        name: "CFD1" ... "FSI3".
+        kind: "CFD" (rigid flag), "CSM" (flag alone under gravity) or "FSI".
+        periodic: Whether the answer is an oscillation (mean, amplitude, frequency) rather than
+            a steady state.
+        mean_speed: Mean inflow speed U [m/s]; the peak of the parabola is 1.5 U.
+        duration: Default simulated time [s]: long enough to settle or to reach the fully
+            developed oscillation.
+        solid_density: rho_s [kg/m^3].
+        shear_modulus: mu_s [Pa].
+        gravity: Gravity on the flag [m/s^2], downwards (CSM cases only).
+    """
+
+    name: str
+    kind: Kind
+    periodic: bool
+    mean_speed: float
+    duration: float
+    solid_density: float = 1000.0
+    shear_modulus: float = 0.5e6
+    gravity: float = 0.0
+    fluid_density: float = 1000.0
+    viscosity: float = 1e-3
+    poisson_ratio: float = 0.4
+
+    @property
+    def young_modulus(self) -> float:
+        return 2.0 * self.shear_modulus * (1.0 + self.poisson_ratio)
+
+    @property
+    def quantities(self) -> tuple[str, ...]:
+        """Names of the benchmark's quantities for this kind of case."""
+        return {"CFD": ("drag", "lift"), "CSM": ("ux_A", "uy_A"),
+                "FSI": ("ux_A", "uy_A", "drag", "lift")}[self.kind]
+
+
+CASES: dict[str, Case] = {
+    case.name: case
+    for case in (
+        Case("CFD1", "CFD", False, 0.2, 12.0),
+        Case("CFD2", "CFD", False, 1.0, 10.0),
+        Case("CFD3", "CFD", True, 2.0, 10.0),
+        Case("CSM1", "CSM", False, 0.0, 0.0, gravity=2.0),
+        Case("CSM2", "CSM", False, 0.0, 0.0, shear_modulus=2.0e6, gravity=2.0),
+        Case("CSM3", "CSM", True, 0.0, 10.0, gravity=2.0),
+        Case("FSI1", "FSI", False, 0.2, 15.0),
+        Case("FSI2", "FSI", True, 1.0, 15.0, solid_density=10000.0),
+        Case("FSI3", "FSI", True, 2.0, 10.0, shear_modulus=2.0e6),
+    )
+}
+
+# Units the benchmark prints each quantity in: displacements in 1e-3 m, forces in N/m.
+UNITS: dict[str, tuple[float, str]] = {
+    "ux_A": (1e3, "1e-3 m"), "uy_A": (1e3, "1e-3 m"), "drag": (1.0, "N/m"), "lift": (1.0, "N/m"),
+}
+
+
+def check_resolution(resolution: int) -> None:
+    """Refuse a resolution that does not give whole cells across the channel (0.41 m)."""
+    if not (isinstance(resolution, int) and resolution >= 10 and resolution % 10 == 0):
+        raise ValueError(
+            f"resolution = {resolution!r}: must be a multiple of 10 cells per cylinder diameter "
+            "(10, 20, 30, ...; 0.41 m must be a whole number of cells)"
+        )
+
+
+def get_case(name: str) -> Case:
+    """The case called ``name`` (case-insensitive), or ValueError naming the choices."""
+    case = CASES.get(name.upper())
+    if case is None:
+        raise ValueError(f"case = {name!r}: must be one of {', '.join(CASES)}")
+    return case
+
+
+def flag_mesh(layers: int) -> tuple[np.ndarray, np.ndarray]:
+    """The flag as a crossed structured mesh with ``layers`` square cells through its
+    thickness: points (n, 2) and triangles (m, 3).
+
+    The left column of nodes is moved onto the cylinder's circle and the shift fades linearly
+    to zero at the free end, so the elements stay nearly square and the clamped edge is the
+    arc itself.
+    """
+    from elastoflow.solid import mesh_rectangle
+
+    thickness = FLAG_Y[1] - FLAG_Y[0]
+    length = FLAG_RIGHT - FLAG_LEFT
+    cells_x = round(length / (thickness / layers))
+    mesh = mesh_rectangle(length, thickness, counts=(cells_x, layers),
+                          origin=(FLAG_LEFT, FLAG_Y[0]), pattern="crossed")
+    points = mesh.points.copy()
+    arc = CENTER[0] + np.sqrt(RADIUS**2 - (points[:, 1] - CENTER[1]) ** 2)
+    points[:, 0] += (arc - FLAG_LEFT) * (FLAG_RIGHT - points[:, 0]) / length
+    return points, np.asarray(mesh.triangles)
+
+
+def _circle_segments(h: float) -> int:
+    """Polygon vertices for the cylinder: edges no longer than h / 2 (at least 64)."""
+    return max(64, math.ceil(2.0 * math.pi * RADIUS / (0.5 * h)))
+
+
+def rigid_flag_polygon(segments: int) -> np.ndarray:
+    """Cylinder and flag as one counter-clockwise polygon (the CFD cases' rigid body): the
+    circle from the flag's top corner round to its bottom corner, then the flag's outline."""
+    top = math.atan2(FLAG_Y[1] - CENTER[1], FLAG_LEFT - CENTER[0])
+    angles = np.linspace(top, 2.0 * math.pi - top, max(segments, 8))
+    arc = np.stack([CENTER[0] + RADIUS * np.cos(angles), CENTER[1] + RADIUS * np.sin(angles)],
+                   axis=1)
+    arc[0] = (FLAG_LEFT, FLAG_Y[1])
+    arc[-1] = (FLAG_LEFT, FLAG_Y[0])
+    outline = np.array([[FLAG_RIGHT, FLAG_Y[0]], [FLAG_RIGHT, FLAG_Y[1]]])
+    return np.concatenate([arc, outline])
+
+
+@dataclass
+class Setup:
+    """What a case is run with: resolution, time step, scheme."""
+
+    case: Case
+    resolution: int
+    h: float
+    dt: float
+    duration: float
+    scheme: str
+    layers: int
+
+    @property
+    def steps(self) -> int:
+        return max(1, round(self.duration / self.dt))
+
+
+def default_setup(case: Case, resolution: int, *, duration: float | None = None,
+                  dt: float | None = None, scheme: str = "monolithic") -> Setup:
+    """Resolution N -> h = 0.1/N, N/5 flag layers; dt from a CFL number of 0.5 on the inflow
+    peak (fluid cases), 0.005 s (CSM3, the benchmark's own step)."""
+    check_resolution(resolution)
+    h = DIAMETER / resolution
+    if duration is None:
+        duration = case.duration
+    if not (duration >= 0.0 and math.isfinite(duration)):
+        raise ValueError(f"duration = {duration!r}: must be a finite number >= 0 [s]")
+    if dt is None:
+        dt = 0.5 * h / (1.5 * case.mean_speed) if case.mean_speed > 0.0 else 0.005
+    if not (dt > 0.0 and math.isfinite(dt)):
+        raise ValueError(f"dt = {dt!r}: must be a finite positive time step [s]")
+    if scheme not in ("monolithic", "explicit"):
+        raise ValueError(f"scheme = {scheme!r}: must be 'monolithic' or 'explicit'")
+    return Setup(case, resolution, h, float(dt), float(duration), scheme, resolution // 5)
+
+
+@dataclass
+class Result:
+    """A run of one case: its time series and the benchmark's quantities.
+
+    Attributes:
+        setup: What it was run with.
+        time: Sample times [s], shape (k,).
+        series: Quantity name -> samples, shape (k,) each (SI units).
+        quantities: Quantity name -> final value (steady cases) or `PeriodicStatistics`.
+        errors: Quantity name -> relative error against the published value, where there is
+            one (CFD1, CSM1).
+        seconds: Wall time of the run [s].
+        cells: Fluid grid (nx, ny), or None for the CSM cases.
+        elements: Triangles of the flag (0 for the rigid flag of the CFD cases).
+        steps: Steps taken (fluid steps, or solid output intervals for CSM).
+        drift: Quantity name -> change over the last 10 % of the run (steady cases: how far
+            from settled the final value is).
+        failure: None, or why the quantities could not be computed (e.g. not periodic yet).
+    """
+
+    setup: Setup
+    time: np.ndarray
+    series: dict[str, np.ndarray]
+    quantities: dict[str, float | PeriodicStatistics]
+    errors: dict[str, float]
+    seconds: float
+    cells: tuple[int, int] | None
+    elements: int
+    steps: int
+    drift: dict[str, float] = field(default_factory=dict)
+    failure: str | None = None
+
+
+Progress = Callable[[int, int], None]
+
+
+def run_case(name: str, resolution: int = 20, *, duration: float | None = None,
+             dt: float | None = None, scheme: str = "monolithic",
+             progress: Progress | None = None) -> Result:
+    """Run one Turek-Hron case and evaluate its quantities.
+
+    Args:
+        name: "CFD1" ... "FSI3".
+        resolution: Cells per cylinder diameter (a multiple of 10).
+        duration: Simulated time [s] (default: the case's).
+        dt: Fluid time step [s] (default: CFL 0.5 on the inflow peak).
+        scheme: Coupling scheme of the FSI cases ("monolithic" or "explicit").
+        progress: Called with (steps done, steps in all) as the run goes.
+    """
+    case = get_case(name)
+    setup = default_setup(case, resolution, duration=duration, dt=dt, scheme=scheme)
+    began = _time.perf_counter()
+    if case.kind == "CSM":
+        time, series, elements, steps = _run_solid(setup, progress)
+        cells = None
+    else:
+        time, series, elements, steps, cells = _run_fluid(setup, progress)
+    seconds = _time.perf_counter() - began
+    return _evaluate(setup, time, series, seconds, cells, elements, steps)
+
+
+def _evaluate(setup: Setup, time: np.ndarray, series: dict[str, np.ndarray], seconds: float,
+              cells: tuple[int, int] | None, elements: int, steps: int) -> Result:
+    case = setup.case
+    quantities: dict[str, float | PeriodicStatistics] = {}
+    drift: dict[str, float] = {}
+    failure = None
+    for key in case.quantities:
+        values = series[key]
+        if case.periodic:
+            try:
+                # Periods are sought after the ramp, in the second half of the record.
+                quantities[key] = periodic_statistics(time, values, window=0.5)
+            except ValueError as error:
+                failure = f"{key}: {error}"
+        else:
+            quantities[key] = float(values[-1])
+            if len(time) > 1:
+                tail = time >= time[-1] - 0.1 * (time[-1] - time[0])
+                drift[key] = float(values[-1] - values[np.flatnonzero(tail)[0]])
+    errors = {}
+    for key, published in REFERENCE.get(case.name, {}).items():
+        value = quantities.get(key)
+        if isinstance(value, float):
+            errors[key] = value / published - 1.0
+    return Result(setup, time, series, quantities, errors, seconds, cells, elements, steps,
+                  drift, failure)
+
+
+def _material(case: Case) -> MaterialStVK:
+    from elastoflow.solid import MaterialStVK
+
+    return MaterialStVK(density=case.solid_density, young_modulus=case.young_modulus,
+                        poisson_ratio=case.poisson_ratio)
+
+
+def _flag_body(case: Case, layers: int) -> tuple[ElasticBody, int]:
+    """The flag, clamped along its arc on the cylinder, and the node at point A."""
+    from elastoflow.solid import ElasticBody, TriangleMesh
+
+    points, triangles = flag_mesh(layers)
+    mesh = TriangleMesh(points, triangles)
+    on_cylinder = np.linalg.norm(points - np.asarray(CENTER), axis=1) <= RADIUS * (1 + 1e-9)
+    body = ElasticBody(mesh, _material(case), fixed_nodes=np.flatnonzero(on_cylinder),
+                       gravity=(0.0, -case.gravity))
+    node_a = int(np.argmin(np.linalg.norm(points - np.asarray(POINT_A), axis=1)))
+    return body, node_a
+
+
+def _run_solid(setup: Setup, progress: Progress | None
+               ) -> tuple[np.ndarray, dict[str, np.ndarray], int, int]:
+    """CSM: the flag alone under gravity. Steady cases by Newton's method on the static
+    equilibrium (one sample, the answer); CSM3 swings undamped from rest, sampled every
+    ``dt``."""
+    case = setup.case
+    body, node_a = _flag_body(case, setup.layers)
+    rest = body.mesh.points[node_a].copy()
+    if not case.periodic:
+        iterations = body.static_equilibrium()
+        d = body.positions[node_a] - rest
+        if progress is not None:
+            progress(1, 1)
+        series = {"ux_A": np.array([float(d[0])]), "uy_A": np.array([float(d[1])])}
+        return np.array([0.0]), series, body.mesh.triangle_count, iterations
+    times, ux, uy = [0.0], [0.0], [0.0]
+    steps = setup.steps
+    for k in range(steps):
+        body.advance(setup.dt, "auto")
+        d = body.positions[node_a] - rest
+        times.append((k + 1) * setup.dt)
+        ux.append(float(d[0]))
+        uy.append(float(d[1]))
+        if progress is not None:
+            progress(k + 1, steps)
+    series = {"ux_A": np.array(ux), "uy_A": np.array(uy)}
+    return np.array(times), series, body.mesh.triangle_count, steps
+
+
+def build_simulation(setup: Setup) -> tuple[Simulation, int | None]:
+    """The `Simulation` of a CFD or FSI case, and the flag's point-A node (None for CFD)."""
+    from elastoflow import coupling, fluid, linalg
+    from elastoflow.grid import Grid2D
+    from elastoflow.simulation import MonolithicCoupling, Simulation
+
+    case = setup.case
+    n = setup.resolution
+    grid = Grid2D(nx=25 * n, ny=41 * n // 10, h=setup.h)
+    boundaries = fluid.DomainBoundaries(
+        left=fluid.Inflow(speed=1.5 * case.mean_speed, profile="parabolic", ramp_time=RAMP_TIME),
+        right=fluid.Outflow(), bottom=fluid.WallNoSlip(), top=fluid.WallNoSlip(),
+    )
+    solver = fluid.FluidSolver(
+        grid, density=case.fluid_density, viscosity=case.viscosity, boundaries=boundaries,
+        pressure_solver=linalg.PoissonSolverMGPCG(), advection="maccormack",
+    )
+    segments = _circle_segments(setup.h)
+    bodies = []
+    node_a = None
+    if case.kind == "CFD":
+        obstacles = [coupling.Obstacle(rigid_flag_polygon(segments))]
+    else:
+        obstacles = [coupling.obstacle_circle(CENTER, RADIUS, segments=segments)]
+        body, node_a = _flag_body(case, setup.layers)
+        bodies.append(body)
+    scheme = MonolithicCoupling() if setup.scheme == "monolithic" else "explicit"
+    simulation = Simulation(grid, solver, bodies=bodies, obstacles=obstacles, dt=setup.dt,
+                            coupling=scheme)
+    return simulation, node_a
+
+
+def _run_fluid(setup: Setup, progress: Progress | None
+               ) -> tuple[np.ndarray, dict[str, np.ndarray], int, int, tuple[int, int]]:
+    simulation, node_a = build_simulation(setup)
+    steps = setup.steps
+    times = np.zeros(steps + 1)
+    columns = {key: np.zeros(steps + 1) for key in ("ux_A", "uy_A", "drag", "lift")}
+    rest = None
+    if node_a is not None:
+        rest = simulation.bodies[0].mesh.points[node_a].copy()
+    for k in range(1, steps + 1):
+        simulation.step()
+        times[k] = simulation.time
+        total = sum(force.sum(axis=0) for force in simulation.traction_forces())
+        columns["drag"][k], columns["lift"][k] = float(total[0]), float(total[1])
+        if rest is not None:
+            d = simulation.bodies[0].positions[node_a] - rest
+            columns["ux_A"][k], columns["uy_A"][k] = float(d[0]), float(d[1])
+        if progress is not None:
+            progress(k, steps)
+    elements = sum(body.mesh.triangle_count for body in simulation.bodies)
+    keys = setup.case.quantities
+    # Forces at t = 0 are undefined (no map yet): the series start at the first step.
+    series = {key: columns[key][1:] for key in keys}
+    grid = simulation.grid
+    return times[1:], series, elements, steps, (grid.nx, grid.ny)
