@@ -60,6 +60,101 @@ def _pressure_iterations() -> tuple[list[str], Sampler]:
     return ["pressure_iterations"], sample
 
 
+def _targets(spec: Any) -> tuple[list[int], list[int], str]:
+    label = "+".join([f"body{i}" for i in spec.bodies] + [f"obstacle{i}" for i in spec.obstacles])
+    return list(spec.bodies), list(spec.obstacles), label
+
+
+def _traction_on(sim: Any, bodies: list[int], obstacles: list[int]
+                 ) -> list[tuple[np.ndarray, np.ndarray]]:
+    """(points, nodal forces) of each chosen object, the fluid's traction on it."""
+    forces = sim.traction_forces()
+    count = len(sim.bodies)
+    chosen = [(sim.bodies[i].positions, forces[i]) for i in bodies]
+    chosen += [(sim.obstacles[i].points_at(sim.time), forces[count + i]) for i in obstacles]
+    return chosen
+
+
+def _force(spec: Any) -> tuple[list[str], Sampler]:
+    bodies, obstacles, label = _targets(spec)
+
+    def sample(sim: Any, report: Any) -> list[float]:
+        total = np.zeros(2)
+        for _, force in _traction_on(sim, bodies, obstacles):
+            total += force.sum(axis=0)
+        return [float(total[0]), float(total[1])]
+
+    return [f"force_{label}_x [N/m]", f"force_{label}_y [N/m]"], sample
+
+
+def _torque(spec: Any) -> tuple[list[str], Sampler]:
+    bodies, obstacles, label = _targets(spec)
+    about = np.asarray(spec.about, dtype=np.float64)
+
+    def sample(sim: Any, report: Any) -> list[float]:
+        total = 0.0
+        for points, force in _traction_on(sim, bodies, obstacles):
+            arm = points - about
+            total += float(np.sum(arm[:, 0] * force[:, 1] - arm[:, 1] * force[:, 0]))
+        return [total]
+
+    return [f"torque_{label} [N]"], sample
+
+
+def _bilinear(values: np.ndarray, x0: float, y0: float, h: float, point: Any) -> float:
+    """``values`` sampled at ``(x0 + i h, y0 + j h)``, interpolated at ``point`` (clamped)."""
+    fx = min(max((point[0] - x0) / h, 0.0), values.shape[0] - 1.0)
+    fy = min(max((point[1] - y0) / h, 0.0), values.shape[1] - 1.0)
+    i, j = min(int(fx), values.shape[0] - 2), min(int(fy), values.shape[1] - 2)
+    i, j = max(i, 0), max(j, 0)
+    tx, ty = fx - i, fy - j
+    return float((1 - tx) * (1 - ty) * values[i, j] + tx * (1 - ty) * values[i + 1, j]
+                 + (1 - tx) * ty * values[i, j + 1] + tx * ty * values[i + 1, j + 1])
+
+
+def _pressure_at(sim: Any, point: Any) -> float:
+    grid = sim.grid
+    ox, oy = grid.origin
+    return _bilinear(sim.state.pressure, ox + 0.5 * grid.h, oy + 0.5 * grid.h, grid.h, point)
+
+
+def _point_name(point: Any) -> str:
+    return f"({point[0]:g},{point[1]:g})"
+
+
+def _pressure(spec: Any) -> tuple[list[str], Sampler]:
+    point = tuple(spec.point)
+
+    def sample(sim: Any, report: Any) -> list[float]:
+        return [_pressure_at(sim, point)]
+
+    return [f"pressure_{_point_name(point)} [Pa]"], sample
+
+
+def _pressure_difference(spec: Any) -> tuple[list[str], Sampler]:
+    first, second = (tuple(p) for p in spec.points)
+
+    def sample(sim: Any, report: Any) -> list[float]:
+        return [_pressure_at(sim, first) - _pressure_at(sim, second)]
+
+    return [f"pressure_{_point_name(first)}-{_point_name(second)} [Pa]"], sample
+
+
+def _velocity(spec: Any) -> tuple[list[str], Sampler]:
+    point = tuple(spec.point)
+
+    def sample(sim: Any, report: Any) -> list[float]:
+        grid, state = sim.grid, sim.state
+        ox, oy = grid.origin
+        h = grid.h
+        u = _bilinear(state.velocity_x, ox, oy + 0.5 * h, h, point)
+        v = _bilinear(state.velocity_y, ox + 0.5 * h, oy, h, point)
+        return [u, v]
+
+    name = _point_name(point)
+    return [f"velocity_{name}_x [m/s]", f"velocity_{name}_y [m/s]"], sample
+
+
 def _resolve_node(sim: Any, spec: Any) -> int:
     if spec.node is not None:
         return int(spec.node)
@@ -91,6 +186,11 @@ class ProbeRecorder:
         makers: dict[str, Callable[[Any], tuple[list[str], Sampler]]] = {
             "node_displacement": lambda s: _node_displacement(s.body, _resolve_node(simulation, s)),
             "body_force": lambda s: _body_force(s.body),
+            "force": _force,
+            "torque": _torque,
+            "pressure": _pressure,
+            "pressure_difference": _pressure_difference,
+            "velocity": _velocity,
             "kinetic_energy": lambda s: _kinetic_energy(s.body),
             "pressure_iterations": lambda s: _pressure_iterations(),
         }

@@ -270,12 +270,28 @@ def check_scene(scene: Scene) -> list[str]:
         if not _inside(jet.region, lx, ly):
             problems.append(f"jets.{index}.region = {list(jet.region)}: {allowed}")
     for index, probe in enumerate(scene.outputs.probes):
+        where = f"outputs.probes.{index}"
         if probe.body is not None and probe.body >= len(scene.bodies):
             problems.append(
-                f"outputs.probes.{index}.body = {probe.body}: must be a body index in "
+                f"{where}.body = {probe.body}: must be a body index in "
                 f"0..{len(scene.bodies) - 1}" if scene.bodies else
-                f"outputs.probes.{index}.body = {probe.body}: the scene has no bodies"
+                f"{where}.body = {probe.body}: the scene has no bodies"
             )
+        for key, count, what in (("bodies", len(scene.bodies), "body"),
+                                 ("obstacles", len(scene.obstacles), "obstacle")):
+            chosen = getattr(probe, key)
+            bad = [i for i in chosen if i >= count]
+            if bad:
+                problems.append(
+                    f"{where}.{key} = {chosen}: must be {what} indices in 0..{count - 1}"
+                    if count else f"{where}.{key} = {chosen}: the scene has no {key}")
+        places: list[tuple[str, tuple[float, float] | None]] = (
+            [("point", probe.point)] if probe.kind in ("pressure", "velocity") else [])
+        for k, point in enumerate(probe.points or []):
+            places.append((f"points.{k}", point))
+        for key, place in places:
+            if place is not None and not _inside((*place, *place), lx, ly):
+                problems.append(f"{where}.{key} = {list(place)}: {allowed}")
     return problems
 
 

@@ -449,12 +449,33 @@ class MeshesSpec(_Spec):
 
 
 class ProbeSpec(_Spec):
-    kind: Literal["node_displacement", "body_force", "kinetic_energy", "pressure_iterations"]
+    """One probe, sampled after every ``outputs.probes_every`` steps into ``probes.csv``.
+
+    Kinds: ``node_displacement`` (body, node or point), ``body_force`` (the force the coupling
+    applied to a body), ``force`` and ``torque`` (the fluid's traction integrated over the
+    listed ``bodies`` and ``obstacles`` together: drag and lift; torque about ``about``),
+    ``pressure`` and ``velocity`` at ``point``, ``pressure_difference`` between ``points``,
+    ``kinetic_energy`` (a body's, else the fluid's), ``pressure_iterations``.
+    """
+
+    kind: Literal["node_displacement", "body_force", "force", "torque", "pressure", "velocity",
+                  "pressure_difference", "kinetic_energy", "pressure_iterations"]
     body: Annotated[int, Field(ge=0)] | None = None
     """Body index (node_displacement, body_force; kinetic_energy of a body, else the fluid's)."""
     node: Annotated[int, Field(ge=0)] | None = None
     point: Point | None = None
-    """For node_displacement: the node nearest this rest position, instead of ``node``."""
+    """node_displacement: the node nearest this rest position, instead of ``node``; pressure,
+    velocity: where [m]."""
+    bodies: Annotated[list[Annotated[int, Field(ge=0)]], Strict(False)] = Field(
+        default_factory=list)
+    """force, torque: body indices whose traction counts."""
+    obstacles: Annotated[list[Annotated[int, Field(ge=0)]], Strict(False)] = Field(
+        default_factory=list)
+    """force, torque: obstacle indices whose traction counts."""
+    about: Point | None = None
+    """torque: the axis [m] (counter-clockwise positive)."""
+    points: Annotated[list[Point], Strict(False)] | None = None
+    """pressure_difference: two points [m]; the column is p(first) - p(second)."""
 
     @model_validator(mode="after")
     def _needs(self) -> ProbeSpec:
@@ -462,6 +483,14 @@ class ProbeSpec(_Spec):
             raise ValueError(f"probe kind {self.kind!r} needs body (an index)")
         if self.kind == "node_displacement" and (self.node is None) == (self.point is None):
             raise ValueError("probe kind 'node_displacement' needs exactly one of node or point")
+        if self.kind in ("force", "torque") and not (self.bodies or self.obstacles):
+            raise ValueError(f"probe kind {self.kind!r} needs bodies or obstacles (index lists)")
+        if self.kind == "torque" and self.about is None:
+            raise ValueError("probe kind 'torque' needs about (the axis, [x, y])")
+        if self.kind in ("pressure", "velocity") and self.point is None:
+            raise ValueError(f"probe kind {self.kind!r} needs point ([x, y])")
+        if self.kind == "pressure_difference" and (self.points is None or len(self.points) != 2):
+            raise ValueError("probe kind 'pressure_difference' needs points (two [x, y])")
         return self
 
 

@@ -1,0 +1,115 @@
+"""Probe kinds that validation set-ups need: force and torque on any bodies and obstacles by
+traction, pressure and velocity at a point, pressure differences; their checks."""
+
+from __future__ import annotations
+
+import tomllib
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import elastoflow
+from elastoflow.io import ProbeRecorder, read_probes
+from elastoflow.scenes import ProbeSpec, Scene, SceneError, parse_scene, scene_to_toml
+from elastoflow.scenes._errors import check_scene
+
+
+def _channel(probes: list[dict]) -> Scene:
+    return Scene.model_validate({
+        "domain": {"lx": 1.0, "ly": 0.4, "h": 0.02},
+        "fluid": {"density": 1.0, "viscosity": 0.01},
+        "boundaries": {"left": {"type": "inflow", "speed": 0.3, "profile": "parabolic"},
+                       "right": "outflow", "bottom": "no_slip", "top": "no_slip"},
+        "obstacles": [{"shape": "circle", "center": (0.3, 0.2), "radius": 0.05}],
+        "time": {"dt": 0.02, "steps": 30, "substeps": 1},
+        "outputs": {"probes": probes},
+    })
+
+
+def test_force_torque_pressure_velocity_on_a_cylinder_in_a_channel(tmp_path: Path) -> None:
+    probes = [
+        {"kind": "force", "obstacles": [0]},
+        {"kind": "torque", "obstacles": [0], "about": (0.3, 0.2)},
+        {"kind": "pressure", "point": (0.2, 0.2)},
+        {"kind": "pressure_difference", "points": [(0.2, 0.2), (0.4, 0.2)]},
+        {"kind": "velocity", "point": (0.05, 0.2)},
+        {"kind": "velocity", "point": (0.05, 0.01)},
+    ]
+    scene = _channel(probes)
+    simulation = elastoflow.load(scene)
+    recorder = ProbeRecorder(scene.outputs.probes, simulation, tmp_path / "probes.csv")
+    for _ in range(30):
+        simulation.step()
+        recorder.record(simulation)
+    recorder.close()
+    columns, rows = read_probes(tmp_path / "probes.csv")
+    row = dict(zip(columns, rows[-1]))
+    drag, lift = row["force_obstacle0_x [N/m]"], row["force_obstacle0_y [N/m]"]
+    expected = simulation.traction_forces()[0].sum(axis=0)
+    assert (drag, lift) == pytest.approx(tuple(expected), rel=1e-9)
+    # The stream pushes the cylinder downstream; a symmetric set-up gives little lift.
+    assert drag > 0.0 and abs(lift) < 0.1 * drag
+    assert abs(row["torque_obstacle0 [N]"]) < 0.05 * drag * 0.05
+    front, difference = row["pressure_(0.2,0.2) [Pa]"], row["pressure_(0.2,0.2)-(0.4,0.2) [Pa]"]
+    assert difference > 0.0 and front > difference - front
+    # Upstream, on the centre line, the parabolic inflow's peak; near the wall much less.
+    centre = row["velocity_(0.05,0.2)_x [m/s]"]
+    assert centre == pytest.approx(0.3, rel=0.1)
+    assert row["velocity_(0.05,0.01)_x [m/s]"] < 0.2 * centre
+    assert abs(row["velocity_(0.05,0.2)_y [m/s]"]) < 0.05 * centre
+
+
+def test_pressure_and_velocity_interpolate_linear_fields_exactly(tmp_path: Path) -> None:
+    scene = _channel([{"kind": "pressure", "point": (0.37, 0.13)},
+                      {"kind": "velocity", "point": (0.51, 0.29)}])
+    simulation = elastoflow.load(scene)
+    grid, state = simulation.grid, simulation.state
+    x, y = grid.cell_centers()
+    state.pressure[...] = 3.0 * x - 2.0 * y + 1.0
+    h = grid.h
+    xu = np.arange(grid.nx + 1)[:, None] * h
+    yu = (np.arange(grid.ny)[None, :] + 0.5) * h
+    state.velocity_x[...] = 2.0 * xu + 5.0 * yu
+    xv = (np.arange(grid.nx)[:, None] + 0.5) * h
+    yv = np.arange(grid.ny + 1)[None, :] * h
+    state.velocity_y[...] = -xv + 4.0 * yv
+    recorder = ProbeRecorder(scene.outputs.probes, simulation, tmp_path / "probes.csv")
+    recorder.record(simulation)
+    recorder.close()
+    _, rows = read_probes(tmp_path / "probes.csv")
+    assert rows[0][2] == pytest.approx(3.0 * 0.37 - 2.0 * 0.13 + 1.0, rel=1e-12)
+    assert rows[0][3] == pytest.approx(2.0 * 0.51 + 5.0 * 0.29, rel=1e-12)
+    assert rows[0][4] == pytest.approx(-0.51 + 4.0 * 0.29, rel=1e-12)
+
+
+@pytest.mark.parametrize(
+    ("probe", "message"),
+    [
+        ({"kind": "force"}, "needs bodies or obstacles"),
+        ({"kind": "torque", "obstacles": [0]}, "needs about"),
+        ({"kind": "pressure"}, "needs point"),
+        ({"kind": "pressure_difference", "points": [(0.1, 0.1)]}, "two"),
+    ],
+)
+def test_incomplete_probes_are_refused(probe: dict, message: str) -> None:
+    with pytest.raises(ValueError, match=message):
+        ProbeSpec.model_validate(probe)
+
+
+@pytest.mark.parametrize(
+    ("probe", "message"),
+    [
+        ({"kind": "force", "obstacles": [3]}, "outputs.probes.0.obstacles = [3]: must be "
+                                             "obstacle indices in 0..0"),
+        ({"kind": "force", "bodies": [0]}, "outputs.probes.0.bodies = [0]: the scene has no "
+                                          "bodies"),
+        ({"kind": "pressure", "point": (2.0, 0.1)}, "outputs.probes.0.point = [2.0, 0.1]: must "
+                                                   "lie inside the domain"),
+    ],
+)
+def test_probes_naming_what_is_not_there_are_refused(probe: dict, message: str) -> None:
+    problems = check_scene(_channel([probe]))
+    assert any(message in line for line in problems), problems
+    with pytest.raises(SceneError, match="outputs.probes.0"):
+        parse_scene(tomllib.loads(scene_to_toml(_channel([probe]))))
