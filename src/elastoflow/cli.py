@@ -479,8 +479,8 @@ def validate(
                                          "benchmark: turek-hron.")],
     case: Annotated[str | None, typer.Argument(help="The benchmark's case: CFD1-3, CSM1-3, "
                                                "FSI1-3 (turek-hron).")] = None,
-    resolution: Annotated[int, typer.Option(help="Benchmark: cells per cylinder diameter "
-                                            "(10, 20, 30, ...).")] = 20,
+    resolution: Annotated[int, typer.Option(help="Benchmark: about this many cells per "
+                                            "cylinder diameter (5-200).")] = 20,
     duration: Annotated[float | None, typer.Option(help="Benchmark: simulated time [s] "
                                                    "(default: the case's).")] = None,
     dt: Annotated[float | None, typer.Option(help="Benchmark: time step [s] (default: CFL "

@@ -18,6 +18,8 @@ from elastoflow.cli import app
 from elastoflow.validation import (
     CASES,
     REFERENCE,
+    build_simulation,
+    cells_across,
     default_setup,
     flag_mesh,
     get_case,
@@ -69,11 +71,28 @@ def test_geometry_flag_clamped_on_the_circle_and_rigid_outline() -> None:
     assert signed == pytest.approx(math.pi * RADIUS**2 + 0.02 * (0.6 - FLAG_LEFT), rel=2e-3)
 
 
+def test_grid_keeps_the_flag_faces_off_the_grid_lines() -> None:
+    """The channel's height is whole cells, the flag's faces (y = 0.19, 0.21) lie about half a
+    cell from the nearest grid line, the outflow at most one cell beyond 2.5 m."""
+    for resolution in (5, 10, 20, 30, 40, 100):
+        setup = default_setup(get_case("FSI3"), resolution)
+        k = cells_across(resolution)
+        assert k % 41 != 0 and k >= 4.1 * resolution - 1e-9
+        assert 0.41 / setup.h == pytest.approx(k)
+        for y in (0.19, 0.21):
+            offset = (y / setup.h) % 1.0
+            assert 0.2 < offset < 0.8, (resolution, y, offset)
+        simulation, _ = build_simulation(setup) if resolution == 10 else (None, None)
+        if simulation is not None:
+            length = simulation.grid.nx * setup.h
+            assert 2.5 <= length < 2.5 + setup.h
+
+
 def test_bad_case_and_resolution_are_refused() -> None:
     with pytest.raises(ValueError, match="must be one of CFD1"):
         get_case("FSI4")
-    with pytest.raises(ValueError, match="multiple of 10"):
-        default_setup(get_case("FSI1"), 15)
+    with pytest.raises(ValueError, match="in 5..200"):
+        default_setup(get_case("FSI1"), 4)
     with pytest.raises(ValueError, match="scheme"):
         default_setup(get_case("FSI1"), 10, scheme="implicit")
 
@@ -136,7 +155,7 @@ def test_cli_runs_a_case_and_writes_csv_png_json(tmp_path: Path) -> None:
     [
         (["turek-hron"], "name the case"),
         (["turek-hron", "FSI9"], "must be one of"),
-        (["turek-hron", "FSI1", "--resolution", "25"], "multiple of 10"),
+        (["turek-hron", "FSI1", "--resolution", "400"], "in 5..200"),
         (["turek-hron", "FSI1", "--dt", "-1"], "dt = -1.0"),
         (["turek-hron", "FSI1", "--scheme", "magic"], "scheme"),
         (["flag", "FSI1"], "a scene takes no case"),

@@ -9,8 +9,15 @@ flag's trailing-edge midpoint, (0.6, 0.2) at rest) and the force (drag, lift) of
 cylinder and flag together, by the traction integral. Periodic cases report ``mean ± amplitude
 [frequency]`` over the last full period, steady ones the final value.
 
-Resolution ``N`` means ``N`` cells per cylinder diameter (h = 0.1 / N m); the flag gets N / 5
-crossed element layers through its thickness (elements as large as the cells).
+Resolution ``N`` means about ``N`` cells per cylinder diameter: the channel's height 0.41 m is
+cut into ``k`` cells, the smallest ``k >= 4.1 N`` that is not a multiple of 41 (h = 0.41 / k),
+and the channel is extended to whole cells at the outflow (at most h longer than 2.5 m).
+Every h that divides both 0.41 m and 2.5 m puts the flag's faces (y = 0.19 and 0.21 m) exactly
+on grid lines, where the faces along them flip between fluid and solid with every round-off
+of motion and drive a step-to-step oscillation of the flag (docs/method_notes.md); with
+``k`` not a multiple of 41 they lie 0.46 of a cell from the nearest line. The flag gets
+``max(2, round(N / 5))`` crossed element layers through its thickness (elements about as
+large as the cells).
 """
 
 from __future__ import annotations
@@ -111,12 +118,19 @@ UNITS: dict[str, tuple[float, str]] = {
 
 
 def check_resolution(resolution: int) -> None:
-    """Refuse a resolution that does not give whole cells across the channel (0.41 m)."""
-    if not (isinstance(resolution, int) and resolution >= 10 and resolution % 10 == 0):
+    """Refuse a resolution outside 5..200 cells per cylinder diameter."""
+    if not (isinstance(resolution, int) and 5 <= resolution <= 200):
         raise ValueError(
-            f"resolution = {resolution!r}: must be a multiple of 10 cells per cylinder diameter "
-            "(10, 20, 30, ...; 0.41 m must be a whole number of cells)"
+            f"resolution = {resolution!r}: must be a whole number of cells per cylinder "
+            "diameter in 5..200"
         )
+
+
+def cells_across(resolution: int) -> int:
+    """Cells across the channel's height: the smallest ``k >= 4.1 N`` not a multiple of 41
+    (a multiple would put the flag's faces on grid lines)."""
+    k = math.ceil(4.1 * resolution - 1e-9)
+    return k + 1 if k % 41 == 0 else k
 
 
 def get_case(name: str) -> Case:
@@ -185,10 +199,11 @@ class Setup:
 
 def default_setup(case: Case, resolution: int, *, duration: float | None = None,
                   dt: float | None = None, scheme: str = "monolithic") -> Setup:
-    """Resolution N -> h = 0.1/N, N/5 flag layers; dt from a CFL number of 0.5 on the inflow
-    peak (fluid cases), 0.005 s (CSM3, the benchmark's own step)."""
+    """Resolution N -> h = 0.41 / `cells_across` (N), about N/5 flag layers; dt from a CFL
+    number of 0.5 on the inflow peak (fluid cases), 0.005 s (CSM3, the benchmark's own
+    step)."""
     check_resolution(resolution)
-    h = DIAMETER / resolution
+    h = CHANNEL[1] / cells_across(resolution)
     if duration is None:
         duration = case.duration
     if not (duration >= 0.0 and math.isfinite(duration)):
@@ -199,7 +214,8 @@ def default_setup(case: Case, resolution: int, *, duration: float | None = None,
         raise ValueError(f"dt = {dt!r}: must be a finite positive time step [s]")
     if scheme not in ("monolithic", "explicit"):
         raise ValueError(f"scheme = {scheme!r}: must be 'monolithic' or 'explicit'")
-    return Setup(case, resolution, h, float(dt), float(duration), scheme, resolution // 5)
+    return Setup(case, resolution, h, float(dt), float(duration), scheme,
+                 max(2, round(resolution / 5)))
 
 
 @dataclass
@@ -245,7 +261,7 @@ def run_case(name: str, resolution: int = 20, *, duration: float | None = None,
 
     Args:
         name: "CFD1" ... "FSI3".
-        resolution: Cells per cylinder diameter (a multiple of 10).
+        resolution: About this many cells per cylinder diameter (see `cells_across`).
         duration: Simulated time [s] (default: the case's).
         dt: Fluid time step [s] (default: CFL 0.5 on the inflow peak).
         scheme: Coupling scheme of the FSI cases ("monolithic" or "explicit").
@@ -346,9 +362,9 @@ def build_simulation(setup: Setup) -> tuple[Simulation, int | None]:
     from elastoflow.grid import Grid2D
     from elastoflow.simulation import MonolithicCoupling, Simulation
 
-    case = setup.case
     n = setup.resolution
-    grid = Grid2D(nx=25 * n, ny=41 * n // 10, h=setup.h)
+    case = setup.case
+    grid = Grid2D(nx=math.ceil(CHANNEL[0] / setup.h - 1e-9), ny=cells_across(n), h=setup.h)
     boundaries = fluid.DomainBoundaries(
         left=fluid.Inflow(speed=1.5 * case.mean_speed, profile="parabolic", ramp_time=RAMP_TIME),
         right=fluid.Outflow(), bottom=fluid.WallNoSlip(), top=fluid.WallNoSlip(),
