@@ -476,11 +476,12 @@ def list_command() -> None:
 @app.command()
 def validate(
     scene: Annotated[str, typer.Argument(help="Scene TOML file (or built-in name), or a "
-                                         "benchmark: turek-hron.")],
+                                         "benchmark: turek-hron, perpendicular-flap.")],
     case: Annotated[str | None, typer.Argument(help="The benchmark's case: CFD1-3, CSM1-3, "
                                                "FSI1-3 (turek-hron).")] = None,
     resolution: Annotated[int, typer.Option(help="Benchmark: about this many cells per "
-                                            "cylinder diameter (5-200).")] = 20,
+                                            "cylinder diameter (turek-hron) or metre "
+                                            "(perpendicular-flap), 5-200.")] = 20,
     duration: Annotated[float | None, typer.Option(help="Benchmark: simulated time [s] "
                                                    "(default: the case's).")] = None,
     dt: Annotated[float | None, typer.Option(help="Benchmark: time step [s] (default: CFL "
@@ -498,8 +499,8 @@ def validate(
     geometry checks) short of stepping; prints one line per problem (exit 2) or a summary
     (exit 0); warnings go to stderr.
 
-    A benchmark (``elastoflow validate turek-hron FSI3 --resolution 20``): runs the case in its
-    exact geometry, prints its quantities in the benchmark's format (periodic: mean ± amplitude
+    A benchmark (``elastoflow validate turek-hron FSI3 --resolution 20``, ``elastoflow
+    validate perpendicular-flap``): runs the case in its exact geometry, prints its quantities in the benchmark's format (periodic: mean ± amplitude
     [frequency] over the last period), writes the time series (CSV) and plots (PNG) to --out.
     """
     from elastoflow.scenes import SceneError, memory_estimate, step_count, time_step
@@ -531,29 +532,49 @@ def _benchmark(name: str, case: str | None, resolution: int, duration: float | N
 
     from elastoflow.simulation import SimulationBlowUp
     from elastoflow.solid import SolidInversionError
-    from elastoflow.validation import CASES, check_resolution, default_setup, get_case, run_case
+    from elastoflow.validation import (
+        CASES,
+        check_resolution,
+        default_setup,
+        flap_setup,
+        get_case,
+        run_case,
+        run_flap,
+    )
     from elastoflow.validation import describe, format_quantities, write_report
 
-    if case is None:
-        _fail(f"{name}: name the case ({', '.join(CASES)})")
     try:
-        chosen = get_case(case)
-        check_resolution(resolution)
-        setup = default_setup(chosen, resolution, duration=duration, dt=dt, scheme=scheme)
+        if name == "perpendicular-flap":
+            if case is not None:
+                _fail(f"{case!r}: the perpendicular flap has one case (leave it out)")
+            setup = flap_setup(resolution, duration=duration, dt=dt, scheme=scheme)
+            title = "flap"
+
+            def run(progress: Any) -> Any:
+                return run_flap(resolution, duration=setup.duration, dt=setup.dt,
+                                scheme=scheme, progress=progress)
+        else:
+            if case is None:
+                _fail(f"{name}: name the case ({', '.join(CASES)})")
+            chosen = get_case(case)
+            check_resolution(resolution)
+            setup = default_setup(chosen, resolution, duration=duration, dt=dt, scheme=scheme)
+            title = chosen.name
+
+            def run(progress: Any) -> Any:
+                return run_case(chosen.name, resolution, duration=setup.duration, dt=setup.dt,
+                                scheme=scheme, progress=progress)
     except ValueError as error:
         _fail(str(error))
     _output_folder(out, "--out")
-    columns = (TextColumn(f"{chosen.name} N={resolution}"), BarColumn(),
+    columns = (TextColumn(f"{title} N={resolution}"), BarColumn(),
                TextColumn("{task.completed}/{task.total}"), TimeRemainingColumn())
     with Progress(*columns, transient=True, disable=not sys.stderr.isatty()) as progress:
         task = progress.add_task("run", total=setup.steps)
         try:
-            result = run_case(chosen.name, resolution, duration=setup.duration, dt=setup.dt,
-                              scheme=scheme,
-                              progress=lambda done, total: progress.update(
-                                  task, completed=done, total=total))
+            result = run(lambda done, total: progress.update(task, completed=done, total=total))
         except (SimulationBlowUp, SolidInversionError) as error:
-            _fail(f"{chosen.name} failed: {error}", EXIT_RUN_FAILED)
+            _fail(f"{title} failed: {error}", EXIT_RUN_FAILED)
     typer.echo(describe(result))
     for line in format_quantities(result):
         typer.echo(f"  {line}")

@@ -7,6 +7,7 @@ series (CSV), plots (PNG) and quantities (JSON); ``elastoflow validate turek-hro
 both.
 """
 
+from elastoflow.validation._perpendicular_flap import FLAP_CASE, cells_high, flap_setup, run_flap
 from elastoflow.validation._report import (
     describe,
     format_quantities,
@@ -29,26 +30,30 @@ from elastoflow.validation._turek_hron import (
     run_case,
 )
 
-# Benchmarks that `elastoflow validate NAME CASE` runs.
-BENCHMARKS = ("turek-hron",)
+# Benchmarks that `elastoflow validate NAME [CASE]` runs.
+BENCHMARKS = ("turek-hron", "perpendicular-flap")
 
 __all__ = [
     "BENCHMARKS",
     "CASES",
+    "FLAP_CASE",
     "REFERENCE",
     "Case",
     "Result",
     "Setup",
     "build_simulation",
     "cells_across",
+    "cells_high",
     "check_resolution",
     "default_setup",
     "describe",
     "flag_mesh",
+    "flap_setup",
     "format_quantities",
     "get_case",
     "quantities_json",
     "rigid_flag_polygon",
     "run_case",
+    "run_flap",
     "write_report",
 ]

@@ -15,7 +15,8 @@ from elastoflow.analysis import PeriodicStatistics
 from elastoflow.io import write_text_atomic
 from elastoflow.validation._turek_hron import REFERENCE, UNITS, Result
 
-_LABELS = {"ux_A": "u_x(A)", "uy_A": "u_y(A)", "drag": "drag", "lift": "lift"}
+_LABELS = {"ux_A": "u_x(A)", "uy_A": "u_y(A)", "drag": "drag", "lift": "lift",
+           "ux_tip": "u_x(tip)", "uy_tip": "u_y(tip)"}
 
 
 def describe(result: Result) -> str:
@@ -29,8 +30,8 @@ def describe(result: Result) -> str:
         stepping = f"static equilibrium by Newton's method ({result.steps} iterations)"
     else:
         stepping = f"dt = {s.dt:.4g} s, t = 0-{end:.4g} s ({result.steps} steps)"
-    return (f"Turek-Hron {s.case.name}, resolution {s.resolution}: {where}, "
-            f"{result.elements} flag elements{scheme}, {stepping}, {result.seconds:.1f} s wall")
+    return (f"{s.case.benchmark} {s.case.name}, resolution {s.resolution}: {where}, "
+            f"{result.elements} solid elements{scheme}, {stepping}, {result.seconds:.1f} s wall")
 
 
 def format_quantities(result: Result) -> list[str]:
@@ -66,7 +67,7 @@ def quantities_json(result: Result) -> dict[str, Any]:
             quantities[key]["reference"] = REFERENCE[s.case.name][key]
             quantities[key]["relative_error"] = result.errors[key]
     return {
-        "benchmark": "turek-hron",
+        "benchmark": s.case.benchmark,
         "case": s.case.name,
         "resolution": s.resolution,
         "h": s.h,

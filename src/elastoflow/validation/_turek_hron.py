@@ -84,6 +84,10 @@ class Case:
     fluid_density: float = 1000.0
     viscosity: float = 1e-3
     poisson_ratio: float = 0.4
+    benchmark: str = "Turek-Hron"
+    columns: tuple[str, ...] | None = None
+    window: float = 0.5
+    """Periodic cases: the fraction of the record, from its end, searched for periods."""
 
     @property
     def young_modulus(self) -> float:
@@ -92,6 +96,8 @@ class Case:
     @property
     def quantities(self) -> tuple[str, ...]:
         """Names of the benchmark's quantities for this kind of case."""
+        if self.columns is not None:
+            return self.columns
         return {"CFD": ("drag", "lift"), "CSM": ("ux_A", "uy_A"),
                 "FSI": ("ux_A", "uy_A", "drag", "lift")}[self.kind]
 
@@ -114,6 +120,7 @@ CASES: dict[str, Case] = {
 # Units the benchmark prints each quantity in: displacements in 1e-3 m, forces in N/m.
 UNITS: dict[str, tuple[float, str]] = {
     "ux_A": (1e3, "1e-3 m"), "uy_A": (1e3, "1e-3 m"), "drag": (1.0, "N/m"), "lift": (1.0, "N/m"),
+    "ux_tip": (1.0, "m"), "uy_tip": (1.0, "m"),
 }
 
 
@@ -276,10 +283,10 @@ def run_case(name: str, resolution: int = 20, *, duration: float | None = None,
     else:
         time, series, elements, steps, cells = _run_fluid(setup, progress)
     seconds = _time.perf_counter() - began
-    return _evaluate(setup, time, series, seconds, cells, elements, steps)
+    return evaluate(setup, time, series, seconds, cells, elements, steps)
 
 
-def _evaluate(setup: Setup, time: np.ndarray, series: dict[str, np.ndarray], seconds: float,
+def evaluate(setup: Setup, time: np.ndarray, series: dict[str, np.ndarray], seconds: float,
               cells: tuple[int, int] | None, elements: int, steps: int) -> Result:
     case = setup.case
     quantities: dict[str, float | PeriodicStatistics] = {}
@@ -289,8 +296,8 @@ def _evaluate(setup: Setup, time: np.ndarray, series: dict[str, np.ndarray], sec
         values = series[key]
         if case.periodic:
             try:
-                # Periods are sought after the ramp, in the second half of the record.
-                quantities[key] = periodic_statistics(time, values, window=0.5)
+                # Periods are sought after the start-up, at the end of the record.
+                quantities[key] = periodic_statistics(time, values, window=case.window)
             except ValueError as error:
                 failure = f"{key}: {error}"
         else:
