@@ -341,6 +341,21 @@ def _inner_points(polygon_or_mesh: Any) -> np.ndarray:
     return np.zeros((0, 2))
 
 
+def _edges_on_grid_lines(starts: np.ndarray, ends: np.ndarray, grid: Any) -> np.ndarray:
+    """Indices of axis-parallel edges that lie on a grid line (cell faces or centres) to within
+    1e-6 of a cell: the half-grid lines the boundary map crosses."""
+    h = grid.h
+    origin = np.asarray(grid.origin, dtype=np.float64)
+    found = []
+    for axis in (0, 1):
+        # Edges parallel to the other axis: constant coordinate along ``axis``.
+        flat = np.abs(ends[:, axis] - starts[:, axis]) <= 1e-6 * h
+        position = 2.0 * (0.5 * (starts[:, axis] + ends[:, axis]) - origin[axis]) / h
+        on = flat & (np.abs(position - np.round(position)) <= 2e-6)
+        found.append(np.flatnonzero(on))
+    return np.unique(np.concatenate(found))
+
+
 def _fmt_point(point: Sequence[float]) -> str:
     return f"[{point[0]:.4g}, {point[1]:.4g}]"
 
@@ -398,6 +413,21 @@ def check_built(scene: Scene, grid: Any, meshes: Sequence[Any], obstacles: Seque
                 f"{_fmt_point(middle[thinnest])} ({widths[thinnest]:.3g} m, h = {h:.4g} m); "
                 f"the method needs about {RESOLVED_CELLS_ACROSS:g} cells across a body to "
                 "resolve the pressure and the flow around it (forces and leakage will be off)")
+
+    for index, (starts, ends) in enumerate(outlines):
+        # A free body leaves a line at once; a clamped one keeps the edges near its clamp on it.
+        if scene.bodies[index].fixed is None or not len(starts):
+            continue
+        on_line = _edges_on_grid_lines(starts, ends, grid)
+        if on_line.size:
+            a, b = starts[on_line[0]], ends[on_line[0]]
+            warnings.append(
+                f"bodies.{index}.shape: {on_line.size} boundary edges of this clamped body lie "
+                f"on grid lines (e.g. "
+                f"{_fmt_point(a)}-{_fmt_point(b)}, h = {h:.4g} m); the faces along them flip "
+                "between fluid and solid with the smallest motion, which shakes the body and "
+                "its force from step to step (docs/method_notes.md item 9); shift the body or "
+                "change h so that its edges lie off the lines")
 
     for first in range(len(meshes)):
         for second in range(first + 1, len(meshes)):

@@ -238,12 +238,13 @@ def _flag() -> dict:
 
     The explicit coupling diverges here within 0.6-1.6 s of flow time whatever the relaxation
     (0.1 to 0.03, h = 0.01 or 0.005): the flag moves broadside ~4x its own mass of fluid. The
-    monolithic scheme runs it unrelaxed (tip of the flag at t = 4 s, still creeping up: u_y
-    +0.73 mm, u_x +0.02 mm, against FSI1's steady 0.82 and 0.0227 mm; the flag is only two
-    cells thick at this h, which the scene check warns about).
+    monolithic scheme runs it unrelaxed. 42 cells across the 0.41 m channel (h = 0.41/42,
+    the channel 257 cells = 2.509 m long) keep the flag's long edges off the grid lines, where
+    they would shake it from step to step (docs/method_notes.md item 9). The benchmark itself,
+    with its quantities: ``elastoflow validate turek-hron FSI1``.
     """
     return {
-        "domain": {"lx": 2.5, "ly": 0.41, "h": 0.01},
+        "domain": {"lx": 257 * 0.41 / 42, "ly": 0.41, "h": 0.41 / 42},
         "fluid": {"density": 1000.0, "viscosity": 1e-3},
         "boundaries": {"left": {"type": "inflow", "speed": 0.3, "profile": "parabolic",
                                 "ramp_time": 2.0},

@@ -81,9 +81,10 @@ class DomainSpec(_Spec):
             if not math.isfinite(cells):
                 raise ValueError(f"{label} / h = {cells}: must be a finite number of cells")
             if abs(cells - round(cells)) > 1e-6 or round(cells) < 2:
+                key, value = ("h", self.h) if self.h is not None else ("nx", self.nx)
                 raise ValueError(
-                    f"{label} must be a whole number (>= 2) of cells of side {self.cell_size:g}, "
-                    f"got {cells:g} cells"
+                    f"domain.{key} = {value!r} gives cells of side {self.cell_size:g}: {label} "
+                    f"must be a whole number (>= 2) of them, got {cells:g} cells"
                 )
         return self
 
