@@ -41,14 +41,22 @@ class PeriodicStatistics:
                 f"[{self.frequency:.{digits}g}]")
 
 
-def _up_crossings(time: np.ndarray, signal: np.ndarray, level: float) -> np.ndarray:
-    """Times where the signal crosses ``level`` upwards, linearly interpolated."""
-    below = signal[:-1] < level
-    above = signal[1:] >= level
-    index = np.flatnonzero(below & above)
-    s0, s1 = signal[index], signal[index + 1]
-    fraction = (level - s0) / (s1 - s0)
-    return time[index] + fraction * (time[index + 1] - time[index])
+def _up_crossings(time: np.ndarray, signal: np.ndarray, level: float,
+                  hysteresis: float) -> np.ndarray:
+    """Times where the signal crosses ``level`` upwards, linearly interpolated, counting a
+    crossing only after the signal has been below ``level - hysteresis`` (a Schmitt trigger:
+    small wiggles about the mid level, e.g. the drag's higher harmonics, are no periods)."""
+    crossings = []
+    armed = False
+    low = level - hysteresis
+    for k in range(len(signal) - 1):
+        if signal[k] < low:
+            armed = True
+        if armed and signal[k] < level <= signal[k + 1]:
+            fraction = (level - signal[k]) / (signal[k + 1] - signal[k])
+            crossings.append(time[k] + fraction * (time[k + 1] - time[k]))
+            armed = False
+    return np.array(crossings)
 
 
 def _extreme(time: np.ndarray, signal: np.ndarray, largest: bool) -> float:
@@ -72,7 +80,8 @@ def periodic_statistics(time: np.ndarray, signal: np.ndarray, periods: int = 1,
     """Statistics of the last ``periods`` full periods of a sampled periodic signal.
 
     Periods are delimited by up-crossings of the mid level ``(max + min) / 2`` of the last
-    ``window`` fraction of the record; the frequency is the number of periods between the first
+    ``window`` fraction of the record (each after the signal has been a quarter of the range
+    below it, so that wiggles near the mid level do not count); the frequency is the number of periods between the first
     and last up-crossing of that part, over the time between them (several periods averaged,
     less sensitive to the sampling than one). Max and min are taken over the last ``periods``
     full periods.
@@ -103,7 +112,7 @@ def periodic_statistics(time: np.ndarray, signal: np.ndarray, periods: int = 1,
     part = time >= first
     t, s = time[part], signal[part]
     level = 0.5 * (s.max() + s.min())
-    crossings = _up_crossings(t, s, level)
+    crossings = _up_crossings(t, s, level, 0.25 * (s.max() - s.min()))
     if len(crossings) < periods + 1:
         raise ValueError(
             f"{len(crossings)} up-crossings of the mid level in the last {window:.0%} of the "

@@ -58,3 +58,11 @@ def test_several_periods_window_and_format() -> None:
 def test_bad_input_is_refused(time: np.ndarray, signal: np.ndarray, message: str) -> None:
     with pytest.raises(ValueError, match=message):
         periodic_statistics(time, signal)
+
+
+def test_wiggles_near_the_mid_level_are_no_periods() -> None:
+    # A drag-like signal: fundamental 11 Hz with a 5th harmonic wiggling across the mid level.
+    t = np.arange(0.0, 4.0, 0.0005)
+    signal = 585.0 + 20.0 * np.sin(2 * np.pi * 11.0 * t) + 6.0 * np.sin(2 * np.pi * 55.0 * t)
+    stats = periodic_statistics(t, signal)
+    assert stats.frequency == pytest.approx(11.0, rel=1e-3)
