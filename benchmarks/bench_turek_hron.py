@@ -4,7 +4,9 @@
 [--quick]`` writes ``benchmarks/results/NAME.json`` (default turek_hron; one row per run), and per run the plots and
 quantities into ``docs/validation/turek-hron/`` (``<case>_n<N>.png`` / ``.json``) and the time
 series into ``out/validation/`` (CSV, not kept in the repository). docs/validation/turek-hron.md
-is written from these. ``--quick``: CFD1, CSM1 and FSI1 at N = 10 over 2 s (a smoke test).
+is written from these. ``--quick``: CFD1, CSM1 and FSI1 at N = 10 over 2 s (a smoke test). ``--reevaluate``: no runs;
+the quantities, plots and JSON again from the time series in ``out/validation`` (after a
+change to the evaluation).
 """
 
 from __future__ import annotations
@@ -13,6 +15,10 @@ import shutil
 import time
 from pathlib import Path
 from typing import Any
+
+import json
+
+import numpy as np
 
 from benchmarks._common import machine, markdown_table, write_results
 
@@ -25,6 +31,22 @@ def _option(argv: list[str], name: str, default: str) -> str:
         if item.startswith(f"--{name}="):
             return item.split("=", 1)[1]
     return default
+
+
+def _reevaluate(name: str, resolution: int) -> Any:
+    """A `Result` rebuilt from the CSV and JSON of an earlier run of this case."""
+    from elastoflow.validation import default_setup, get_case
+    from elastoflow.validation._turek_hron import evaluate
+
+    stem = SERIES / f"{name.lower()}_n{resolution}"
+    saved = json.loads(stem.with_suffix(".json").read_text())
+    data = np.atleast_2d(np.loadtxt(stem.with_suffix(".csv"), delimiter=",", skiprows=1))
+    case = get_case(name)
+    setup = default_setup(case, resolution, duration=saved["duration"], dt=saved["dt"])
+    series = {key: data[:, k + 1] for k, key in enumerate(case.quantities)}
+    cells = tuple(saved["cells"]) if saved["cells"] else None
+    return evaluate(setup, data[:, 0], series, saved["wall_seconds"], cells,
+                    saved["flag_elements"], saved["steps"])
 
 
 def main(argv: list[str] | None = None) -> list[dict[str, Any]]:
@@ -42,13 +64,16 @@ def main(argv: list[str] | None = None) -> list[dict[str, Any]]:
         for resolution in resolutions:
             began = time.perf_counter()
             try:
-                result = run_case(name, resolution, duration=2.0 if quick else None)
+                if "--reevaluate" in argv:
+                    result = _reevaluate(name, resolution)
+                else:
+                    result = run_case(name, resolution, duration=2.0 if quick else None)
             except (SimulationBlowUp, SolidInversionError) as error:
                 print(f"{name} N={resolution}: failed: {error}", flush=True)
                 rows.append({"case": name, "N": resolution, "note": f"failed: {error}",
                              "wall [s]": round(time.perf_counter() - began, 1)})
                 continue
-            wall = time.perf_counter() - began
+            wall = result.seconds if "--reevaluate" in argv else time.perf_counter() - began
             print(f"{name} N={resolution}: {wall:.1f} s", flush=True)
             for line in format_quantities(result):
                 print(f"  {line}", flush=True)

@@ -21,6 +21,9 @@ class PeriodicStatistics:
         end: End time of the window [s].
         minimum: Smallest value in the window.
         maximum: Largest value in the window.
+        growth: Relative change of the amplitude from the ``periods`` periods before the
+            window to the window (NaN when the record holds too few); a settled oscillation
+            has ``|growth|`` near 0, a growing or decaying one does not.
     """
 
     mean: float
@@ -31,6 +34,7 @@ class PeriodicStatistics:
     end: float
     minimum: float
     maximum: float
+    growth: float = float("nan")
 
     def as_dict(self) -> dict[str, float | int]:
         return asdict(self)
@@ -126,6 +130,12 @@ def periodic_statistics(time: np.ndarray, signal: np.ndarray, periods: int = 1,
     hi = min(int(np.flatnonzero(inside)[-1]) + 2, len(t))
     maximum = _extreme(t[lo:hi], s[lo:hi], largest=True)
     minimum = _extreme(t[lo:hi], s[lo:hi], largest=False)
+    growth = float("nan")
+    if len(crossings) >= 2 * periods + 1:
+        before = (t >= crossings[-2 * periods - 1]) & (t <= start)
+        previous = 0.5 * (s[before].max() - s[before].min())
+        if previous > 0.0:
+            growth = float(0.5 * (maximum - minimum) / previous - 1.0)
     return PeriodicStatistics(
         mean=0.5 * (maximum + minimum),
         amplitude=0.5 * (maximum - minimum),
@@ -135,4 +145,5 @@ def periodic_statistics(time: np.ndarray, signal: np.ndarray, periods: int = 1,
         end=float(end),
         minimum=float(minimum),
         maximum=float(maximum),
+        growth=growth,
     )

@@ -43,6 +43,9 @@ def format_quantities(result: Result) -> list[str]:
         label = f"{_LABELS[key]} [{unit}]"
         if isinstance(value, PeriodicStatistics):
             text = value.format(scale=scale)
+            if abs(value.growth) > 0.02:
+                text += (f"   (not settled: amplitude {100 * value.growth:+.1f} % over the "
+                         "last period; run longer)")
         else:
             text = f"{value * scale:.5g}"
             if key in result.drift:

@@ -107,7 +107,7 @@ CASES: dict[str, Case] = {
     for case in (
         Case("CFD1", "CFD", False, 0.2, 12.0),
         Case("CFD2", "CFD", False, 1.0, 10.0),
-        Case("CFD3", "CFD", True, 2.0, 10.0),
+        Case("CFD3", "CFD", True, 2.0, 20.0),
         Case("CSM1", "CSM", False, 0.0, 0.0, gravity=2.0),
         Case("CSM2", "CSM", False, 0.0, 0.0, shear_modulus=2.0e6, gravity=2.0),
         Case("CSM3", "CSM", True, 0.0, 10.0, gravity=2.0),

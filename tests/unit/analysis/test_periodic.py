@@ -66,3 +66,11 @@ def test_wiggles_near_the_mid_level_are_no_periods() -> None:
     signal = 585.0 + 20.0 * np.sin(2 * np.pi * 11.0 * t) + 6.0 * np.sin(2 * np.pi * 55.0 * t)
     stats = periodic_statistics(t, signal)
     assert stats.frequency == pytest.approx(11.0, rel=1e-3)
+
+
+def test_growth_tells_a_settled_oscillation_from_a_growing_one() -> None:
+    t = np.arange(0.0, 10.0, 0.001)
+    settled = periodic_statistics(t, np.sin(2 * np.pi * 2.0 * t))
+    assert abs(settled.growth) < 1e-4
+    growing = periodic_statistics(t, np.exp(0.2 * t) * np.sin(2 * np.pi * 2.0 * t))
+    assert growing.growth == pytest.approx(np.exp(0.2 * 0.5) - 1.0, rel=0.05)
