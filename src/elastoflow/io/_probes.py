@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import contextlib
 import csv
+import json
 import errno
 import io
 import os
@@ -259,11 +260,45 @@ class ProbeRecorder:
                 os.close(self._handle)
                 self._handle = None
 
+    def write_statistics(self) -> Path | None:
+        """``probes_statistics.json`` beside the CSV: every column's final value, and its mean,
+        amplitude, frequency and growth over the last period where it is periodic in the last
+        half of the run (`probe_statistics`)."""
+        if not self.rows or len(self.columns) <= 2:
+            return None
+        path = self.path.with_name(f"{self.path.stem}_statistics.json")
+        data = probe_statistics(self.columns, np.asarray(self.rows))
+        write_text_atomic(path, json.dumps(data, indent=2, allow_nan=True) + "\n")
+        return path
+
     def plot(self) -> Path | None:
         """One panel per probe column against time, saved as PNG (matplotlib, Agg)."""
         if not self.rows or len(self.columns) <= 2:
             return None
         return plot_probes(self.columns, np.asarray(self.rows), self.path.with_suffix(".png"))
+
+
+def probe_statistics(columns: Sequence[str], data: np.ndarray) -> dict[str, dict[str, float]]:
+    """Per probe column (after ``step`` and ``time``): ``final`` and, where the last half of
+    the record is periodic, ``mean``, ``amplitude``, ``frequency`` [Hz] and ``growth`` as
+    `elastoflow.analysis.periodic_statistics` defines them (Turek & Hron's definitions)."""
+    from elastoflow.analysis import periodic_statistics
+
+    data = np.atleast_2d(np.asarray(data, dtype=np.float64))
+    time = data[:, 1]
+    result: dict[str, dict[str, float]] = {}
+    for k, name in enumerate(columns[2:], start=2):
+        signal = data[:, k]
+        entry: dict[str, float] = {"final": float(signal[-1])}
+        try:
+            stats = periodic_statistics(time, signal)
+        except ValueError:
+            pass
+        else:
+            entry.update(mean=stats.mean, amplitude=stats.amplitude, frequency=stats.frequency,
+                         growth=stats.growth)
+        result[name] = entry
+    return result
 
 
 def _line(values: Sequence[str]) -> str:

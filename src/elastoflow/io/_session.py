@@ -250,6 +250,9 @@ class OutputSession:
             plot = attempt(self._probes.plot)
             if plot is not None:
                 self.written.append(plot)
+            statistics = attempt(self._probes.write_statistics)
+            if statistics is not None:
+                self.written.append(statistics)
         if self.outputs.meshes is not None and sim.bodies:
             self.written.append(self.out_dir / "meshes")
         if errors:

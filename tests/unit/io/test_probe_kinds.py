@@ -113,3 +113,31 @@ def test_probes_naming_what_is_not_there_are_refused(probe: dict, message: str) 
     assert any(message in line for line in problems), problems
     with pytest.raises(SceneError, match="outputs.probes.0"):
         parse_scene(tomllib.loads(scene_to_toml(_channel([probe]))))
+
+
+def test_probe_statistics_json_final_and_periodic(tmp_path: Path) -> None:
+    """The statistics file a run writes beside probes.csv: the final value of every column,
+    and mean, amplitude and frequency where the column is periodic."""
+    import json
+
+    from elastoflow.io._probes import probe_statistics
+
+    time = np.arange(0.0, 10.0, 0.01)
+    data = np.column_stack([np.arange(len(time)), time, 2.0 + 0.5 * np.sin(2 * np.pi * 1.5 * time),
+                            np.linspace(0.0, 1.0, len(time))])
+    stats = probe_statistics(["step", "time [s]", "lift", "ramp"], data)
+    assert stats["lift"]["mean"] == pytest.approx(2.0, abs=1e-3)
+    assert stats["lift"]["amplitude"] == pytest.approx(0.5, rel=1e-3)
+    assert stats["lift"]["frequency"] == pytest.approx(1.5, rel=1e-3)
+    assert stats["ramp"] == {"final": 1.0}
+    scene = _channel([{"kind": "force", "obstacles": [0]}])
+    simulation = elastoflow.load(scene)
+    recorder = ProbeRecorder(scene.outputs.probes, simulation, tmp_path / "probes.csv")
+    for _ in range(3):
+        simulation.step()
+        recorder.record(simulation)
+    path = recorder.write_statistics()
+    recorder.close()
+    assert path == tmp_path / "probes_statistics.json"
+    written = json.loads(path.read_text())
+    assert set(written) == {"force_obstacle0_x [N/m]", "force_obstacle0_y [N/m]"}
