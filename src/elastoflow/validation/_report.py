@@ -44,8 +44,8 @@ def format_quantities(result: Result) -> list[str]:
         if isinstance(value, PeriodicStatistics):
             text = value.format(scale=scale)
             if abs(value.growth) > 0.02:
-                text += (f"   (not settled: amplitude {100 * value.growth:+.1f} % over the "
-                         "last period; run longer)")
+                text += (f"   (amplitude {100 * value.growth:+.1f} % from the period before: "
+                         "not settled, or not strictly periodic)")
         else:
             text = f"{value * scale:.5g}"
             if key in result.drift:
