@@ -19,7 +19,7 @@ from elastoflow.cli import app
 from elastoflow.validation import (
     CASES,
     REFERENCE,
-    build_simulation,
+    case_simulation,
     cells_across,
     default_setup,
     flag_mesh,
@@ -85,7 +85,7 @@ def test_grid_keeps_the_flag_faces_off_the_grid_lines() -> None:
         for y in (0.19, 0.21):
             offset = (y / setup.h) % 1.0
             assert 0.2 < offset < 0.8, (resolution, y, offset)
-        simulation, _ = build_simulation(setup) if resolution == 10 else (None, None)
+        simulation, _ = case_simulation(setup) if resolution == 10 else (None, None)
         if simulation is not None:
             length = simulation.grid.nx * setup.h
             assert 2.5 <= length < 2.5 + setup.h

@@ -363,7 +363,7 @@ def _run_solid(setup: Setup, progress: Progress | None
     return np.array(times), series, body.mesh.triangle_count, steps
 
 
-def build_simulation(setup: Setup) -> tuple[Simulation, int | None]:
+def case_simulation(setup: Setup) -> tuple[Simulation, int | None]:
     """The `Simulation` of a CFD or FSI case, and the flag's point-A node (None for CFD)."""
     from elastoflow import coupling, fluid, linalg
     from elastoflow.grid import Grid2D
@@ -397,7 +397,7 @@ def build_simulation(setup: Setup) -> tuple[Simulation, int | None]:
 
 def _run_fluid(setup: Setup, progress: Progress | None
                ) -> tuple[np.ndarray, dict[str, np.ndarray], int, int, tuple[int, int]]:
-    simulation, node_a = build_simulation(setup)
+    simulation, node_a = case_simulation(setup)
     steps = setup.steps
     times = np.zeros(steps + 1)
     columns = {key: np.zeros(steps + 1) for key in ("ux_A", "uy_A", "drag", "lift")}
