@@ -345,7 +345,8 @@ def run(
             recovered = (failure is not None or mid_step) and session.recover()
             try:
                 written = session.close(final_checkpoint=failure is None or recovered,
-                                        failed=failure is not None or mid_step)
+                                        failed=failure is not None or mid_step,
+                                        stopped=stopped)
             except OSError as error:
                 # A full or read-only file system: say so instead of a traceback.
                 unfinished = error

@@ -28,41 +28,14 @@ from typer.testing import CliRunner
 
 from elastoflow.cli import app
 from elastoflow.io import read_checkpoint, read_probes
+from tiny_scene import tiny_scene
 
 runner = CliRunner()
 
-SCENE = """
-name = "tiny"
-[domain]
-lx = 1.0
-ly = 1.0
-nx = 16
-[fluid]
-density = 1000.0
-viscosity = 1e-3
-[boundaries]
-top = "outflow"
-[[jets]]
-region = [0.4, 0.0, 0.6, 0.1]
-velocity = [0.0, 0.5]
-[[bodies]]
-shape = { type = "rectangle", box = [0.4, 0.4, 0.6, 0.8], divisions = [2, 4] }
-material = { density = 1000.0, young_modulus = 1e4, poisson_ratio = 0.3 }
-fixed = { box = [0.39, 0.79, 0.61, 0.81] }
-[time]
-dt = 0.02
-steps = 40
-[coupling]
-scheme = "explicit"
-force_model = "momentum_exchange"
-[outputs]
-video = { fps = 10 }
-probes = [{ kind = "node_displacement", body = 0, point = [0.5, 0.4] }, { kind = "pressure_iterations" }]
-checkpoint = { every = 5 }
-"""
+STEPS = 40
+SCENE = tiny_scene(steps=STEPS, checkpoint_every=5)
 
 OPTIONS = ("--fields", "npz,vtk,xdmf", "--meshes", "--every", "2", "--quiet")
-STEPS = 40
 
 
 @pytest.fixture()

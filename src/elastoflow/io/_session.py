@@ -207,11 +207,14 @@ class OutputSession:
 
     # -- the end -------------------------------------------------------------------------
 
-    def close(self, *, final_checkpoint: bool = True, failed: bool = False) -> list[Path]:
+    def close(self, *, final_checkpoint: bool = True, failed: bool = False,
+              stopped: bool = False) -> list[Path]:
         """Finish every output; returns the main files written (video, probes, checkpoint).
 
         ``failed``: the run failed (after `recover`): no output is drawn from the current
-        state, only the checkpoint is saved. Every part is attempted; the first `OSError`
+        state, only the checkpoint is saved. ``stopped``: the run was interrupted and will be
+        resumed: fields and meshes keep their ``every`` schedule (no snapshot of the stop step
+        off it, which an uninterrupted run would not have), the checkpoint is saved. Every part is attempted; the first `OSError`
         (a full or read-only disk) is raised at the end.
         """
         if self._closed:
@@ -227,8 +230,8 @@ class OutputSession:
                 return None
 
         sim = self.simulation
-        if not failed:
-            # The last state is always saved, also when the run stops between output steps.
+        if not failed and not stopped:
+            # The last state is always saved, also when the run ends between output steps.
             attempt(lambda: self._write_frame_outputs(None, force=True, video=False))
         if self._video is not None:
             attempt(lambda: self._video.cut(sim.step_index))
