@@ -6,8 +6,8 @@
 Reads ``summary.parquet`` with pandas and ``fields.zarr`` with xarray, prints a Markdown table
 and draws St(Re) against Williamson's (1988) fit of experiments, with the wakes below.
 
-The scene's probe is the fluid's kinetic energy, which two vortices shed per period (one from
-each side) make oscillate at twice the shedding frequency: St = (f_energy / 2) D / U.
+The scene's probe is the force of the fluid on the cylinder (traction integral); its lift (y)
+oscillates at the shedding frequency f: St = f D / U.
 """
 
 from __future__ import annotations
@@ -37,7 +37,7 @@ def main(argv: list[str]) -> int:
     target = Path(argv[1]) if len(argv) > 1 else folder / "strouhal.png"
     summary = pd.read_parquet(folder / "summary.parquet")
     summary["Re"] = SPEED * DIAMETER / summary["fluid.viscosity"]
-    summary["St"] = summary["fluid_kinetic_energy_frequency [Hz]"] / 2 * DIAMETER / SPEED
+    summary["St"] = summary["force_obstacle0_y_frequency [Hz]"] * DIAMETER / SPEED
     summary["Williamson"] = williamson(summary["Re"].to_numpy())
     summary["error [%]"] = 100 * (summary["St"] / summary["Williamson"] - 1)
     print("| Re | St (elastoflow) | St (Williamson 1988) | difference | wall time [s] |")
