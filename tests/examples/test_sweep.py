@@ -253,3 +253,95 @@ def test_example_study_checks_and_bad_points_exit_2(tmp_path: Path) -> None:
     assert refused.exit_code == 2
     assert "point 1 (fluid.viscosity = -1.0)" in refused.output
     assert not (tmp_path / "out").exists()
+
+
+def _group_gone(group: int) -> bool:
+    try:
+        os.killpg(group, 0)
+    except ProcessLookupError:
+        return True
+    return False
+
+
+def test_ctrl_c_stops_cleanly_and_the_printed_command_resumes(tmp_path: Path) -> None:
+    """Ctrl-C in a terminal: SIGINT to the command's whole process group (the command, the
+    local cluster's nannies and workers). The sweep stops with exit 130, no traceback, the
+    summary written (finished points done, the others pending), every process gone, and the
+    printed command resumes: finished points skipped, interrupted ones from their checkpoint."""
+    long_steps, every = 2000, 100
+    sweep = _sweep(tmp_path, steps=long_steps, n=32, body=f"""
+[[points]]
+"time.steps" = 20
+[[points]]
+"time.steps" = 20
+"boundaries.top.velocity" = 2.0
+[[points]]
+"boundaries.top.velocity" = 0.5
+[[points]]
+"boundaries.top.velocity" = 1.5
+[run]
+checkpoint_every = {every}
+probe_plot = false
+""")
+    out = tmp_path / "out"
+    process = subprocess.Popen(
+        [sys.executable, "-m", "elastoflow.cli", "sweep", str(sweep), "--out", str(out),
+         "--workers", "2", "--no-dashboard"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+        text=True, env=_ENV, start_new_session=True)
+    group = process.pid
+    points = [out / "points" / f"point_{k:05d}" for k in range(4)]
+
+    def caught_mid_run() -> bool:
+        finished = all((p / "result.json").exists() for p in points[:2])
+        running = all((p / "running.json").exists() and not (p / "result.json").exists()
+                      and any(int(c.stem.split("_")[1]) > 0
+                              for c in (p / "checkpoints").glob("checkpoint_*.npz"))
+                      for p in points[2:])
+        return finished and running
+
+    try:
+        deadline = time.monotonic() + 180
+        while not caught_mid_run() and time.monotonic() < deadline and process.poll() is None:
+            time.sleep(0.02)
+        assert caught_mid_run(), "the long points were not caught between a checkpoint and " \
+                                 "their end"
+        os.killpg(group, signal.SIGINT)
+        stdout, stderr = process.communicate(timeout=120)
+        deadline = time.monotonic() + 60
+        while not _group_gone(group) and time.monotonic() < deadline:
+            time.sleep(0.1)
+        assert _group_gone(group), "worker processes outlived the stopped sweep"
+    finally:
+        if not _group_gone(group):
+            os.killpg(group, signal.SIGKILL)
+        if process.poll() is None:
+            process.kill()
+            process.wait()
+    assert process.returncode == 130, stdout + stderr
+    assert "Traceback" not in stdout + stderr, stderr
+    assert "Exception" not in stderr, stderr
+    summary = pd.read_parquet(out / "summary.parquet")
+    assert summary["status"].tolist() == ["done", "done", "pending", "pending"]
+    command = stdout.split("resume with:\n", 1)[1].splitlines()[0].split()
+    assert command[:3] == ["elastoflow", "sweep", str(sweep)]
+    # The printed command keeps the cluster's options.
+    assert command[3:] == ["--out", str(out), "--workers", "2", "--no-dashboard"]
+
+    stamps = {p: (p / "result.json").stat().st_mtime_ns for p in points[:2]}
+    again = subprocess.run([sys.executable, "-m", "elastoflow.cli", *command[1:]],
+                           capture_output=True, text=True, env=_ENV, timeout=300)
+    assert again.returncode == 0, again.stdout + again.stderr
+    assert "4 of 4 points done, 0 failed, 0 lost" in again.stdout
+    assert "(2 before)" in again.stderr
+    assert {p: (p / "result.json").stat().st_mtime_ns for p in points[:2]} == stamps
+    summary = pd.read_parquet(out / "summary.parquet")
+    assert (summary["status"] == "done").all()
+    assert summary["steps"].tolist() == [20, 20, long_steps, long_steps]
+    for k in (2, 3):
+        row = summary.iloc[k]
+        assert 0 < row["resumed_from_step"] < long_steps
+        assert row["resumed_from_step"] % every == 0
+        probes = pd.read_csv(points[k] / "probes.csv")
+        assert probes["step"].tolist() == list(range(1, long_steps + 1))
+        assert not [p for p in points[k].rglob(".*") if ".tmp" in p.name]
+        assert not (points[k] / "running.json").exists()

@@ -48,6 +48,26 @@ class _ProgressLine:
             sys.stderr.write("\n")
 
 
+def _resume_command(sweep_file: Path, out: Path | None, scheduler: str | None,
+                    workers: int | None, dashboard: bool, quiet: bool) -> str:
+    """The command that runs the same sweep again on the same kind of cluster (no
+    ``--retry-failed``: a rerun after Ctrl-C only resumes)."""
+    import shlex
+
+    words = ["elastoflow", "sweep", str(sweep_file)]
+    if out is not None:
+        words += ["--out", str(out)]
+    if scheduler is not None:
+        words += ["--scheduler", scheduler]
+    if workers is not None:
+        words += ["--workers", str(workers)]
+    if not dashboard:
+        words.append("--no-dashboard")
+    if quiet:
+        words.append("--quiet")
+    return " ".join(shlex.quote(word) for word in words)
+
+
 def sweep_command(
     sweep_file: Annotated[Path, typer.Argument(help="Sweep TOML file (docs/sweeps.md).")],
     out: Annotated[Path | None, typer.Option(help="Sweep folder (default out/<sweep name>).")]
@@ -101,7 +121,7 @@ def sweep_command(
         _fail([f"--out = {str(folder)!r}: cannot write there ({error.strerror or error})"])
     typer.echo(f"sweep {spec.name}: {len(plan.points)} points -> {folder}")
     progress_line = _ProgressLine(quiet)
-    resume = f"elastoflow sweep {sweep_file}" + (f" --out {out}" if out else "")
+    resume = _resume_command(sweep_file, out, scheduler, workers, dashboard, quiet)
     try:
         with open_client(scheduler, workers=workers, dashboard=dashboard) as client:
             workers_now = len(client.nthreads())

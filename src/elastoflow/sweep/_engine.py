@@ -41,6 +41,41 @@ _SUMMARY_INTERVAL = 5.0
 """Least seconds between two rewrites of the summary while the sweep runs."""
 
 
+_POLL = 0.05
+"""Seconds between two looks at the finished tasks (a Ctrl-C is seen within this)."""
+
+
+class _StopRequest:
+    """Ctrl-C (SIGINT) while the sweep runs: the first sets ``requested`` (the loop stops,
+    cancels what has not finished and writes the summary); a second raises KeyboardInterrupt
+    at once. Outside the main thread (no signal handlers there) it does nothing."""
+
+    def __init__(self) -> None:
+        self.requested = False
+        self._previous: Any = None
+        self._installed = False
+
+    def __enter__(self) -> _StopRequest:
+        import signal
+        import threading
+
+        if threading.current_thread() is threading.main_thread():
+            self._previous = signal.signal(signal.SIGINT, self._handle)
+            self._installed = True
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        import signal
+
+        if self._installed:
+            signal.signal(signal.SIGINT, self._previous)
+
+    def _handle(self, signum: int, frame: Any) -> None:
+        if self.requested:
+            raise KeyboardInterrupt
+        self.requested = True
+
+
 @dataclass
 class SweepProgress:
     """The sweep as a whole, for the progress line."""
@@ -203,8 +238,9 @@ def run_sweep(plan: SweepPlan, out: Path, client: Any, *, retry_failed: bool = F
     """Run every point of ``plan`` not finished in ``out`` on the Dask ``client``.
 
     Writes the summary (Parquet) as points finish, at most every few seconds, and at the end;
-    the Zarr store at the end. Ctrl-C (KeyboardInterrupt) cancels what has not run, writes the
-    summary and returns with ``stopped`` set: running the sweep again goes on from there.
+    the Zarr store at the end. Ctrl-C (SIGINT, in the main thread) cancels what has not
+    finished, writes the summary and returns with ``stopped`` set: running the sweep again goes
+    on from there. A second Ctrl-C raises KeyboardInterrupt at once.
 
     Args:
         plan: The checked sweep (`plan_sweep`).
@@ -260,40 +296,55 @@ def run_sweep(plan: SweepPlan, out: Path, client: Any, *, retry_failed: bool = F
                       key=f"elastoflow-{plan.spec.name}-point{point.index}-{token}"): point
         for point in pending
     }
-    stopped = False
     last_summary = _time.perf_counter()
     report()
-    try:
-        for future in as_completed(list(futures)):
-            point = futures[future]
-            try:
-                row = future.result()
-            except Exception as error:  # noqa: BLE001 - KilledWorker, a lost connection, ...
-                row = _pending_row(point, out, "lost", f"{type(error).__name__}: {error}")
-                (out / "points" / point.folder_name / RUNNING_FILE).unlink(missing_ok=True)
-            rows[point.index] = row
-            remaining -= 1
-            finished_here += 1
-            status = row.get("status")
-            if status == "done":
-                progress.done += 1
-            elif status == "failed":
-                progress.failed += 1
-            else:
-                progress.lost += 1
+    completed = as_completed(list(futures))
+    # The first Ctrl-C only asks the loop to stop: the summary below is never cut short (an
+    # import or a Parquet write interrupted half way broke it, with a traceback).
+    with _StopRequest() as stop:
+        while remaining and not stop.requested:
+            if not completed.has_ready():
+                _time.sleep(_POLL)
+                continue
+            for future in completed.next_batch(block=False):
+                point = futures[future]
+                try:
+                    row = future.result()
+                except Exception as error:  # noqa: BLE001 - KilledWorker, a lost connection
+                    row = _pending_row(point, out, "lost", f"{type(error).__name__}: {error}")
+                    (out / "points" / point.folder_name / RUNNING_FILE).unlink(missing_ok=True)
+                rows[point.index] = row
+                remaining -= 1
+                finished_here += 1
+                status = row.get("status")
+                if status == "done":
+                    progress.done += 1
+                elif status == "failed":
+                    progress.failed += 1
+                else:
+                    progress.lost += 1
             if _time.perf_counter() - last_summary > _SUMMARY_INTERVAL:
                 write_summary(summary, [rows[i] for i in sorted(rows)], names)
                 last_summary = _time.perf_counter()
             report()
-    except KeyboardInterrupt:
-        stopped = True
-        client.cancel([f for f in futures if not f.done()])
-    write_summary(summary, [rows[i] for i in sorted(rows)], names)
-    zarr_path = None
-    if plan.spec.snapshots is not None:
-        from elastoflow.sweep._zarr import write_snapshots_zarr
+        stopped = stop.requested and remaining > 0
+        if stopped:
+            client.cancel([f for f in futures if not f.done()])
+            # Points that ended on their workers before their results reached this loop.
+            for point in futures.values():
+                if rows[point.index]["status"] == "pending":
+                    row = read_result(out / "points" / point.folder_name)
+                    if row is not None and row.get("status") in ("done", "failed"):
+                        rows[point.index] = row
+                        setattr(progress, str(row["status"]),
+                                getattr(progress, str(row["status"])) + 1)
+        # Still under the stop request: a Ctrl-C now does not cut the files short.
+        write_summary(summary, [rows[i] for i in sorted(rows)], names)
+        zarr_path = None
+        if plan.spec.snapshots is not None:
+            from elastoflow.sweep._zarr import write_snapshots_zarr
 
-        zarr_path = write_snapshots_zarr(out / ZARR_FILE, plan, rows, out)
+            zarr_path = write_snapshots_zarr(out / ZARR_FILE, plan, rows, out)
     failed = [f"point {i}: {row.get('message', '')}" for i, row in sorted(rows.items())
               if row.get("status") in ("failed", "lost")]
     return SweepOutcome(rows, progress, summary, zarr_path, stopped, failed)
