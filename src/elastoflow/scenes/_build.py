@@ -31,8 +31,16 @@ if TYPE_CHECKING:
 
 
 def characteristic_speed(scene: Scene) -> float:
-    """Largest speed the scene imposes [m/s]: inflows, moving walls, jets, obstacle motion."""
+    """Largest speed the scene imposes [m/s]: inflows, moving walls, jets, obstacle motion,
+    the initial velocity.
+
+    Raises:
+        SceneError: An initial velocity expression to evaluate on a grid larger than the
+            memory allows, or that is not finite (see `initial_velocity`).
+    """
     speeds = [0.0]
+    if scene.fluid.initial_velocity is not None:
+        speeds.append(_initial_speed(scene))
     for side in (scene.boundaries.left, scene.boundaries.right, scene.boundaries.bottom,
                  scene.boundaries.top):
         if isinstance(side, InflowSpec):
@@ -92,7 +100,67 @@ def build_grid(scene: Scene) -> Grid2D:
     from elastoflow.grid import Grid2D
 
     nx, ny = scene.domain.cells
-    return Grid2D(nx=nx, ny=ny, h=scene.domain.cell_size)
+    return Grid2D(nx=nx, ny=ny, h=scene.domain.cell_size, origin=scene.domain.origin)
+
+
+def initial_velocity(scene: Scene, grid: Grid2D) -> tuple[np.ndarray, np.ndarray]:
+    """The scene's velocity at t = 0 on the faces of ``grid``: u (nx+1, ny) sampled at the
+    x-face centres, v (nx, ny+1) at the y-face centres [m/s]; zeros without
+    ``fluid.initial_velocity``.
+
+    Raises:
+        SceneError: A component whose expression gives a value that is not finite (named by
+            its key path, with a point where it fails).
+    """
+    from elastoflow.scenes._expression import Expression
+
+    spec = scene.fluid.initial_velocity
+    fields = []
+    for key, faces in (("x", grid.faces_x), ("y", grid.faces_y)):
+        x, y = faces()
+        value = 0.0 if spec is None else getattr(spec, key)
+        if not isinstance(value, str):
+            fields.append(np.full(x.shape, float(value)))
+            continue
+        field = Expression(value).evaluate({"x": x, "y": y})
+        bad = ~np.isfinite(field)
+        if bad.any():
+            i, j = np.argwhere(bad)[0]
+            raise SceneError([(f"fluid.initial_velocity.{key} = {value!r}: is {field[i, j]} "
+                               f"at (x, y) = ({x[i, j]:.6g}, {y[i, j]:.6g}) ({int(bad.sum())} "
+                               f"of {bad.size} faces); must be finite on every "
+                               f"{key}-face of the domain")], scene.source)
+        fields.append(field)
+    return fields[0], fields[1]
+
+
+def _initial_speed(scene: Scene) -> float:
+    """Largest initial face speed [m/s] (the expressions evaluated on the scene's grid once
+    its memory is known to fit)."""
+    from elastoflow.scenes._checks import check_memory
+
+    spec = scene.fluid.initial_velocity
+    if spec is None:
+        return 0.0
+    if not isinstance(spec.x, str) and not isinstance(spec.y, str):
+        return math.hypot(float(spec.x), float(spec.y))
+    problems = check_memory(scene)
+    if problems:
+        raise SceneError(problems, scene.source)
+    u, v = initial_velocity(scene, build_grid(scene))
+    return max(float(np.abs(u).max()), float(np.abs(v).max()))
+
+
+def _initial_state(scene: Scene, grid: Grid2D) -> Any:
+    """The fluid state at t = 0 when the scene sets an initial velocity (else None: the
+    simulation starts at rest)."""
+    from elastoflow.fluid import FluidState
+
+    if scene.fluid.initial_velocity is None:
+        return None
+    state = FluidState.zeros(grid)
+    state.velocity_x[...], state.velocity_y[...] = initial_velocity(scene, grid)
+    return state
 
 
 def _side(spec: Any) -> Any:
@@ -126,6 +194,7 @@ def build_fluid_solver(scene: Scene, grid: Grid2D) -> Any:
         jets=jets,
         gravity=scene.fluid.gravity,
         pressure_solver=solvers[scene.fluid.pressure_solver](rtol=scene.fluid.pressure_rtol),
+        viscosity_solver=solvers[scene.fluid.viscosity_solver](rtol=scene.fluid.viscosity_rtol),
         advection=scene.fluid.advection,
         incremental_pressure=scene.fluid.incremental_pressure,
     )
@@ -187,7 +256,8 @@ def build_mesh(body: BodySpec, base_dir: str | None = None) -> Any:
     shape = body.shape
     if isinstance(shape, RectangleShapeSpec):
         x0, y0, x1, y1 = shape.box
-        return solid.mesh_rectangle(x1 - x0, y1 - y0, counts=shape.divisions, origin=(x0, y0))
+        return solid.mesh_rectangle(x1 - x0, y1 - y0, counts=shape.divisions, origin=(x0, y0),
+                                    pattern=shape.pattern)
     if isinstance(shape, WindmillShapeSpec):
         return solid.mesh_windmill(
             shape.hub_radius, shape.blades, shape.radius - shape.hub_radius, shape.blade_width,
@@ -281,6 +351,8 @@ def build_bodies(scene: Scene) -> list[Any]:
                     raise SceneError([(f"bodies.{index}.fixed.box = {list(spec.fixed.box)}: "
                                        "contains no node of the body's mesh")], scene.source)
                 parts.append(in_box)
+            if spec.fixed.obstacle is not None:
+                parts.append(_nodes_on_obstacle(scene, index, mesh))
             fixed = np.unique(np.concatenate(parts))
         pivot = None if spec.pivot is None else solid.nearest_node(mesh, spec.pivot)
         try:
@@ -295,6 +367,45 @@ def build_bodies(scene: Scene) -> list[Any]:
                                f"substep ({type(error).__name__}: {error}); use physical "
                                "values")], scene.source) from None
     return bodies
+
+
+def obstacle_outline_distance(spec: Any, points: np.ndarray) -> np.ndarray:
+    """Distance [m] of each point (p, 2) to the obstacle's outline at rest: to the exact
+    circle for a circle, to the polygon's edges otherwise; shape (p,)."""
+    from elastoflow.scenes import _geometry as geometry
+
+    if isinstance(spec, CircleObstacleSpec):
+        return np.abs(np.linalg.norm(points - np.asarray(spec.center), axis=1) - spec.radius)
+    return geometry.distance_to_segments(points, *geometry.polygon_edges(obstacle_polygon(spec)))
+
+
+def _nodes_on_obstacle(scene: Scene, index: int, mesh: Any) -> np.ndarray:
+    """The nodes of body ``index``'s rest mesh that ``fixed.obstacle`` holds: those within
+    ``fixed.tolerance`` (default a quarter cell) of the obstacle's outline.
+
+    Raises:
+        SceneError: No node lies that near.
+    """
+    from elastoflow.scenes._checks import OVERLAP_CELLS
+    from elastoflow.scenes._errors import _show, obstacle_index
+
+    fixed = scene.bodies[index].fixed
+    assert fixed is not None and fixed.obstacle is not None
+    found = obstacle_index(scene, fixed.obstacle)
+    assert found is not None  # parse_scene checked the reference
+    tolerance = (fixed.tolerance if fixed.tolerance is not None
+                 else OVERLAP_CELLS * scene.domain.cell_size)
+    distance = obstacle_outline_distance(scene.obstacles[found], mesh.points)
+    chosen = np.flatnonzero(distance <= tolerance).astype(np.int64)
+    if chosen.size == 0:
+        given = ("" if fixed.tolerance is not None
+                 else " (the default, a quarter cell; set bodies.N.fixed.tolerance)")
+        raise SceneError([(f"bodies.{index}.fixed.obstacle = {_show(fixed.obstacle)}: no node "
+                           f"of the body's mesh lies within {tolerance:.4g} m{given} of "
+                           f"obstacles.{found}'s outline (the nearest is "
+                           f"{float(distance.min()):.4g} m away); the body must touch the "
+                           "obstacle where it is clamped")], scene.source)
+    return chosen
 
 
 def build_simulation(scene: Scene, *, steps: int | None = None,
@@ -351,10 +462,13 @@ def build_simulation(scene: Scene, *, steps: int | None = None,
         fluid_solver = build_fluid_solver(scene, grid)
     except (ValueError, ArithmeticError) as error:
         raise SceneError([f"fluid: {error}"], scene.source) from None
+    state = _initial_state(scene, grid)
     try:
         return Simulation(
             grid,
             fluid_solver,
+            state=state,
+            cfl_limit=scene.time.cfl_limit,
             bodies=bodies,
             obstacles=obstacles,
             dt=dt,

@@ -116,6 +116,17 @@ def check_flow(scene: Scene) -> list[str]:
     return problems
 
 
+def check_numerics(scene: Scene) -> list[str]:
+    """Numerical choices that contradict each other: a Courant number at or above the limit
+    at which the run stops as diverged."""
+    time = scene.time
+    if time.cfl is not None and time.cfl >= time.cfl_limit:
+        return [(f"time.cfl = {time.cfl:g}: must be below time.cfl_limit = "
+                 f"{time.cfl_limit:g} (the run stops as diverged above it as soon as the flow "
+                 "reaches the characteristic speed); lower cfl or raise cfl_limit")]
+    return []
+
+
 # --------------------------------------------------------------------------------------------
 # polygons and shapes written in the scene
 
@@ -210,7 +221,7 @@ def available_memory() -> int | None:
 def _mesh_elements(shape: Any) -> float:
     """Rough element count of a body shape before meshing it (0 when unknown: a mesh file)."""
     if isinstance(shape, RectangleShapeSpec):
-        return 2.0 * shape.divisions[0] * shape.divisions[1]
+        return float(shape.triangles_per_cell) * shape.divisions[0] * shape.divisions[1]
     size = getattr(shape, "element_size", None)
     if isinstance(shape, WindmillShapeSpec):
         size = 0.5 * shape.blade_width if size is None else size
@@ -375,15 +386,19 @@ def check_built(scene: Scene, grid: Any, meshes: Sequence[Any], obstacles: Seque
     Returns:
         ``(problems, warnings)``, one line each.
     """
+    from elastoflow.scenes._errors import domain_text
+
     problems: list[str] = []
     warnings: list[str] = []
-    lx, ly, h = grid.lx, grid.ly, grid.h
-    tolerance = 1e-9 * max(lx, ly)
-    inside_text = f"must lie inside the domain [0, {lx:g}] x [0, {ly:g}]"
+    h = grid.h
+    x0, y0 = (float(c) for c in grid.origin)
+    x1, y1 = x0 + grid.lx, y0 + grid.ly
+    tolerance = 1e-9 * max(grid.lx, grid.ly, abs(x0), abs(y0), abs(x1), abs(y1))
+    inside_text = f"must lie inside the domain {domain_text(scene)}"
 
     def outside(points: np.ndarray) -> np.ndarray:
-        return ((points[:, 0] < -tolerance) | (points[:, 0] > lx + tolerance)
-                | (points[:, 1] < -tolerance) | (points[:, 1] > ly + tolerance))
+        return ((points[:, 0] < x0 - tolerance) | (points[:, 0] > x1 + tolerance)
+                | (points[:, 1] < y0 - tolerance) | (points[:, 1] > y1 + tolerance))
 
     outlines = [_loops(mesh) for mesh in meshes]
     for index, mesh in enumerate(meshes):
@@ -449,17 +464,18 @@ def check_built(scene: Scene, grid: Any, meshes: Sequence[Any], obstacles: Seque
     covered = np.zeros((grid.nx, grid.ny), dtype=bool)
     regions = [geometry.polygon_edges(p) for p in polygons] + outlines
     for starts, ends in regions:
-        covered |= geometry.cell_centres_inside(starts, ends, grid.nx, grid.ny, h)
+        covered |= geometry.cell_centres_inside(starts, ends, grid.nx, grid.ny, h,
+                                                origin=(x0, y0))
     if regions and covered.all():
         problems.append(f"obstacles: the obstacles and bodies cover every one of the "
                         f"{grid.nx} x {grid.ny} cells; no fluid is left to simulate")
 
     for index, jet in enumerate(scene.jets):
-        x0, y0, x1, y1 = jet.region
+        jx0, jy0, jx1, jy1 = (a - b for a, b in zip(jet.region, (x0, y0, x0, y0), strict=True))
         i = np.arange(grid.nx)
         j = np.arange(grid.ny)
-        in_x = i[((i + 0.5) * h >= x0 - 1e-12) & ((i + 0.5) * h <= x1 + 1e-12)]
-        in_y = j[((j + 0.5) * h >= y0 - 1e-12) & ((j + 0.5) * h <= y1 + 1e-12)]
+        in_x = i[((i + 0.5) * h >= jx0 - 1e-12) & ((i + 0.5) * h <= jx1 + 1e-12)]
+        in_y = j[((j + 0.5) * h >= jy0 - 1e-12) & ((j + 0.5) * h <= jy1 + 1e-12)]
         if in_x.size == 0 or in_y.size == 0:
             warnings.append(f"jets.{index}.region = {list(jet.region)}: holds no cell centre "
                             f"(h = {h:.4g} m), so the jet only sets the faces inside it")
@@ -467,7 +483,7 @@ def check_built(scene: Scene, grid: Any, meshes: Sequence[Any], obstacles: Seque
         hit = covered[np.ix_(in_x, in_y)]
         if hit.any():
             a, b = np.argwhere(hit)[0]
-            where = ((in_x[a] + 0.5) * h, (in_y[b] + 0.5) * h)
+            where = (x0 + (in_x[a] + 0.5) * h, y0 + (in_y[b] + 0.5) * h)
             problems.append(f"jets.{index}.region = {list(jet.region)}: reaches inside a body or "
                             f"obstacle (at {_fmt_point(where)}); a jet must blow in the fluid")
 

@@ -235,39 +235,65 @@ def _fold_items(problems: list[tuple[str, str | None, str]]) -> list[tuple[str, 
     return folded
 
 
-def _inside(bounds: tuple[float, float, float, float], lx: float, ly: float) -> bool:
-    tolerance = 1e-9 * max(lx, ly)
+MAX_CELLS_FROM_ZERO = 1e6
+"""Farthest the domain's origin may lie from 0, in cells: positions there still resolve a
+millionth of a cell, and the geometry checks' relative tolerances stay far below a cell."""
+
+
+def _inside(bounds: tuple[float, float, float, float],
+            domain: tuple[float, float, float, float]) -> bool:
+    x0, y0, x1, y1 = domain
+    tolerance = 1e-9 * max(x1 - x0, y1 - y0, abs(x0), abs(y0), abs(x1), abs(y1))
     return (
-        bounds[0] >= -tolerance
-        and bounds[1] >= -tolerance
-        and bounds[2] <= lx + tolerance
-        and bounds[3] <= ly + tolerance
+        bounds[0] >= x0 - tolerance
+        and bounds[1] >= y0 - tolerance
+        and bounds[2] <= x1 + tolerance
+        and bounds[3] <= y1 + tolerance
     )
+
+
+def domain_text(scene: Scene) -> str:
+    """``[x0, x1] x [y0, y1]``, the domain as messages show it."""
+    x0, y0, x1, y1 = scene.domain.bounds
+    return f"[{x0:g}, {x1:g}] x [{y0:g}, {y1:g}]"
 
 
 def check_scene(scene: Scene) -> list[str]:
     """Cross-field problems pydantic cannot see: geometry outside the domain, bad references,
-    polygons that are not simple, a closed domain whose inflows do not balance."""
-    from elastoflow.scenes._checks import check_flow, check_outlines
+    polygons that are not simple, a closed domain whose inflows do not balance, numerical
+    choices that contradict each other."""
+    from elastoflow.scenes._checks import check_flow, check_numerics, check_outlines
 
-    problems: list[str] = check_flow(scene) + check_outlines(scene)
-    lx, ly = scene.domain.lx, scene.domain.ly
-    allowed = f"must lie inside the domain [0, {lx:g}] x [0, {ly:g}]"
+    problems: list[str] = check_flow(scene) + check_outlines(scene) + check_numerics(scene)
+    domain = scene.domain.bounds
+    if not all(math.isfinite(c) for c in domain):
+        return problems + [(f"domain.origin = {_show(list(scene.domain.origin))}: with lx = "
+                            f"{scene.domain.lx:g} and ly = {scene.domain.ly:g} the far corner "
+                            "is not a finite position; must be a finite point nearer 0")]
+    far = max(abs(c) for c in scene.domain.origin)
+    if far > MAX_CELLS_FROM_ZERO * scene.domain.cell_size:
+        problems.append(
+            f"domain.origin = {_show(list(scene.domain.origin))}: puts the domain {far:.3g} m "
+            f"from 0, more than {MAX_CELLS_FROM_ZERO:.0e} cells of side "
+            f"{scene.domain.cell_size:.4g} m, where positions no longer resolve a cell "
+            "finely enough; must be nearer 0 (the origin only shifts coordinates)")
+    allowed = f"must lie inside the domain {domain_text(scene)}"
     for index, obstacle in enumerate(scene.obstacles):
         bounds = obstacle.bounds()
-        if obstacle.motion is None and not _inside(bounds, lx, ly):
+        if obstacle.motion is None and not _inside(bounds, domain):
             problems.append(f"obstacles.{index} = {obstacle.shape} with bounds {_fmt(bounds)}: {allowed}")
+    problems += _obstacle_references(scene)
     for index, body in enumerate(scene.bodies):
         body_bounds = body.shape.bounds()
-        if body_bounds is not None and not _inside(body_bounds, lx, ly):
+        if body_bounds is not None and not _inside(body_bounds, domain):
             problems.append(
                 f"bodies.{index}.shape = {body.shape.type} with bounds {_fmt(body_bounds)}: "
                 f"{allowed}"
             )
-        if body.pivot is not None and not _inside((*body.pivot, *body.pivot), lx, ly):
+        if body.pivot is not None and not _inside((*body.pivot, *body.pivot), domain):
             problems.append(f"bodies.{index}.pivot = {list(body.pivot)}: {allowed}")
     for index, jet in enumerate(scene.jets):
-        if not _inside(jet.region, lx, ly):
+        if not _inside(jet.region, domain):
             problems.append(f"jets.{index}.region = {list(jet.region)}: {allowed}")
     for index, probe in enumerate(scene.outputs.probes):
         where = f"outputs.probes.{index}"
@@ -290,8 +316,59 @@ def check_scene(scene: Scene) -> list[str]:
         for k, point in enumerate(probe.points or []):
             places.append((f"points.{k}", point))
         for key, place in places:
-            if place is not None and not _inside((*place, *place), lx, ly):
+            if place is not None and not _inside((*place, *place), domain):
                 problems.append(f"{where}.{key} = {list(place)}: {allowed}")
+    return problems
+
+
+def obstacle_index(scene: Scene, reference: int | str) -> int | None:
+    """The index of the obstacle a scene refers to by index or by name (None: no such)."""
+    if isinstance(reference, int):
+        return reference if reference < len(scene.obstacles) else None
+    names = [obstacle.name for obstacle in scene.obstacles]
+    return names.index(reference) if reference in names else None
+
+
+def _obstacle_references(scene: Scene) -> list[str]:
+    """Obstacle names unique; ``bodies.N.fixed.obstacle`` naming an obstacle that exists and
+    does not move; ``tolerance`` only with ``obstacle``."""
+    problems = []
+    seen: dict[str, int] = {}
+    for index, obstacle in enumerate(scene.obstacles):
+        if obstacle.name is None:
+            continue
+        if obstacle.name in seen:
+            problems.append(f"obstacles.{index}.name = {_show(obstacle.name)}: already the "
+                            f"name of obstacles.{seen[obstacle.name]}; names must be unique")
+        else:
+            seen[obstacle.name] = index
+    names = [o.name for o in scene.obstacles if o.name is not None]
+    for index, body in enumerate(scene.bodies):
+        fixed = body.fixed
+        if fixed is None:
+            continue
+        key = f"bodies.{index}.fixed"
+        if fixed.obstacle is None:
+            if fixed.tolerance is not None:
+                problems.append(f"{key}.tolerance = {fixed.tolerance!r}: applies to the nodes "
+                                "on an obstacle; give obstacle (an index or a name) too, or "
+                                "leave tolerance out")
+            continue
+        found = obstacle_index(scene, fixed.obstacle)
+        if found is None:
+            if not scene.obstacles:
+                allowed = "the scene has no obstacles"
+            elif isinstance(fixed.obstacle, int):
+                allowed = f"must be an obstacle index in 0..{len(scene.obstacles) - 1}"
+            else:
+                allowed = ("must name an obstacle (names: " + ", ".join(map(repr, names)) + ")"
+                           if names else "no obstacle has a name; give one (obstacles.N.name) "
+                           "or use its index")
+            problems.append(f"{key}.obstacle = {_show(fixed.obstacle)}: {allowed}")
+        elif scene.obstacles[found].motion is not None:
+            problems.append(f"{key}.obstacle = {_show(fixed.obstacle)}: obstacles.{found} "
+                            "moves (it has a motion); nodes can be held only on an obstacle "
+                            "that stays still")
     return problems
 
 

@@ -137,9 +137,11 @@ def points_in_polygons(points: np.ndarray, starts: np.ndarray, ends: np.ndarray)
 
 
 def cell_centres_inside(starts: np.ndarray, ends: np.ndarray, nx: int, ny: int,
-                        h: float) -> np.ndarray:
-    """Mask (nx, ny) of the cell centres ``((i + 1/2) h, (j + 1/2) h)`` inside the closed
-    loops of segments (even-odd rule), found row by row (scanlines)."""
+                        h: float, origin: tuple[float, float] = (0.0, 0.0)) -> np.ndarray:
+    """Mask (nx, ny) of the cell centres ``origin + ((i + 1/2) h, (j + 1/2) h)`` inside the
+    closed loops of segments (even-odd rule), found row by row (scanlines)."""
+    shift = np.asarray(origin, dtype=np.float64)
+    starts, ends = starts - shift, ends - shift
     mask = np.zeros((nx, ny), dtype=bool)
     low = float(min(starts[:, 1].min(), ends[:, 1].min()))
     high = float(max(starts[:, 1].max(), ends[:, 1].max()))

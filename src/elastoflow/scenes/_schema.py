@@ -58,7 +58,7 @@ def _check_box(box: Box) -> Box:
 
 
 class DomainSpec(_Spec):
-    """Rectangular domain ``[0, lx] x [0, ly]`` cut into square cells.
+    """Rectangular domain ``[x0, x0 + lx] x [y0, y0 + ly]`` cut into square cells.
 
     Give exactly one of ``nx`` (cells across ``lx``) or ``h`` (cell side [m]); ``ly`` must then
     be a whole number of cells.
@@ -68,6 +68,9 @@ class DomainSpec(_Spec):
     ly: PositiveFloat
     nx: Annotated[int, Field(ge=2)] | None = None
     h: PositiveFloat | None = None
+    origin: Point = (0.0, 0.0)
+    """Lower-left corner ``[x0, y0]`` [m]. Every position in the scene (bodies, obstacles,
+    jets, probes, pivots) is in the same coordinates, and so are the saved fields."""
 
     @model_validator(mode="after")
     def _one_resolution(self) -> DomainSpec:
@@ -99,6 +102,38 @@ class DomainSpec(_Spec):
         h = self.cell_size
         return round(self.lx / h), round(self.ly / h)
 
+    @property
+    def bounds(self) -> Box:
+        """``(x0, y0, x0 + lx, y0 + ly)`` [m]."""
+        x0, y0 = self.origin
+        return (x0, y0, x0 + self.lx, y0 + self.ly)
+
+
+class InitialVelocitySpec(_Spec):
+    """The fluid's velocity at t = 0, one component per key, sampled at the face centres of
+    the MAC grid (``x`` on the x-faces, ``y`` on the y-faces).
+
+    Each component is a number [m/s] or a string: an expression in the coordinates ``x`` and
+    ``y`` [m] (in the domain's coordinates, origin included) with ``pi``, ``e``, arithmetic,
+    comparisons, ``a if c else b`` and the functions of
+    `elastoflow.scenes._expression.FUNCTIONS` (sin, cos, exp, sqrt, where, ...). The first
+    step's projection makes the field divergence-free and imposes the walls and bodies.
+    """
+
+    x: float | str = 0.0
+    """u [m/s]: a number or an expression."""
+    y: float | str = 0.0
+    """v [m/s]: a number or an expression."""
+
+    @field_validator("x", "y")
+    @classmethod
+    def _expression(cls, value: float | str) -> float | str:
+        if isinstance(value, str):
+            from elastoflow.scenes._expression import Expression
+
+            Expression(value)
+        return value
+
 
 class FluidSpec(_Spec):
     """Fluid properties and numerical choices."""
@@ -109,15 +144,35 @@ class FluidSpec(_Spec):
     gravity: Point = (0.0, 0.0)
     """Gravity [m/s^2], also applied to the elastic bodies."""
     pressure_solver: Literal["mgpcg", "jacobi"] = "mgpcg"
+    """Solver of the pressure equation: multigrid-preconditioned conjugate gradient, or the
+    paper's Jacobi iteration."""
     pressure_rtol: Annotated[float, Field(gt=0.0, lt=1.0)] = 1e-6
     """Relative residual the pressure solve must reach; 1 or more would skip the solve."""
-    advection: Literal["semi_lagrangian", "maccormack"] = "semi_lagrangian"
-    """Transport of velocity and dye: the paper's semi-Lagrangian step (first order,
-    diffusive) or MacCormack's correction of it (second order where the flow is smooth;
-    docs/validation_fluid.md)."""
+    viscosity_solver: Literal["mgpcg", "jacobi"] = "mgpcg"
+    """Solver of the implicit viscosity equations (one per velocity component)."""
+    viscosity_rtol: Annotated[float, Field(gt=0.0, lt=1.0)] = 1e-6
+    """Relative residual each viscosity solve must reach; 1 or more would skip the solve."""
+    advection: Literal["semi_lagrangian", "maccormack"] = "maccormack"
+    """Transport of velocity and dye: MacCormack's limited correction of the semi-Lagrangian
+    step (second order where the flow is smooth; the default, for wakes:
+    docs/validation/unsteady.md) or the paper's plain semi-Lagrangian step (first order,
+    diffusive, about 1.3-1.6x cheaper to advect)."""
     incremental_pressure: bool = False
     """Solve for the pressure increment (removes the plain splitting's O(dt) error at walls
     in steady flow; docs/method_notes.md item 6)."""
+    initial_velocity: InitialVelocitySpec | None = None
+    """Velocity at t = 0 [m/s] (at rest when left out): ``[ux, uy]``, or a table
+    ``{ x = ..., y = ... }`` whose components are numbers or expressions in x and y."""
+
+    @field_validator("initial_velocity", mode="before")
+    @classmethod
+    def _pair_to_table(cls, value: Any) -> Any:
+        if isinstance(value, list | tuple):
+            if len(value) != 2:
+                raise ValueError("must be [ux, uy] (two numbers) or a table "
+                                 "{ x = ..., y = ... }")
+            return {"x": value[0], "y": value[1]}
+        return value
 
 
 # --------------------------------------------------------------------------------------------
@@ -198,6 +253,8 @@ class RigidMotionSpec(_Spec):
 
 class CircleObstacleSpec(_Spec):
     shape: Literal["circle"] = "circle"
+    name: str | None = None
+    """A name for references (``bodies.N.fixed.obstacle``); unique among the obstacles."""
     center: Point
     radius: PositiveFloat
     segments: Annotated[int, Field(ge=8, le=MAX_SEGMENTS)] = 64
@@ -210,6 +267,8 @@ class CircleObstacleSpec(_Spec):
 
 class RectangleObstacleSpec(_Spec):
     shape: Literal["rectangle"] = "rectangle"
+    name: str | None = None
+    """A name for references (``bodies.N.fixed.obstacle``); unique among the obstacles."""
     box: Box
     motion: RigidMotionSpec | None = None
 
@@ -221,6 +280,8 @@ class RectangleObstacleSpec(_Spec):
 
 class PolygonObstacleSpec(_Spec):
     shape: Literal["polygon"] = "polygon"
+    name: str | None = None
+    """A name for references (``bodies.N.fixed.obstacle``); unique among the obstacles."""
     points: Annotated[list[Point], Field(min_length=3, max_length=MAX_POLYGON_POINTS),
                       Strict(False)]
     """Closed polygon [m], either orientation, each vertex once."""
@@ -243,11 +304,20 @@ ObstacleSpec = Annotated[
 
 
 class RectangleShapeSpec(_Spec):
-    """Structured triangulation of a box, ``2 * divisions[0] * divisions[1]`` triangles."""
+    """Structured triangulation of a box cut into ``divisions`` cells (along x, along y)."""
 
     type: Literal["rectangle"] = "rectangle"
     box: Box
     divisions: Annotated[tuple[PositiveInt, PositiveInt], Strict(False)]
+    pattern: Literal["alternating", "crossed"] = "alternating"
+    """How each cell is cut: ``"alternating"``, two triangles whose diagonals alternate like
+    a chequerboard (``2 * divisions[0] * divisions[1]`` triangles); ``"crossed"``, four
+    triangles around a node at the cell centre (twice as many; locks less in bending, the
+    Turek-Hron flag's mesh)."""
+
+    @property
+    def triangles_per_cell(self) -> int:
+        return 2 if self.pattern == "alternating" else 4
 
     _box = field_validator("box")(_check_box)
 
@@ -329,11 +399,19 @@ class MaterialSpec(_Spec):
 
 
 class FixedSpec(_Spec):
-    """Nodes held at their rest position: those inside ``box`` and those listed in ``nodes``."""
+    """Nodes held at their rest position: those inside ``box``, those listed in ``nodes``, and
+    those on the outline of ``obstacle`` (a body clamped to an obstacle along the curve where
+    they meet); each selection given must pick at least one node."""
 
     box: Box | None = None
     nodes: Annotated[list[Annotated[int, Field(ge=0)]], Strict(False)] = Field(
         default_factory=list)
+    obstacle: Annotated[int, Field(ge=0)] | str | None = None
+    """An obstacle, by index or by name: the nodes within ``tolerance`` of its outline (inside
+    or outside it) are held. The obstacle must not move."""
+    tolerance: PositiveFloat | None = None
+    """Largest distance [m] from the obstacle's outline of a held node (default: a quarter of
+    a cell, less than the fluid can see). A circle's outline is the exact circle."""
 
     @field_validator("box")
     @classmethod
@@ -365,6 +443,9 @@ class TimeSpec(_Spec):
     duration: PositiveFloat | None = None
     steps: PositiveInt | None = None
     substeps: Annotated[int, Field(gt=0, le=MAX_SUBSTEPS)] | Literal["auto"] = "auto"
+    cfl_limit: PositiveFloat = 20.0
+    """The run stops as diverged when the Courant number ``max |u| dt / h`` exceeds this (the
+    semi-Lagrangian step is stable beyond 1; a jump this large means a blow-up)."""
 
     @model_validator(mode="after")
     def _exactly_one(self) -> TimeSpec:
