@@ -3,6 +3,7 @@ removal of the temporaries a killed run leaves behind."""
 
 from __future__ import annotations
 
+import contextlib
 import os
 import re
 import secrets
@@ -73,15 +74,69 @@ def is_temporary(path: Path) -> bool:
     return bool(_TEMPORARY_NAME.match(path.name))
 
 
+def writers_of_temporaries(folder: str | Path) -> list[int]:
+    """Process ids of this user's processes whose command line names a temporary under
+    ``folder`` (Linux ``/proc``; empty elsewhere): the video encoder (ffmpeg) of a run that
+    was killed, which goes on finishing its file after the run is gone and would create it
+    again after `remove_temporaries`."""
+    proc = Path("/proc")
+    if not proc.is_dir():
+        return []
+    root = os.path.realpath(folder)
+    found = []
+    for entry in proc.iterdir():
+        if not entry.name.isdigit() or int(entry.name) == os.getpid():
+            continue
+        try:
+            if entry.stat().st_uid != os.getuid():
+                continue
+            arguments = (entry / "cmdline").read_bytes().split(b"\0")[1:]
+            if not any(TEMPORARY_MARKER.encode() in a for a in arguments):
+                continue
+            cwd = os.readlink(entry / "cwd")
+        except OSError:
+            continue
+        for raw in arguments:
+            path = os.path.realpath(os.path.join(cwd, os.fsdecode(raw))) if raw else ""
+            if path.startswith(root + os.sep) and _TEMPORARY_NAME.match(os.path.basename(path)):
+                found.append(int(entry.name))
+                break
+    return found
+
+
+def _stop_writers(folder: Path, wait: float = 10.0) -> None:
+    """Kill the `writers_of_temporaries` of ``folder`` and wait until they are gone (or
+    zombies), so that none of them writes a temporary after it was removed."""
+    import signal
+    import time
+
+    pids = writers_of_temporaries(folder)
+    for pid in pids:
+        with contextlib.suppress(OSError):
+            os.kill(pid, signal.SIGKILL)
+    deadline = time.monotonic() + wait
+    for pid in pids:
+        while time.monotonic() < deadline:
+            try:
+                state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+            except (OSError, IndexError):
+                break
+            if state in ("Z", "X"):
+                break
+            time.sleep(0.01)
+
+
 def remove_temporaries(folder: str | Path) -> list[Path]:
     """Delete every temporary file and folder under ``folder`` left by a run that was killed
     (``.video.<pid>.tmp.mp4``, ``.fluid_000010.<pid>.<random>.tmp.vtu``, ``.xdmf.<pid>.tmp/``);
     returns what was removed. Only for a folder no other run is writing to (see
-    `lock_output_folder`)."""
+    `lock_output_folder`): processes still writing a temporary there (the orphaned video
+    encoder of a killed run) are killed first."""
     removed: list[Path] = []
     folder = Path(folder)
     if not folder.is_dir():
         return removed
+    _stop_writers(folder)
     for root, directories, files in os.walk(folder):
         for name in list(directories):
             if _TEMPORARY_NAME.match(name):
