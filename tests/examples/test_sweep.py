@@ -345,3 +345,30 @@ probe_plot = false
         assert probes["step"].tolist() == list(range(1, long_steps + 1))
         assert not [p for p in points[k].rglob(".*") if ".tmp" in p.name]
         assert not (points[k] / "running.json").exists()
+
+
+def test_a_bad_scheduler_is_one_line_and_the_name_stays_under_out(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    from typer.testing import CliRunner
+
+    from elastoflow.cli import app
+
+    work = tmp_path / "a" / "b"
+    work.mkdir(parents=True)
+    monkeypatch.chdir(work)
+    sweep = _sweep(work, steps=3, n=8, body='[grid]\n"fluid.viscosity" = [0.01]\n')
+    sweep.write_text(sweep.read_text().replace('name = "test"', 'name = "../../escape"'))
+    (work / "empty.json").write_text("{}")
+    (work / "binary.json").write_bytes(bytes(range(256)))
+    for scheduler, says in (("missing.json", "no scheduler file missing.json"),
+                            ("empty.json", "is not a Dask scheduler file"),
+                            ("binary.json", "is not a Dask scheduler file"),
+                            ("nonsense", "not a scheduler address")):
+        result = CliRunner().invoke(app, ["sweep", str(sweep), "--scheduler", scheduler])
+        assert result.exit_code == 1, result.output
+        assert isinstance(result.exception, SystemExit), result.output
+        errors = [line for line in result.output.splitlines() if line.startswith("error:")]
+        assert len(errors) == 1 and says in errors[0], result.output
+    # The sweep's name never leads out of out/: "../../escape" is out/escape.
+    assert (work / "out" / "escape" / "points" / "point_00000").is_dir()
+    assert not (tmp_path / "escape").exists() and not (work / "escape").exists()

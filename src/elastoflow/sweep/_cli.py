@@ -91,6 +91,7 @@ def sweep_command(
     skipped, so running the same sweep again goes on where it stopped. Ctrl-C stops; run the
     same command again to resume.
     """
+    from elastoflow.io import folder_name
     from elastoflow.sweep import (
         SweepError,
         load_sweep,
@@ -107,7 +108,9 @@ def sweep_command(
         _fail(str(error).splitlines())
     for line in plan.warnings:
         typer.echo(f"warning: {line}", err=True)
-    folder = out if out is not None else Path("out") / spec.name
+    # A name from a sweep file never leads out of out/ ("../../x" becomes out/x).
+    folder = out if out is not None else Path("out") / folder_name(spec.name)
+    option = "--out" if out is not None else "output folder"
     if check:
         for point in plan.points:
             typer.echo(f"  {point.describe()}: {point.steps} steps")
@@ -118,18 +121,23 @@ def sweep_command(
     except SweepError as error:
         _fail(str(error).splitlines())
     except OSError as error:
-        _fail([f"--out = {str(folder)!r}: cannot write there ({error.strerror or error})"])
+        _fail([f"{option} = {str(folder)!r}: cannot write there ({error.strerror or error})"])
     typer.echo(f"sweep {spec.name}: {len(plan.points)} points -> {folder}")
     progress_line = _ProgressLine(quiet)
     resume = _resume_command(sweep_file, out, scheduler, workers, dashboard, quiet)
+    unwritable: OSError | None = None
     try:
         with open_client(scheduler, workers=workers, dashboard=dashboard) as client:
             workers_now = len(client.nthreads())
             link = client.dashboard_link if scheduler is not None or dashboard else "off"
             typer.echo(f"dask: {client.scheduler.address}, {workers_now} workers, "
                        f"dashboard {link}")
-            outcome = run_sweep(plan, folder, client, retry_failed=retry_failed,
-                                on_progress=progress_line)
+            try:
+                outcome = run_sweep(plan, folder, client, retry_failed=retry_failed,
+                                    on_progress=progress_line)
+            except OSError as error:
+                # A full or read-only disk under the summary or the Zarr store.
+                unwritable = error
     except KeyboardInterrupt:
         # Ctrl-C while the cluster starts or closes: the points' folders are as they were.
         progress_line.end()
@@ -140,6 +148,11 @@ def sweep_command(
         _fail([f"--scheduler = {scheduler!r}: cannot reach it ({error})"] if scheduler else
               [f"cannot start the local Dask cluster: {error}"], _EXIT_FAILED)
     progress_line.end()
+    if unwritable is not None:
+        where = f" ({unwritable.filename})" if unwritable.filename else ""
+        _fail([f"cannot write the sweep's results in {folder}: "
+               f"{unwritable.strerror or unwritable}{where}; the finished points are kept: "
+               f"once the disk is writable, resume with: {resume}"], _EXIT_FAILED)
     typer.echo(f"wrote {outcome.summary}")
     if outcome.zarr is not None:
         typer.echo(f"wrote {outcome.zarr}")

@@ -146,10 +146,24 @@ def open_client(scheduler: str | None = None, *, workers: int | None = None,
     from distributed import Client, LocalCluster
 
     if scheduler is not None:
-        if scheduler.endswith(".json") and Path(scheduler).is_file():
-            client = Client(scheduler_file=scheduler, timeout="20s")
-        else:
-            client = Client(scheduler, timeout="20s")
+        try:
+            if scheduler.endswith(".json") or Path(scheduler).is_file():
+                if not Path(scheduler).is_file():
+                    raise OSError(f"no scheduler file {scheduler}")
+                try:
+                    address = json.loads(Path(scheduler).read_text(encoding="utf-8"))["address"]
+                except (UnicodeDecodeError, ValueError, KeyError, TypeError):
+                    address = None
+                if not isinstance(address, str):
+                    raise OSError(f"{scheduler} is not a Dask scheduler file (JSON with the "
+                                  "scheduler's \"address\")")
+                client = Client(scheduler_file=scheduler, timeout="20s")
+            else:
+                client = Client(scheduler, timeout="20s")
+        except (ValueError, KeyError) as error:
+            # Not an address ("missing port number"), or a file that is not a scheduler's.
+            raise OSError(f"not a scheduler address (tcp://host:8786) or scheduler file: "
+                          f"{error}") from None
         try:
             yield client
         finally:

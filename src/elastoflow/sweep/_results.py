@@ -73,9 +73,22 @@ def read_result(folder: Path) -> dict[str, Any] | None:
         return None
 
 
-def _cell(value: Any) -> Any:
-    """A parameter value as one Parquet cell (arrays and tables as JSON text)."""
-    return json.dumps(value) if isinstance(value, list | dict) else value
+def _kind(value: Any) -> str:
+    if isinstance(value, bool):
+        return "bool"
+    if isinstance(value, int | float):
+        return "number"
+    return "text" if isinstance(value, str) else "json"
+
+
+def _parameter_column(values: list[Any]) -> list[Any]:
+    """One parameter's values as cells of one Parquet type: as they are when all are numbers,
+    all text or all booleans (missing ones None), else all as text (``"auto"`` and ``10`` of
+    ``time.substeps`` become ``auto`` and ``10``; Parquet holds one type per column)."""
+    kinds = {_kind(v) for v in values if v is not None}
+    if len(kinds) <= 1 and kinds != {"json"}:
+        return list(values)
+    return [None if v is None else v if isinstance(v, str) else json.dumps(v) for v in values]
 
 
 def summary_frame(rows: Sequence[dict[str, Any]], parameter_names: Sequence[str]) -> Any:
@@ -90,10 +103,12 @@ def summary_frame(rows: Sequence[dict[str, Any]], parameter_names: Sequence[str]
     fixed = ["point", *parameter_names, "status", "message", "wall_time [s]", "steps",
              "time [s]", "attempts", "resumed_from_step", "worker", "folder"]
     results = sorted({key for row in rows for key in row.get("results", {})})
+    columns = {name: _parameter_column([row["parameters"].get(name) for row in rows])
+               for name in parameter_names}
     table = []
-    for row in rows:
+    for position, row in enumerate(rows):
         line = {"point": row["point"]}
-        line.update({name: _cell(row["parameters"].get(name)) for name in parameter_names})
+        line.update({name: columns[name][position] for name in parameter_names})
         line.update({key: row.get(key) for key in fixed[len(parameter_names) + 1:]})
         line.update({key: row.get("results", {}).get(key, math.nan) for key in results})
         table.append(line)
