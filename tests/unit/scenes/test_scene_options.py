@@ -536,3 +536,54 @@ def test_clamped_flag_example_builds_with_every_option() -> None:
     assert len(body.fixed_nodes) == 5
     u = fluid_state(sim).velocity_x
     assert u.max() == pytest.approx(0.3, rel=1e-3) and u.min() >= 0.0
+
+
+@pytest.mark.parametrize(("tables", "key"), [
+    ({"fluid": {"initial_velocity": {"x": "u0 * y"}}}, "fluid.initial_velocity.x"),
+    ({"fluid": {"initial_velocity": {"x": "log(x - 0.5)"}}}, "fluid.initial_velocity.x"),
+    ({"fluid": {"viscosity_rtol": 2.0}}, "fluid.viscosity_rtol"),
+    ({"time": {"dt": 0.01, "steps": 5, "cfl_limit": -1.0}}, "time.cfl_limit"),
+    ({"domain": {"lx": 1.0, "ly": 1.0, "nx": 16, "origin": [0.0]}}, "domain.origin"),
+    ({"bodies": [rectangle([0.4, 0.4, 0.6, 0.6], shape={"pattern": "diagonal"})]},
+     "bodies.0.shape.pattern"),
+    ({"obstacles": [{"shape": "circle", "name": "post", "center": [0.2, 0.2],
+                     "radius": 0.05}],
+      "bodies": [rectangle([0.4, 0.4, 0.6, 0.6], fixed={"obstacle": "post"})]},
+     "bodies.0.fixed.obstacle"),
+])
+def test_command_line_names_the_file_and_key_in_one_line(tables: dict, key: str,
+                                                         tmp_path: Path) -> None:
+    """`elastoflow validate` refuses each new kind of bad value, at parse or build time, with
+    exit 2 and one ``error:`` line naming the file and the key, no traceback."""
+    from typer.testing import CliRunner
+
+    from elastoflow.cli import app
+
+    lines = []
+    for name, value in scene_data(**tables).items():
+        lines.append(f"[{name}]")
+        lines += [f"{k} = {_toml(v)}" for k, v in value.items()] if isinstance(value, dict) \
+            else []
+        if isinstance(value, list):
+            lines.pop()
+            for item in value:
+                lines.append(f"[[{name}]]")
+                lines += [f"{k} = {_toml(v)}" for k, v in item.items()]
+    path = tmp_path / "scene.toml"
+    path.write_text("\n".join(lines) + "\n")
+    result = CliRunner().invoke(app, ["validate", str(path)])
+    assert result.exit_code == 2, result.output
+    assert "Traceback" not in result.output
+    errors = [line for line in result.output.splitlines() if line.startswith("error:")]
+    assert len(errors) == 1, result.output
+    assert f"{path}: {key}" in errors[0], errors[0]
+
+
+def _toml(value: Any) -> str:
+    if isinstance(value, str):
+        return '"' + value + '"'
+    if isinstance(value, list | tuple):
+        return "[" + ", ".join(_toml(v) for v in value) + "]"
+    if isinstance(value, dict):
+        return "{ " + ", ".join(f"{k} = {_toml(v)}" for k, v in value.items()) + " }"
+    return repr(value)
