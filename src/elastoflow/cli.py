@@ -31,6 +31,7 @@ app = typer.Typer(
         "  elastoflow dump windmill -o windmill.toml        # a built-in scene as a starting file\n\n"
         "  elastoflow validate windmill.toml                # check a scene file\n\n"
         "  elastoflow validate turek-hron FSI3              # a published benchmark\n\n"
+        "  elastoflow validate dfg-2d-2 --resolution 20     # vortex shedding at Re 100\n\n"
         "  elastoflow view jet_in_box                       # interactive window\n\n"
         "  elastoflow render out/bar_in_jet --view vorticity  # new video from saved fields\n\n"
         "  elastoflow warmup                                # compile the kernels once, ahead"
@@ -477,7 +478,8 @@ def list_command() -> None:
 @app.command()
 def validate(
     scene: Annotated[str, typer.Argument(help="Scene TOML file (or built-in name), or a "
-                                         "benchmark: turek-hron, perpendicular-flap.")],
+                                         "benchmark: turek-hron, perpendicular-flap, "
+                                         "dfg-2d-2.")],
     case: Annotated[str | None, typer.Argument(help="The benchmark's case: CFD1-3, CSM1-3, "
                                                "FSI1-3 (turek-hron).")] = None,
     resolution: Annotated[int, typer.Option(help="Benchmark: about this many cells per "
@@ -493,6 +495,8 @@ def validate(
     = Path("out/validation"),
     json_file: Annotated[bool, typer.Option("--json", help="Benchmark: also write the "
                                             "quantities as JSON.")] = False,
+    advection: Annotated[str, typer.Option(help="dfg-2d-2: the fluid's advection scheme, "
+                                           "maccormack or semi_lagrangian.")] = "maccormack",
 ) -> None:
     """Check a scene, or run a published benchmark.
 
@@ -507,6 +511,9 @@ def validate(
     from elastoflow.scenes import SceneError, memory_estimate, step_count, time_step
     from elastoflow.validation import BENCHMARKS
 
+    if scene == "dfg-2d-2":
+        _dfg_benchmark(case, resolution, duration, dt, advection, out, json_file)
+        return
     if scene in BENCHMARKS:
         _benchmark(scene, case, resolution, duration, dt, scheme, out, json_file)
         return
@@ -581,6 +588,40 @@ def _benchmark(name: str, case: str | None, resolution: int, duration: float | N
         typer.echo(f"  {line}")
     try:
         paths = write_report(result, out, json_file=json_file)
+    except OSError as error:
+        _fail(f"--out = {str(out)!r}: cannot write ({error.strerror or error})")
+    typer.echo("wrote " + ", ".join(str(path) for path in paths))
+    if result.failure is not None:
+        raise typer.Exit(EXIT_RUN_FAILED)
+
+
+def _dfg_benchmark(case: str | None, resolution: int, duration: float | None,
+                   dt: float | None, advection: str, out: Path, json_file: bool) -> None:
+    """DFG 2D-2: run it, print its quantities against the published bounds, write the report.
+    Exit 1 when the run blew up or was not periodic yet."""
+    from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
+
+    from elastoflow.validation import dfg_setup, run_dfg, write_dfg_report
+    from elastoflow.validation._dfg import describe, format_quantities
+
+    if case is not None:
+        _fail(f"{case!r}: DFG 2D-2 has one case (leave it out)")
+    try:
+        setup = dfg_setup(resolution, duration=duration, dt=dt, advection=advection)
+    except ValueError as error:
+        _fail(str(error))
+    _output_folder(out, "--out")
+    columns = (TextColumn(f"DFG 2D-2 N={resolution}"), BarColumn(),
+               TextColumn("{task.completed}/{task.total}"), TimeRemainingColumn())
+    with Progress(*columns, transient=True, disable=not sys.stderr.isatty()) as progress:
+        task = progress.add_task("run", total=setup.steps)
+        result = run_dfg(resolution, duration=setup.duration, dt=setup.dt, advection=advection,
+                         progress=lambda done, total: progress.update(task, completed=done))
+    typer.echo(describe(result))
+    for line in format_quantities(result):
+        typer.echo(f"  {line}")
+    try:
+        paths = write_dfg_report(result, out, json_file=json_file)
     except OSError as error:
         _fail(f"--out = {str(out)!r}: cannot write ({error.strerror or error})")
     typer.echo("wrote " + ", ".join(str(path) for path in paths))

@@ -338,7 +338,7 @@ def advect_field_x(
     MacCormack correction ``forward + (source - backward) / 2`` of this step's
     semi-Lagrangian result ``forward`` and its backward advection ``backward``, clamped to
     the range of ``source`` around the stored departure point (Selle et al. 2008), so that no
-    new extrema appear.
+    new extrema appear; 3 writes the same correction unclamped.
     """
     nx1, ny = u.shape
     inv_h = 1.0 / h
@@ -349,13 +349,12 @@ def advect_field_x(
             if has_interior and solid_x[i, j]:
                 out[i, j] = body_velocity[i, j]
                 continue
-            if mode == 2:
+            if mode >= 2:
                 low, high = _corner_range(
                     source, departure_x[i, j], departure_y[i, j], modes_u, values_u
                 )
-                out[i, j] = _clamp(
-                    forward[i, j] + 0.5 * (source[i, j] - backward[i, j]), low, high
-                )
+                corrected = forward[i, j] + 0.5 * (source[i, j] - backward[i, j])
+                out[i, j] = _clamp(corrected, low, high) if mode == 2 else corrected
                 continue
             x = i * h
             y = (j + 0.5) * h
@@ -404,13 +403,12 @@ def advect_field_y(
             if has_interior and solid_y[i, j]:
                 out[i, j] = body_velocity[i, j]
                 continue
-            if mode == 2:
+            if mode >= 2:
                 low, high = _corner_range(
                     source, departure_x[i, j], departure_y[i, j], modes_v, values_v
                 )
-                out[i, j] = _clamp(
-                    forward[i, j] + 0.5 * (source[i, j] - backward[i, j]), low, high
-                )
+                corrected = forward[i, j] + 0.5 * (source[i, j] - backward[i, j])
+                out[i, j] = _clamp(corrected, low, high) if mode == 2 else corrected
                 continue
             x = (i + 0.5) * h
             y = j * h
@@ -459,13 +457,12 @@ def advect_cells(
             if has_interior and solid_cells[i, j]:
                 out[i, j] = 0.0
                 continue
-            if mode == 2:
+            if mode >= 2:
                 low, high = _corner_range(
                     source, departure_x[i, j], departure_y[i, j], modes_c, values_c
                 )
-                out[i, j] = _clamp(
-                    forward[i, j] + 0.5 * (source[i, j] - backward[i, j]), low, high
-                )
+                corrected = forward[i, j] + 0.5 * (source[i, j] - backward[i, j])
+                out[i, j] = _clamp(corrected, low, high) if mode == 2 else corrected
                 continue
             x = (i + 0.5) * h
             y = (j + 0.5) * h

@@ -117,6 +117,11 @@ class FluidSolver:
             O(dt) error of the plain splitting at viscous walls in steady flow. It also makes the
             pre-projection velocity already feel most of the pressure, so the paper's
             momentum-exchange force (evaluated before the projection) becomes small.
+        maccormack_limiter: True (default): MacCormack's corrected value is clamped to the
+            range of the four samples around its departure point (no new extrema). False
+            leaves it unclamped: for studies of what the limiter costs in accuracy (on DFG
+            2D-2 nothing measurable, docs/method_notes.md item 10); the unlimited scheme can
+            oscillate at steep fronts.
     """
 
     def __init__(
@@ -133,6 +138,7 @@ class FluidSolver:
         viscosity_solver: Any = None,
         advection: str = "semi_lagrangian",
         incremental_pressure: bool = False,
+        maccormack_limiter: bool = True,
     ) -> None:
         if not isinstance(grid, Grid2D):
             raise ValueError(f"FluidSolver grid = {grid!r}: must be an elastoflow.grid.Grid2D")
@@ -186,6 +192,11 @@ class FluidSolver:
                 f"FluidSolver advection = {advection!r}: must be one of {_ADVECTION_SCHEMES}"
             )
         self.advection = advection
+        if not isinstance(maccormack_limiter, bool):
+            raise ValueError(
+                f"FluidSolver maccormack_limiter = {maccormack_limiter!r}: must be True or False"
+            )
+        self.maccormack_limiter = maccormack_limiter
         if not isinstance(incremental_pressure, bool):
             raise ValueError(
                 f"FluidSolver incremental_pressure = {incremental_pressure!r}: must be True or False"
@@ -409,7 +420,8 @@ class FluidSolver:
             backward = self._backward
             self._advect_once(state, forward, backward, -dt, interior)
             # The correction reads backward[i, j] before writing it, so it can work in place.
-            self._advect_once(state, fields, backward, dt, interior, 2, forward, backward)
+            self._advect_once(state, fields, backward, dt, interior,
+                              2 if self.maccormack_limiter else 3, forward, backward)
             result = backward
         else:
             self._advect_once(state, fields, forward, dt, interior)

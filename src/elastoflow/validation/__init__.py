@@ -4,9 +4,17 @@ the benchmark defines them.
 
 ``run_case("FSI3", resolution=20)`` runs Turek & Hron's FSI3; `write_report` writes its time
 series (CSV), plots (PNG) and quantities (JSON); ``elastoflow validate turek-hron FSI3`` does
-both.
+both. ``run_dfg(20)`` runs DFG 2D-2 (vortex shedding at Re = 100) and `write_dfg_report`
+writes its report; ``elastoflow validate dfg-2d-2`` does both.
 """
 
+from elastoflow.validation._dfg import (
+    DfgResult,
+    DfgSetup,
+    dfg_setup,
+    run_dfg,
+    write_dfg_report,
+)
 from elastoflow.validation._perpendicular_flap import FLAP_CASE, cells_high, flap_setup, run_flap
 from elastoflow.validation._report import (
     describe,
@@ -31,7 +39,7 @@ from elastoflow.validation._turek_hron import (
 )
 
 # Benchmarks that `elastoflow validate NAME [CASE]` runs.
-BENCHMARKS = ("turek-hron", "perpendicular-flap")
+BENCHMARKS = ("turek-hron", "perpendicular-flap", "dfg-2d-2")
 
 __all__ = [
     "BENCHMARKS",
@@ -39,6 +47,8 @@ __all__ = [
     "FLAP_CASE",
     "REFERENCE",
     "Case",
+    "DfgResult",
+    "DfgSetup",
     "Result",
     "Setup",
     "case_simulation",
@@ -47,6 +57,7 @@ __all__ = [
     "check_resolution",
     "default_setup",
     "describe",
+    "dfg_setup",
     "flag_mesh",
     "flap_setup",
     "format_quantities",
@@ -54,6 +65,8 @@ __all__ = [
     "quantities_json",
     "rigid_flag_polygon",
     "run_case",
+    "run_dfg",
     "run_flap",
+    "write_dfg_report",
     "write_report",
 ]

@@ -1,0 +1,322 @@
+"""Unsteady accuracy (issue 11): DFG 2D-2, the advection schemes' order, the drag's
+convergence, and what each advection scheme costs on the paper's scenes.
+
+``python -m benchmarks unsteady [--parts=order,dfg,drag,speed] [--resolutions=10,20,40]
+[--advection=maccormack,semi_lagrangian] [--duration=10] [--name=NAME] [--quick]``
+
+Parts:
+
+* ``order``: RMS error of a Gaussian dye bump carried diagonally by a uniform velocity and of
+  a transverse velocity ``v = g(x - U t)`` carried by ``u = U`` (exact solutions), 32²-256²
+  at CFL 0.8; the observed order between successive grids.
+* ``dfg``: DFG 2D-2 (`elastoflow.validation.run_dfg`) at each resolution with each scheme:
+  Strouhal number, c_D max, c_L max, Δp against the published bounds; the mean drag by the
+  traction integral and by a control-volume balance; wall time. A Richardson table of the
+  drag from the three finest MacCormack runs (observed order and extrapolated value).
+* ``drag``: what the drag depends on, MacCormack at N = 10 (``--drag-resolution``): the
+  time step (CFL 0.25, 0.5, 1), the pressure-correction form (incremental pressure), the
+  limiter (unclamped correction), the start-up kick. Each run also gives the drag by a
+  control-volume balance, independent of the traction evaluation at cut cells.
+* ``speed``: the paper's scenes (``bar_in_jet``, ``windmill``) stepped with each advection
+  scheme: ms per step and the advection phase.
+
+Writes ``benchmarks/results/NAME.json`` (default unsteady; one row per measurement, with the
+part it belongs to), plots and per-run JSON into ``docs/validation/unsteady/``, time series
+into ``out/validation/unsteady/``; prints the Markdown tables docs/validation/unsteady.md is
+written from. ``--quick``: N = 8 and 12 for 2 s (a smoke test; nothing is copied to docs).
+"""
+
+from __future__ import annotations
+
+import shutil
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+if __package__ in (None, ""):
+    sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+
+from benchmarks._common import machine, markdown_table, write_results
+
+ROOT = Path(__file__).resolve().parent.parent
+DOCS = ROOT / "docs" / "validation" / "unsteady"
+SERIES = ROOT / "out" / "validation" / "unsteady"
+SCHEMES = ("maccormack", "semi_lagrangian")
+
+
+def _option(argv: list[str], name: str, default: str) -> str:
+    for item in argv:
+        if item.startswith(f"--{name}="):
+            return item.split("=", 1)[1]
+    return default
+
+
+def _order_module() -> Any:
+    import importlib.util
+
+    path = ROOT / "tests" / "unit" / "fluid" / "test_advection_order.py"
+    spec = importlib.util.spec_from_file_location("_advection_order", path)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def order_part(quick: bool) -> list[dict[str, Any]]:
+    """Errors and observed orders of both schemes on the translating fields."""
+    order = _order_module()
+    sizes = (32, 64, 128) if quick else (32, 64, 128, 256)
+    rows = []
+    errors: dict[str, np.ndarray] = {}
+    for advection in SCHEMES:
+        values = np.array([order.translation_errors(n, advection) for n in sizes])
+        errors[advection] = values
+        for k, n in enumerate(sizes):
+            row: dict[str, Any] = {"part": "order", "advection": advection, "n": n,
+                                   "dye RMS": float(values[k, 0]),
+                                   "velocity RMS": float(values[k, 1])}
+            if k > 0:
+                row["dye order"] = float(np.log2(values[k - 1, 0] / values[k, 0]))
+                row["velocity order"] = float(np.log2(values[k - 1, 1] / values[k, 1]))
+            rows.append(row)
+    print(markdown_table(rows, ["advection", "n", "dye RMS", "dye order", "velocity RMS",
+                                "velocity order"]), flush=True)
+    if not quick:
+        _plot_order(sizes, errors)
+    return rows
+
+
+def _plot_order(sizes: tuple[int, ...], errors: dict[str, np.ndarray]) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    h = 1.0 / np.array(sizes)
+    figure, axis = plt.subplots(figsize=(5.5, 4))
+    for advection, values in errors.items():
+        axis.loglog(h, values[:, 0], "o-", label=f"{advection}: dye")
+        axis.loglog(h, values[:, 1], "s--", label=f"{advection}: velocity")
+    axis.loglog(h, 0.5 * errors["maccormack"][0, 0] * (h / h[0]) ** 2, "k:", label="h²")
+    axis.loglog(h, 0.5 * errors["semi_lagrangian"][0, 0] * (h / h[0]), "k-.", label="h")
+    axis.set_xlabel("h [m] (dt = 0.8 h / U)")
+    axis.set_ylabel("RMS error")
+    axis.set_title("smooth translating fields", fontsize=9)
+    axis.legend(fontsize=7)
+    axis.grid(alpha=0.3, which="both")
+    figure.tight_layout()
+    DOCS.mkdir(parents=True, exist_ok=True)
+    figure.savefig(DOCS / "advection_order.png", dpi=100)
+    plt.close(figure)
+
+
+def _dfg_row(result: Any, part: str, label: str = "") -> dict[str, Any]:
+    s = result.setup
+    row: dict[str, Any] = {
+        "part": part, "advection": s.advection, "N": s.resolution, "h [m]": s.h,
+        "dt [s]": s.dt, "cells": "x".join(map(str, s.cells)), "steps": s.steps,
+        "t_end [s]": float(result.time[-1]), "wall [s]": round(result.seconds, 1),
+        "incremental": s.incremental_pressure, "variant": label,
+    }
+    for key, value in result.quantities.items():
+        row[key] = value
+        row[f"{key} inside"] = result.within_bounds(key)
+    for key in ("drag", "drag_cv"):
+        stats = result.statistics.get(key)
+        if stats is not None:
+            row[f"{key} mean"] = stats.mean
+            row[f"{key} growth"] = stats.growth
+    if "drag" in result.statistics:
+        part_mask = (result.time >= result.statistics["drag"].start)
+        row["drag_pressure mean"] = float(np.mean(result.series["drag_pressure"][part_mask]))
+    if result.failure:
+        row["note"] = result.failure
+    return row
+
+
+def _run_dfg(resolution: int, advection: str, duration: float, copy: bool,
+             label: str = "", **options: Any) -> Any:
+    from elastoflow.validation import run_dfg, write_dfg_report
+    from elastoflow.validation._dfg import describe, format_quantities
+
+    began = time.perf_counter()
+    result = run_dfg(resolution, duration=duration, advection=advection, **options)
+    print(f"{describe(result)} ({time.perf_counter() - began:.0f} s) {label}", flush=True)
+    for line in format_quantities(result):
+        print(f"  {line}", flush=True)
+    folder = SERIES / label.replace(" ", "_") if label else SERIES
+    paths = write_dfg_report(result, folder)
+    if copy:
+        target = DOCS / label.replace(" ", "_") if label else DOCS
+        target.mkdir(parents=True, exist_ok=True)
+        for path in paths:
+            if path.suffix in (".png", ".json"):
+                shutil.copyfile(path, target / path.name)
+    return result
+
+
+QUANTITIES = ("strouhal", "drag_max", "lift_max", "delta_p")
+
+
+def richardson(h: list[float], values: list[float]) -> dict[str, float]:
+    """Observed order and extrapolated value from three grids halving h (values on h1 > h2 >
+    h3): ``p = log((f1 - f2) / (f2 - f3)) / log(r)``, ``f = f3 + (f3 - f2) / (r^p - 1)``;
+    NaN when the differences change sign (not in the asymptotic range)."""
+    r = h[0] / h[1]
+    d12, d23 = values[0] - values[1], values[1] - values[2]
+    if d12 == 0.0 or d23 == 0.0 or d12 * d23 < 0.0:
+        return {"order": float("nan"), "extrapolated": float("nan")}
+    order = float(np.log(d12 / d23) / np.log(r))
+    return {"order": order, "extrapolated": values[2] - d23 / (r**order - 1.0)}
+
+
+def dfg_part(resolutions: list[int], schemes: list[str], duration: float, quick: bool,
+             name: str) -> list[dict[str, Any]]:
+    rows = []
+    results: dict[tuple[str, int], Any] = {}
+    # Coarse grids first, and the rows written after every run: the finest runs take tens
+    # of minutes on two cores.
+    for n in resolutions:
+        for advection in schemes:
+            result = _run_dfg(n, advection, duration, copy=not quick)
+            results[(advection, n)] = result
+            rows.append(_dfg_row(result, "dfg"))
+            write_results(name, rows)
+    columns = ["advection", "N", "cells", "dt [s]", "wall [s]", *QUANTITIES, "drag mean",
+               "drag_cv mean", "note"]
+    print(markdown_table(rows, columns), flush=True)
+    finest = sorted(resolutions)[-3:]
+    for advection in schemes:
+        chosen = [results[(advection, n)] for n in finest]
+        if len(chosen) < 3 or any(r.failure for r in chosen):
+            continue
+        h = [r.setup.h for r in chosen]
+        for key, pick in (("drag_max", lambda r: r.quantities["drag_max"]),
+                          ("drag mean (traction)", lambda r: r.statistics["drag"].mean),
+                          ("drag mean (control volume)",
+                           lambda r: r.statistics["drag_cv"].mean),
+                          ("strouhal", lambda r: r.quantities["strouhal"]),
+                          ("lift_max", lambda r: r.quantities["lift_max"])):
+            values = [float(pick(r)) for r in chosen]
+            fit = richardson(h, values)
+            row = {"part": "richardson", "advection": advection, "quantity": key,
+                   **{f"N={n}": v for n, v in zip(finest, values)}, **fit}
+            rows.append(row)
+    table = [r for r in rows if r["part"] == "richardson"]
+    if table:
+        print(markdown_table(table, ["advection", "quantity", *[f"N={n}" for n in finest],
+                                     "order", "extrapolated"]), flush=True)
+    if not quick:
+        _plot_convergence([r for r in rows if r["part"] == "dfg"])
+    return rows
+
+
+def _plot_convergence(rows: list[dict[str, Any]]) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from elastoflow.validation._dfg import BOUNDS, LABELS
+
+    figure, axes = plt.subplots(1, 4, figsize=(15, 3.4))
+    for axis, key in zip(axes, QUANTITIES):
+        for advection, marker in zip(SCHEMES, "os"):
+            chosen = [r for r in rows if r["advection"] == advection and key in r]
+            if chosen:
+                axis.plot([r["N"] for r in chosen], [r[key] for r in chosen], marker + "-",
+                          label=advection)
+        low, high = BOUNDS[key]
+        axis.axhspan(low, high, color="tab:green", alpha=0.25, label="published bounds")
+        axis.set_xscale("log", base=2)
+        axis.set_xlabel("N (cells per diameter)")
+        axis.set_title(LABELS[key], fontsize=9)
+        axis.grid(alpha=0.3)
+    axes[0].legend(fontsize=7)
+    figure.suptitle("DFG 2D-2 against grid refinement (CFL 0.5 on the inflow peak)",
+                    fontsize=9)
+    figure.tight_layout()
+    DOCS.mkdir(parents=True, exist_ok=True)
+    figure.savefig(DOCS / "dfg2d2_convergence.png", dpi=100)
+    plt.close(figure)
+
+
+def drag_part(resolution: int, duration: float, quick: bool) -> list[dict[str, Any]]:
+    """What the drag depends on, MacCormack at one resolution: the time step, the pressure
+    splitting, the limiter, the start-up kick (beside the plain run)."""
+    n = 8 if quick else resolution
+    rows = []
+    variants: list[tuple[str, dict[str, Any]]] = [
+        ("plain", {}), ("cfl0.25", {"cfl": 0.25}), ("cfl1", {"cfl": 1.0}),
+        ("incremental", {"incremental_pressure": True}), ("unlimited", {"limiter": False}),
+        ("no kick", {"kick": 0.0}),
+    ]
+    for label, options in variants:
+        result = _run_dfg(n, "maccormack", duration, copy=False, label=label, **options)
+        rows.append(_dfg_row(result, "drag", label))
+    print(markdown_table(rows, ["variant", "N", "dt [s]", "wall [s]", *QUANTITIES,
+                                "drag mean", "drag_cv mean", "drag_pressure mean", "note"]),
+          flush=True)
+    return rows
+
+
+def speed_part(steps: int, quick: bool) -> list[dict[str, Any]]:
+    """ms per step of the paper's scenes with each advection scheme."""
+    from elastoflow.scenes import build_simulation, get_scene
+
+    rows = []
+    for name in ("bar_in_jet", "windmill"):
+        for advection in SCHEMES:
+            scene = get_scene(name)
+            scene = scene.model_copy(update={"fluid": scene.fluid.model_copy(
+                update={"advection": advection})})
+            simulation = build_simulation(scene)
+            for _ in range(5):
+                simulation.step()
+            clock = time.perf_counter
+            advecting = 0.0
+            began = clock()
+            for _ in range(steps):
+                report = simulation.step()
+                advecting += report.seconds_by_phase.get("advection", 0.0)
+            total = clock() - began
+            rows.append({"part": "speed", "case": name, "advection": advection,
+                         "steps": steps, "ms per step": 1e3 * total / steps,
+                         "steps/s": steps / total, "advection ms": 1e3 * advecting / steps})
+            print(f"{name} {advection}: {1e3 * total / steps:.2f} ms/step", flush=True)
+    for name in ("bar_in_jet", "windmill"):
+        pair = {r["advection"]: r for r in rows if r["case"] == name}
+        pair["maccormack"]["cost vs semi_lagrangian"] = (
+            pair["maccormack"]["ms per step"] / pair["semi_lagrangian"]["ms per step"])
+    print(markdown_table(rows, ["case", "advection", "ms per step", "steps/s", "advection ms",
+                                "cost vs semi_lagrangian"]), flush=True)
+    return rows
+
+
+def main(argv: list[str] | None = None) -> list[dict[str, Any]]:
+    argv = list(argv or [])
+    quick = "--quick" in argv
+    parts = _option(argv, "parts", "order,dfg,drag,speed").split(",")
+    resolutions = [int(v) for v in _option(argv, "resolutions",
+                                           "8,12" if quick else "10,20,40").split(",")]
+    schemes = _option(argv, "advection", ",".join(SCHEMES)).split(",")
+    duration = float(_option(argv, "duration", "2" if quick else "10"))
+    rows: list[dict[str, Any]] = []
+    if "order" in parts:
+        rows += order_part(quick)
+    if "dfg" in parts:
+        rows += dfg_part(resolutions, schemes, duration, quick, _option(argv, "name", "unsteady"))
+    if "drag" in parts:
+        rows += drag_part(int(_option(argv, "drag-resolution", "10")), duration, quick)
+    if "speed" in parts:
+        rows += speed_part(20 if quick else 100, quick)
+    write_results(_option(argv, "name", "unsteady"), rows)
+    print(machine())
+    return rows
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])

@@ -1,0 +1,106 @@
+"""DFG 2D-2 (Schäfer & Turek 1996, Re = 100): the shedding starts on a coarse grid with the
+default advection and its Strouhal number is within 10 % of the published one; the
+evaluation of the benchmark's quantities on signals of known shape; the CLI command.
+
+The full study (three resolutions, both advection schemes) is docs/validation/unsteady.md,
+made by ``python -m benchmarks unsteady``.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from elastoflow.cli import app
+from elastoflow.validation import dfg_setup, run_dfg
+from elastoflow.validation._dfg import BOUNDS, DIAMETER, MEAN_SPEED, evaluate
+
+PUBLISHED_STROUHAL = 0.5 * sum(BOUNDS["strouhal"])
+
+
+@pytest.mark.slow
+def test_coarse_run_sheds_with_strouhal_within_10_percent() -> None:
+    """12 cells per diameter, 6 s, MacCormack (the scene default): 30-60 s on one core.
+    Measured: St = 0.279 (-7 %), c_L max 0.93."""
+    result = run_dfg(12, duration=6.0, advection="maccormack")
+    assert result.failure is None, result.failure
+    lift = result.statistics["lift"]
+    # Shedding: a lift oscillating about zero with an amplitude of the published order (1).
+    assert lift.amplitude > 0.5, f"lift amplitude {lift.amplitude:.3f}: no shedding"
+    assert abs(lift.mean) < 0.1 * lift.amplitude
+    strouhal = result.quantities["strouhal"]
+    assert abs(strouhal / PUBLISHED_STROUHAL - 1.0) < 0.10, f"St = {strouhal:.4f}"
+    # The drag is periodic at twice the shedding frequency, about a mean near 3.2.
+    assert result.statistics["drag"].frequency == pytest.approx(2.0 * lift.frequency, rel=0.05)
+    assert 3.0 < result.statistics["drag"].mean < 4.0
+
+
+def test_evaluation_of_known_signals() -> None:
+    """St from the lift's period, maxima over the last period, Δp half a period after the
+    last lift maximum."""
+    setup = dfg_setup(10, duration=4.0)
+    time = np.arange(1, 40001) * 1e-4
+    frequency = 3.1
+    phase = 2.0 * np.pi * frequency * time
+    series = {
+        "lift": 0.9 * np.sin(phase),
+        "drag": 3.3 + 0.02 * np.sin(2.0 * phase),
+        "drag_cv": 3.3 + 0.02 * np.sin(2.0 * phase),
+        "delta_p": 2.4 + 0.05 * np.cos(phase),
+    }
+    result = evaluate(setup, time, series, seconds=1.0)
+    assert result.failure is None
+    assert result.quantities["strouhal"] == pytest.approx(DIAMETER * frequency / MEAN_SPEED,
+                                                          rel=1e-3)
+    assert result.quantities["lift_max"] == pytest.approx(0.9, rel=1e-4)
+    assert result.quantities["drag_max"] == pytest.approx(3.32, rel=1e-5)
+    # Lift maximum at phase pi/2; half a period later cos(3 pi / 2) = 0.
+    assert result.quantities["delta_p"] == pytest.approx(2.4, abs=2e-3)
+    assert result.within_bounds("delta_p") is False
+
+
+def test_evaluation_of_a_steady_record_fails_with_a_reason() -> None:
+    setup = dfg_setup(10, duration=1.0)
+    time = np.linspace(0.01, 1.0, 100)
+    steady = {key: np.full(100, 3.0) for key in ("lift", "drag", "drag_cv", "delta_p")}
+    result = evaluate(setup, time, steady, seconds=0.0)
+    assert result.failure is not None and "not periodic" in result.failure
+    assert result.quantities == {}
+
+
+def test_cli_short_run_writes_report_and_says_not_periodic(tmp_path: Path) -> None:
+    result = CliRunner().invoke(app, ["validate", "dfg-2d-2", "--resolution", "4",
+                                      "--duration", "0.05", "--advection", "semi_lagrangian",
+                                      "--out", str(tmp_path), "--json"])
+    assert result.exit_code == 1, result.output
+    assert "not periodic yet" in result.output
+    assert "semi_lagrangian advection" in result.output
+    stem = tmp_path / "dfg2d2_semi_lagrangian_n4"
+    data = json.loads(stem.with_suffix(".json").read_text())
+    assert data["benchmark"] == "DFG 2D-2" and data["cells"] == list(dfg_setup(4).cells)
+    rows = stem.with_suffix(".csv").read_text().splitlines()
+    assert rows[0].startswith("time [s],drag,lift") and len(rows) == 1 + data["steps"]
+    assert stem.with_suffix(".png").read_bytes()[:4] == b"\x89PNG"
+
+
+@pytest.mark.parametrize(
+    ("arguments", "message"),
+    [
+        (["--resolution", "2"], "in 4..160"),
+        (["--resolution", "500"], "in 4..160"),
+        (["--advection", "weno"], "advection = 'weno'"),
+        (["--dt", "-1"], "dt = -1.0"),
+        (["--duration", "0"], "duration = 0.0"),
+        (["FSI1"], "one case"),
+    ],
+)
+def test_cli_bad_input_is_one_line_and_exit_2(arguments: list[str], message: str) -> None:
+    result = CliRunner().invoke(app, ["validate", "dfg-2d-2", *arguments])
+    assert result.exit_code == 2, result.output
+    lines = [line for line in result.output.splitlines() if line.strip()]
+    assert len(lines) == 1 and message in lines[0], result.output
+    assert "Traceback" not in result.output
