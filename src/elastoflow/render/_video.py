@@ -6,6 +6,7 @@ import contextlib
 import os
 import queue
 import subprocess
+import tempfile
 import threading
 from fractions import Fraction
 from pathlib import Path
@@ -131,17 +132,22 @@ class VideoWriter:
         self.frame_count += 1
 
     def close(self) -> Path | None:
-        """Finish the file and move it into place; returns its path (None if no frames)."""
+        """Finish the file and move it into place; returns its path (None if no frames).
+
+        Raises:
+            OSError: ffmpeg failed while finishing the file (a read-only or full disk): the
+                frames it held are lost, no file is left (never a GIF without them).
+        """
         if self._format == "mp4" and self._encoder is not None:
+            encoder, self._encoder = self._encoder, None
             try:
-                self._encoder.close()
-            except Exception as error:  # noqa: BLE001
-                self._fall_back(error)
-            else:
-                self._encoder = None
-                os.replace(self._temporary, self.path)  # type: ignore[arg-type]
-                self._temporary = None
-                return self.path
+                encoder.close()
+            except Exception as error:
+                self._discard_temporary()
+                raise OSError(f"video not written: {error}") from None
+            os.replace(self._temporary, self.path)  # type: ignore[arg-type]
+            self._temporary = None
+            return self.path
         if self._format == "gif" and self._frames_for_gif:
             self._write_gif()
             self._frames_for_gif = []
@@ -198,8 +204,11 @@ class _Encoder:
         # finishes the file.
         group = ({"process_group": 0} if os.name == "posix"
                  else {"creationflags": getattr(subprocess, "CREATE_NEW_PROCESS_GROUP", 0)})
+        # ffmpeg's own messages go to a file, read back into the error when it fails (not
+        # onto the user's terminal, and no pipe that could fill up).
+        self._log = tempfile.TemporaryFile()  # noqa: SIM115 - closed in close/abort
         self._process = subprocess.Popen(command, stdin=subprocess.PIPE,
-                                         stdout=subprocess.DEVNULL, **group)
+                                         stdout=subprocess.DEVNULL, stderr=self._log, **group)
         assert self._process.stdin is not None
         self._stdin = self._process.stdin
         with contextlib.suppress(AttributeError, OSError):
@@ -227,9 +236,21 @@ class _Encoder:
         except BaseException as error:  # noqa: BLE001 - handed to the caller's thread
             self._error = error
 
+    def _said(self) -> str:
+        """ffmpeg's last message, if any."""
+        try:
+            self._log.seek(0)
+            lines = self._log.read().decode("utf-8", "replace").strip().splitlines()
+        except (OSError, ValueError):
+            return ""
+        return f": {lines[-1].strip()}" if lines else ""
+
     def _raise_if_failed(self) -> None:
         if self._error is not None:
-            raise OSError(f"writing a frame to ffmpeg failed: {self._error}") from self._error
+            with contextlib.suppress(subprocess.TimeoutExpired):
+                self._process.wait(timeout=1.0)
+            raise OSError(f"writing a frame to ffmpeg failed: {self._error}"
+                          f"{self._said()}") from self._error
 
     def send(self, frame: np.ndarray) -> None:
         """Queue one RGB frame (H, W, 3) uint8, H and W even, of the size given at start."""
@@ -254,8 +275,10 @@ class _Encoder:
         except BaseException:
             self.abort()
             raise
+        said = self._said()
+        self._log.close()
         if status != 0:
-            raise OSError(f"ffmpeg exited with status {status}")
+            raise OSError(f"ffmpeg exited with status {status}{said}")
 
     def abort(self) -> None:
         """Stop ffmpeg and the writer thread without finishing the file."""
@@ -267,6 +290,7 @@ class _Encoder:
             self._stdin.close()
         with contextlib.suppress(subprocess.TimeoutExpired):
             self._process.wait(timeout=5.0)
+        self._log.close()
 
 
 _PART = "upto_"
