@@ -1,7 +1,7 @@
 """Unsteady accuracy (issue 11): DFG 2D-2, the advection schemes' order, the drag's
 convergence, and what each advection scheme costs on the paper's scenes.
 
-``python -m benchmarks unsteady [--parts=order,dfg,drag,speed] [--resolutions=10,20,40]
+``python -m benchmarks unsteady [--parts=order,dfg,drag,speed] [--resolutions=10,20,30]
 [--advection=maccormack,semi_lagrangian] [--duration=10] [--name=NAME] [--quick]``
 
 Parts:
@@ -24,6 +24,8 @@ Writes ``benchmarks/results/NAME.json`` (default unsteady; one row per measureme
 part it belongs to), plots and per-run JSON into ``docs/validation/unsteady/``, time series
 into ``out/validation/unsteady/``; prints the Markdown tables docs/validation/unsteady.md is
 written from. ``--quick``: N = 8 and 12 for 2 s (a smoke test; nothing is copied to docs).
+``--reevaluate``: no DFG runs; quantities, plots and JSON again from the time series in
+``out/validation/unsteady`` (after a change to the evaluation or the plots).
 """
 
 from __future__ import annotations
@@ -137,13 +139,41 @@ def _dfg_row(result: Any, part: str, label: str = "") -> dict[str, Any]:
     return row
 
 
+def _reevaluate(resolution: int, advection: str, label: str = "") -> Any:
+    """A `DfgResult` rebuilt from the CSV and JSON of an earlier run (after a change to the
+    evaluation or the plots)."""
+    import json
+
+    from elastoflow.validation import dfg_setup
+    from elastoflow.validation._dfg import evaluate
+
+    folder = SERIES / label.replace(" ", "_") if label else SERIES
+    stem = folder / f"dfg2d2_{advection}_n{resolution}"
+    saved = json.loads(stem.with_suffix(".json").read_text())
+    with stem.with_suffix(".csv").open() as file:
+        keys = file.readline().strip().split(",")[1:]
+    data = np.loadtxt(stem.with_suffix(".csv"), delimiter=",", skiprows=1)
+    setup = dfg_setup(resolution, duration=saved["duration"], dt=saved["dt"],
+                      advection=advection,
+                      incremental_pressure=saved["incremental_pressure"],
+                      limiter=saved.get("maccormack_limiter", True))
+    series = {key: data[:, k + 1] for k, key in enumerate(keys)}
+    return evaluate(setup, data[:, 0], series, saved["wall_seconds"])
+
+
+REEVALUATE = False
+
+
 def _run_dfg(resolution: int, advection: str, duration: float, copy: bool,
              label: str = "", **options: Any) -> Any:
     from elastoflow.validation import run_dfg, write_dfg_report
     from elastoflow.validation._dfg import describe, format_quantities
 
     began = time.perf_counter()
-    result = run_dfg(resolution, duration=duration, advection=advection, **options)
+    if REEVALUATE:
+        result = _reevaluate(resolution, advection, label)
+    else:
+        result = run_dfg(resolution, duration=duration, advection=advection, **options)
     print(f"{describe(result)} ({time.perf_counter() - began:.0f} s) {label}", flush=True)
     for line in format_quantities(result):
         print(f"  {line}", flush=True)
@@ -162,15 +192,31 @@ QUANTITIES = ("strouhal", "drag_max", "lift_max", "delta_p")
 
 
 def richardson(h: list[float], values: list[float]) -> dict[str, float]:
-    """Observed order and extrapolated value from three grids halving h (values on h1 > h2 >
-    h3): ``p = log((f1 - f2) / (f2 - f3)) / log(r)``, ``f = f3 + (f3 - f2) / (r^p - 1)``;
-    NaN when the differences change sign (not in the asymptotic range)."""
-    r = h[0] / h[1]
+    """Observed order p and extrapolated value from three grids h1 > h2 > h3, assuming
+    ``f(h) = f0 + C h^p``: p solves ``(f1 - f2) / (f2 - f3) = (h1^p - h2^p) / (h2^p - h3^p)``
+    (bisection on 0.1..6), ``f0 = f3 - (f2 - f3) h3^p / (h2^p - h3^p)``. NaN when the
+    differences change sign or p falls outside 0.1..6 (not in the asymptotic range)."""
+    nan = {"order": float("nan"), "extrapolated": float("nan")}
     d12, d23 = values[0] - values[1], values[1] - values[2]
     if d12 == 0.0 or d23 == 0.0 or d12 * d23 < 0.0:
-        return {"order": float("nan"), "extrapolated": float("nan")}
-    order = float(np.log(d12 / d23) / np.log(r))
-    return {"order": order, "extrapolated": values[2] - d23 / (r**order - 1.0)}
+        return nan
+    target = d12 / d23
+
+    def ratio(p: float) -> float:
+        return (h[0] ** p - h[1] ** p) / (h[1] ** p - h[2] ** p)
+
+    low, high = 0.1, 6.0
+    if not (ratio(low) - target) * (ratio(high) - target) < 0.0:
+        return nan
+    for _ in range(100):
+        middle = 0.5 * (low + high)
+        if (ratio(low) - target) * (ratio(middle) - target) <= 0.0:
+            high = middle
+        else:
+            low = middle
+    p = 0.5 * (low + high)
+    return {"order": p,
+            "extrapolated": values[2] - d23 * h[2] ** p / (h[1] ** p - h[2] ** p)}
 
 
 def dfg_part(resolutions: list[int], schemes: list[str], duration: float, quick: bool,
@@ -264,44 +310,54 @@ def drag_part(resolution: int, duration: float, quick: bool) -> list[dict[str, A
 
 
 def speed_part(steps: int, quick: bool) -> list[dict[str, Any]]:
-    """ms per step of the paper's scenes with each advection scheme."""
+    """ms per step of the paper's scenes with each advection scheme. The two simulations of
+    a scene are stepped in alternating blocks of 10 steps, so that a change in the machine's
+    load during the measurement falls on both alike."""
     from elastoflow.scenes import build_simulation, get_scene
 
     rows = []
+    clock = time.perf_counter
     for name in ("bar_in_jet", "windmill"):
+        simulations = {}
         for advection in SCHEMES:
             scene = get_scene(name)
             scene = scene.model_copy(update={"fluid": scene.fluid.model_copy(
                 update={"advection": advection})})
-            simulation = build_simulation(scene)
+            simulations[advection] = build_simulation(scene)
             for _ in range(5):
-                simulation.step()
-            clock = time.perf_counter
-            advecting = 0.0
-            began = clock()
-            for _ in range(steps):
-                report = simulation.step()
-                advecting += report.seconds_by_phase.get("advection", 0.0)
-            total = clock() - began
+                simulations[advection].step()
+        total = dict.fromkeys(SCHEMES, 0.0)
+        advecting = dict.fromkeys(SCHEMES, 0.0)
+        for _ in range(max(1, steps // 10)):
+            for advection, simulation in simulations.items():
+                began = clock()
+                for _ in range(10):
+                    report = simulation.step()
+                    advecting[advection] += report.seconds_by_phase.get("advection", 0.0)
+                total[advection] += clock() - began
+        count = 10 * max(1, steps // 10)
+        for advection in SCHEMES:
             rows.append({"part": "speed", "case": name, "advection": advection,
-                         "steps": steps, "ms per step": 1e3 * total / steps,
-                         "steps/s": steps / total, "advection ms": 1e3 * advecting / steps})
-            print(f"{name} {advection}: {1e3 * total / steps:.2f} ms/step", flush=True)
-    for name in ("bar_in_jet", "windmill"):
-        pair = {r["advection"]: r for r in rows if r["case"] == name}
-        pair["maccormack"]["cost vs semi_lagrangian"] = (
-            pair["maccormack"]["ms per step"] / pair["semi_lagrangian"]["ms per step"])
+                         "steps": count, "ms per step": 1e3 * total[advection] / count,
+                         "steps/s": count / total[advection],
+                         "advection ms": 1e3 * advecting[advection] / count})
+        rows[-2]["cost vs semi_lagrangian"] = (total["maccormack"] / total["semi_lagrangian"]
+                                               if SCHEMES[0] == "maccormack" else float("nan"))
+        print(f"{name}: " + ", ".join(f"{a} {1e3 * total[a] / count:.2f} ms/step"
+                                      for a in SCHEMES), flush=True)
     print(markdown_table(rows, ["case", "advection", "ms per step", "steps/s", "advection ms",
                                 "cost vs semi_lagrangian"]), flush=True)
     return rows
 
 
 def main(argv: list[str] | None = None) -> list[dict[str, Any]]:
+    global REEVALUATE
     argv = list(argv or [])
     quick = "--quick" in argv
+    REEVALUATE = "--reevaluate" in argv
     parts = _option(argv, "parts", "order,dfg,drag,speed").split(",")
     resolutions = [int(v) for v in _option(argv, "resolutions",
-                                           "8,12" if quick else "10,20,40").split(",")]
+                                           "8,12" if quick else "10,20,30").split(",")]
     schemes = _option(argv, "advection", ",".join(SCHEMES)).split(",")
     duration = float(_option(argv, "duration", "2" if quick else "10"))
     rows: list[dict[str, Any]] = []
