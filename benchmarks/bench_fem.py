@@ -6,7 +6,7 @@ force, the state kept away from rest so that every element does real work):
 * ``bar``: 4 x 24 cells, 192 triangles (the paper's bar has 194);
 * ``block``: 100 x 100 cells, 20000 triangles; run with the serial and with the threaded kernel.
 
-Each timing is one ``ElasticBody.advance`` call of many substeps (after a warm-up call that
+Each timing is one ``ExplicitFem.advance`` call of many substeps (after a warm-up call that
 compiles), best of three; reported as substeps per second and nanoseconds per element-substep.
 
 Usage: ``python -m benchmarks fem [--quick]`` or ``python benchmarks/bench_fem.py``.
@@ -26,7 +26,9 @@ if __package__ in (None, ""):
 
 from benchmarks._common import markdown_table, write_results
 from elastoflow.solid import (
+    BodyState,
     ElasticBody,
+    ExplicitFem,
     MaterialStVK,
     mesh_rectangle,
     nodes_in_box,
@@ -35,13 +37,14 @@ from elastoflow.solid import (
 MATERIAL = MaterialStVK(1000.0, 1.0e6, 0.3, damping_lambda=1.0, damping_mu=1.0)
 
 
-def _body(counts: tuple[int, int], parallel: bool) -> ElasticBody:
+def _body(counts: tuple[int, int], parallel: bool) -> tuple[ElasticBody, BodyState]:
     mesh = mesh_rectangle(0.02 * counts[0] / 4, 0.2 * counts[1] / 24, counts=counts)
     top = nodes_in_box(mesh, (0.0, mesh.points[:, 1].max(), mesh.points[:, 0].max(),
                               mesh.points[:, 1].max()))
     body = ElasticBody(mesh, MATERIAL, fixed_nodes=top, gravity=(0.0, -9.81), parallel=parallel)
-    body.positions[:, 0] += 0.01 * np.sin(mesh.points[:, 1] / mesh.points[:, 1].max())
-    return body
+    state = body.state()
+    state.positions[:, 0] += 0.01 * np.sin(mesh.points[:, 1] / mesh.points[:, 1].max())
+    return body, state
 
 
 def main(argv: list[str] | None = None) -> list[dict[str, Any]]:
@@ -62,14 +65,14 @@ def main(argv: list[str] | None = None) -> list[dict[str, Any]]:
         ("block", (100, 100), (False, True), 100 if quick else 1000),
     ):
         for parallel in kernels:
-            body = _body(counts, parallel)
+            body, state = _body(counts, parallel)
             forces = np.full((body.mesh.point_count, 2), 1e-6)
             dt_s = body.stable_substep()
-            body.advance(dt_s * 2, 2, forces)
+            ExplicitFem(2).advance(body, state, state, dt_s * 2, forces)
             best = np.inf
             for _ in range(3):
                 start = time.perf_counter()
-                body.advance(dt_s * substeps, substeps, forces)
+                ExplicitFem(substeps).advance(body, state, state, dt_s * substeps, forces)
                 best = min(best, time.perf_counter() - start)
             rate = substeps / best
             rows.append({

@@ -47,18 +47,20 @@ def measure(steps: int, warmup: int, size: int) -> dict[str, Any]:
     with tempfile.TemporaryDirectory() as folder:
         with VideoWriter(Path(folder) / "video.mp4", fps=30) as video:
             # First frame outside the clock: starts the ffmpeg process.
-            frame = render_frame(simulation.grid, simulation.state, simulation.bodies,
-                                 simulation.obstacles, "speed", simulation.time)
+            frame = render_frame(simulation.grid, simulation.state.fluid,
+                                 simulation.body_geometry(), simulation.obstacles, "speed",
+                                 simulation.time)
             video.append(frame)
             began = clock()
             for _ in range(steps):
                 simulation.step()
                 t0 = clock()
                 view = "speed"
-                values = view_values(simulation.grid, simulation.state, view)
+                values = view_values(simulation.grid, simulation.state.fluid, view)
                 value_range = default_value_range(values, view)
-                frame = render_frame(simulation.grid, simulation.state, simulation.bodies,
-                                     simulation.obstacles, view, simulation.time,
+                frame = render_frame(simulation.grid, simulation.state.fluid,
+                                     simulation.body_geometry(), simulation.obstacles, view,
+                                     simulation.time,
                                      value_range=value_range, values=values, out=frame)
                 t1 = clock()
                 video.append(frame)

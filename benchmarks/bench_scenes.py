@@ -116,7 +116,8 @@ def measure(name: str, steps: int, warmup: int = 10, size: int | None = None) ->
             totals[phase] = totals.get(phase, 0.0) + seconds
         # The split the step's own clock does not make: the same calls, on the same state,
         # into this benchmark's own buffers (the simulation is not touched).
-        points, velocities, edges, edge_body, _ = simulation._boundary_arrays()
+        points, velocities, edges, edge_body = simulation.model.boundary_points(
+            simulation.state)
         began = clock()
         bmap = build_boundary_map(simulation.grid, points, velocities, edges, edge_body)
         map_seconds += clock() - began

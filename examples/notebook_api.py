@@ -16,13 +16,15 @@ import elastoflow
 
 def main(steps: int = 100, out: Path = Path("out/notebook_api.png")) -> Path:
     sim = elastoflow.load("bar_in_jet")
-    tip = int(np.argmin(sim.bodies[0].positions[:, 1]))
-    start = sim.bodies[0].positions[tip].copy()
+    nodes = sim.state.bodies[0].positions  # the same array for the whole run
+    tip = int(np.argmin(nodes[:, 1]))
+    start = nodes[tip].copy()
     for _ in range(steps):
         report = sim.step()
-    moved = sim.bodies[0].positions[tip] - start
-    speed = np.hypot(sim.state.velocity_x[:-1] + sim.state.velocity_x[1:],
-                     sim.state.velocity_y[:, :-1] + sim.state.velocity_y[:, 1:]) / 2
+    moved = nodes[tip] - start
+    fluid = sim.state.fluid
+    speed = np.hypot(fluid.velocity_x[:-1] + fluid.velocity_x[1:],
+                     fluid.velocity_y[:, :-1] + fluid.velocity_y[:, 1:]) / 2
     print(f"t = {sim.time:.3f} s after {sim.step_index} steps; pressure solve: "
           f"{report.pressure_iterations} iterations, residual {report.pressure_residual:.1e}")
     print(f"bar tip moved by ({moved[0]:+.4f}, {moved[1]:+.4f}) m; max speed {speed.max():.3f} m/s")

@@ -17,8 +17,8 @@ def load(scene: Any) -> Any:
         sim = elastoflow.load("bar_in_jet")
         for _ in range(100):
             sim.step()
-        speed_x = sim.state.velocity_x          # (nx+1, ny) [m/s]
-        nodes = sim.bodies[0].positions         # (n, 2) [m]
+        speed_x = sim.state.fluid.velocity_x    # (nx+1, ny) [m/s]
+        nodes = sim.state.bodies[0].positions   # (n, 2) [m]
         rgb = elastoflow.frame(sim, view="vorticity")    # (H, W, 3) uint8
 
     Raises:
@@ -43,6 +43,6 @@ def frame(simulation: Any, view: str = "speed", **options: Any) -> np.ndarray:
     from elastoflow.render import render_frame
 
     return render_frame(
-        simulation.grid, simulation.state, simulation.bodies, simulation.obstacles, view,
-        simulation.time, **options,
+        simulation.grid, simulation.state.fluid, simulation.body_geometry(),
+        simulation.obstacles, view, simulation.time, **options,
     )

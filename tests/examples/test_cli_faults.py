@@ -126,7 +126,8 @@ def test_render_of_a_damaged_snapshot(how: str, tiny: Path, tmp_path: Path) -> N
     simulation = build_simulation(load_scene(tiny), warnings=[])
     fields = tmp_path / "out" / "fields"
     fields.mkdir(parents=True)
-    arrays = snapshot_arrays(simulation.grid, simulation.state, simulation.bodies,
+    arrays = snapshot_arrays(simulation.grid, simulation.state.fluid,
+                             list(zip(simulation.bodies, simulation.state.bodies)),
                              simulation.obstacles, time=0.0, step=0)
     np.savez(fields / "step_000000.npz", **arrays)
     good = (fields / "step_000000.npz").read_bytes()

@@ -248,9 +248,9 @@ def test_a_blow_up_keeps_the_last_good_step_and_saves_it(scene: Path, tmp_path: 
     def diverge_at_step_7(self: Simulation) -> Any:
         if self.step_index == 6:
             original(self)
-            self.state.velocity_x[...] = np.nan  # the diverged state a blow-up leaves
-            self.state.pressure[...] = 1e30
-            for body in self.bodies:
+            self.state.fluid.velocity_x[...] = np.nan  # the diverged state a blow-up leaves
+            self.state.fluid.pressure[...] = 1e30
+            for body in self.state.bodies:
                 body.positions[...] += 1.0
             raise SimulationBlowUp("step 7, t = 0.14 s: fluid velocity_x is not finite")
         return original(self)
@@ -273,7 +273,7 @@ def test_a_blow_up_keeps_the_last_good_step_and_saves_it(scene: Path, tmp_path: 
     times = _xdmf_times(out / "fields" / "fluid.xdmf")
     assert len(times) == len(set(times)) == 4  # steps 0, 2, 4, 6
     good = read_checkpoint(last_good)
-    assert int(good["step_index"]) == 6 and np.isfinite(good["fluid_velocity_x"]).all()
+    assert int(good["step_index"]) == 6 and np.isfinite(good["fluid.velocity_x"]).all()
     assert [int(r[0]) for r in read_probes(out / "probes.csv")[1]] == list(range(1, 7))
 
     # A rerun from there (the cause fixed) repeats no frame and no row.

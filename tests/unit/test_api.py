@@ -21,13 +21,13 @@ def test_load_by_file_steps_and_renders(tmp_path):
     path = tmp_path / "bar.toml"
     path.write_text(_tiny_bar_scene_toml())
     sim = elastoflow.load(path)
-    before = sim.bodies[0].positions.copy()
+    before = sim.state.bodies[0].positions.copy()
     for _ in range(3):
         sim.step()
     assert sim.step_index == 3
-    assert sim.state.velocity_x.shape == (33, 32)
-    assert np.isfinite(sim.state.pressure).all()
-    assert sim.bodies[0].positions.shape == before.shape
+    assert sim.state.fluid.velocity_x.shape == (33, 32)
+    assert np.isfinite(sim.state.fluid.pressure).all()
+    assert sim.state.bodies[0].positions.shape == before.shape
     frame = elastoflow.frame(sim, view="speed")
     assert frame.dtype == np.uint8 and frame.ndim == 3 and frame.shape[2] == 3
 

@@ -47,12 +47,13 @@ def sinking_history(body_density: float, force_model: str, steps: int, added_mas
     """Centre-of-mass vertical velocity after each step [m/s] and displacement [m], (steps,)."""
     simulation, body = _disc_in_box(body_density, force_model, added_mass=added_mass)
     mass = body.mass
-    start = (mass @ body.positions) / mass.sum()
+    body_state = simulation.state.bodies[0]
+    start = (mass @ body_state.positions) / mass.sum()
     velocity, displacement = np.zeros(steps), np.zeros(steps)
     for k in range(steps):
         simulation.step()
-        velocity[k] = (mass @ body.velocities)[1] / mass.sum()
-        displacement[k] = ((mass @ body.positions) / mass.sum() - start)[1]
+        velocity[k] = (mass @ body_state.velocities)[1] / mass.sum()
+        displacement[k] = ((mass @ body_state.positions) / mass.sum() - start)[1]
     return velocity, displacement
 
 

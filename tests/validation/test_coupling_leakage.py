@@ -71,13 +71,14 @@ def test_fluid_at_rest_stays_at_rest_around_obstacle_and_body(force_model: str) 
     obstacle = coupling.obstacle_circle((0.3, 0.5), 0.12, segments=48)
     simulation = Simulation(grid, solver, bodies=[body], obstacles=[obstacle], dt=0.005,
                             force_model=force_model)
-    rest = body.positions.copy()
+    body_state = simulation.state.bodies[0]
+    rest = body_state.positions.copy()
     for _ in range(20):
         simulation.step()
-    state = simulation.state
+    state = simulation.state.fluid
     speed = max(np.abs(state.velocity_x).max(), np.abs(state.velocity_y).max())
     assert speed < 1e-8, f"fluid at rest started moving: max speed {speed:.3g} m/s"
-    assert np.abs(body.positions - rest).max() < 1e-10
+    assert np.abs(body_state.positions - rest).max() < 1e-10
 
 
 def leakage_run(obstacle: coupling.Obstacle, velocity: tuple[float, float], gap: float,
@@ -89,7 +90,7 @@ def leakage_run(obstacle: coupling.Obstacle, velocity: tuple[float, float], gap:
     worst_net, worst_local = 0.0, 0.0
     for _ in range(steps):
         simulation.step()
-        q = relative_outline_flux(grid, simulation.interior, simulation.state, velocity)
+        q = relative_outline_flux(grid, simulation.interior, simulation.state.fluid, velocity)
         worst_net = max(worst_net, abs(q.sum()) / gap_flux)
         worst_local = max(worst_local, np.abs(q).max() / gap_flux)
     return worst_net, worst_local
@@ -130,7 +131,7 @@ def plate_normal_velocity(thickness_cells: float, cells: int = 64, steps: int = 
     xu, yu = grid.faces_x()
     middle = np.abs(yu - 0.5) < 0.1
     near = middle & (((xu < left) & (xu > left - h)) | ((xu > right) & (xu < right + h)))
-    return float(simulation.state.velocity_x[near].mean())
+    return float(simulation.state.fluid.velocity_x[near].mean())
 
 
 @pytest.mark.parametrize("thickness_cells", [
@@ -207,7 +208,7 @@ def potential_flow_errors(cells_per_radius: int) -> tuple[float, float]:
     )
     simulation = Simulation(grid, solver, obstacles=[obstacle], dt=1e-3)
     simulation.step()
-    interior, state = simulation.interior, simulation.state
+    interior, state = simulation.interior, simulation.state.fluid
 
     def potential(x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         dx, dy = x - center[0], y - center[1]

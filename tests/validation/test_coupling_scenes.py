@@ -62,16 +62,17 @@ def test_bar_in_centred_jet_stays_symmetric(force_model: str, density: float,
     (1100 kg/m^3, 60 kPa) under the traction force inverts within 10 steps, the added-mass
     instability of explicit coupling (docs/validation_coupling.md)."""
     simulation, body = _symmetric_bar_in_jet(force_model, density, young_modulus)
-    rest = body.positions.copy()
+    body_state = simulation.state.bodies[0]
+    rest = body_state.positions.copy()
     tip = np.flatnonzero(np.isclose(rest[:, 1], rest[:, 1].min()))
     for _ in range(60):
         simulation.step()
-    displacement = body.positions - rest
+    displacement = body_state.positions - rest
     vertical = np.abs(displacement[:, 1]).max()
     lateral_tip = abs(displacement[tip, 0].mean())
     assert vertical > 1e-4, "the jet should push the bar"
     assert lateral_tip < 1e-3 * vertical, f"tip drifts sideways by {lateral_tip:.3g} m"
-    assert _mirror_asymmetry(simulation.state) < 1e-3
+    assert _mirror_asymmetry(simulation.state.fluid) < 1e-3
 
 
 def _run_scene(name: str, steps: int) -> tuple[Simulation, float]:
@@ -86,11 +87,12 @@ def test_paper_bar_in_jet_runs_200_steps() -> None:
     """25-40 s on one core (256 x 256, 35 substeps), by machine load."""
     simulation, _ = _run_scene("bar_in_jet", 200)
     body = simulation.bodies[0]
-    assert np.isfinite(body.positions).all()
+    positions = simulation.state.bodies[0].positions
+    assert np.isfinite(positions).all()
     assert simulation.last_report is not None and simulation.last_report.cfl < 10.0
-    moved = np.abs(body.positions - body.mesh.points).max()
+    moved = np.abs(positions - body.mesh.points).max()
     assert moved > 1e-3, f"the jet should bend the bar; it moved {moved:.3g} m"
-    assert ((body.positions > 0.0) & (body.positions < 1.0)).all(), "bar left the box"
+    assert ((positions > 0.0) & (positions < 1.0)).all(), "bar left the box"
 
 
 @pytest.fixture(scope="module")
@@ -103,9 +105,10 @@ def windmill_run() -> tuple[Simulation, float]:
 def _windmill_angle(simulation: Simulation) -> float:
     """Mean rotation [rad] of the windmill's nodes about its hub since the start."""
     body = simulation.bodies[0]
-    hub = body.positions[body.pivot_node]
+    positions = simulation.state.bodies[0].positions
+    hub = positions[body.pivot_node]
     rest = body.mesh.points - hub
-    now = body.positions - hub
+    now = positions - hub
     far = np.hypot(*rest.T) > 0.5 * np.hypot(*rest.T).max()
     angles = np.arctan2(rest[far, 0] * now[far, 1] - rest[far, 1] * now[far, 0],
                         (rest[far] * now[far]).sum(axis=1))
@@ -115,9 +118,8 @@ def _windmill_angle(simulation: Simulation) -> float:
 @pytest.mark.slow
 def test_paper_windmill_runs_200_steps(windmill_run: tuple[Simulation, float]) -> None:
     simulation, _ = windmill_run
-    body = simulation.bodies[0]
-    assert np.isfinite(body.positions).all()
-    assert np.isfinite(simulation.state.velocity_x).all()
+    assert np.isfinite(simulation.state.bodies[0].positions).all()
+    assert np.isfinite(simulation.state.fluid.velocity_x).all()
     assert simulation.last_report is not None and simulation.last_report.cfl < 10.0
 
 

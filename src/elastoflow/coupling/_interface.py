@@ -25,6 +25,7 @@ adjoint.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Protocol
 
@@ -362,7 +363,7 @@ class PressureCoupledBodies:
     """
 
     def __init__(self, flux: InterfaceFlux, predicted: np.ndarray,
-                 responses: list[BodyResponse], offsets: list[int], density: float,
+                 responses: Sequence[BodyResponse], offsets: Sequence[int], density: float,
                  dt: float, bmap: BoundaryMap | None = None,
                  gravity: tuple[float, float] = (0.0, 0.0)) -> None:
         if (gravity[0] != 0.0 or gravity[1] != 0.0) and bmap is None:

@@ -24,7 +24,7 @@ from elastoflow.render._fields import velocity_at_cells, vorticity_at_cells
 FIELD_FORMATS: tuple[str, ...] = ("npz", "vtk", "xdmf")
 
 
-def snapshot_arrays(grid: Any, state: Any, bodies: Sequence[Any] = (),
+def snapshot_arrays(grid: Any, state: Any, bodies: Sequence[tuple[Any, Any]] = (),
                     obstacles: Sequence[Any] = (), *, time: float = 0.0, step: int = 0,
                     solid_cells: np.ndarray | None = None) -> dict[str, np.ndarray]:
     """Everything a saved frame holds, as named arrays (the ``.npz`` keys).
@@ -34,6 +34,9 @@ def snapshot_arrays(grid: Any, state: Any, bodies: Sequence[Any] = (),
     (nx, ny) unless stated; ``time`` [s], ``step``, ``h`` [m], ``origin`` (2,);
     ``body{k}_points`` (n, 2) [m], ``body{k}_triangles`` (m, 3), ``body{k}_velocities`` (n, 2);
     ``obstacle{k}_points`` (p, 2) [m].
+
+    ``state`` is the fluid state, ``bodies`` a (model, `elastoflow.solid.BodyState`) pair
+    per body.
     """
     data: dict[str, np.ndarray] = {
         "velocity": velocity_at_cells(state),
@@ -49,10 +52,10 @@ def snapshot_arrays(grid: Any, state: Any, bodies: Sequence[Any] = (),
         "h": np.array(float(grid.h)),
         "origin": np.asarray(grid.origin, dtype=np.float64),
     }
-    for index, body in enumerate(bodies):
-        data[f"body{index}_points"] = np.array(body.positions)
+    for index, (body, body_state) in enumerate(bodies):
+        data[f"body{index}_points"] = np.array(body_state.positions)
         data[f"body{index}_triangles"] = np.array(body.mesh.triangles)
-        data[f"body{index}_velocities"] = np.array(body.velocities)
+        data[f"body{index}_velocities"] = np.array(body_state.velocities)
     for index, obstacle in enumerate(obstacles):
         data[f"obstacle{index}_points"] = np.array(obstacle.points_at(time))
     return data

@@ -21,8 +21,7 @@ Sampler = Callable[[Any, Any], list[float]]
 
 def _node_displacement(body: int, node: int) -> tuple[list[str], Sampler]:
     def sample(sim: Any, report: Any) -> list[float]:
-        b = sim.bodies[body]
-        d = b.positions[node] - b.mesh.points[node]
+        d = sim.state.bodies[body].positions[node] - sim.bodies[body].mesh.points[node]
         return [float(d[0]), float(d[1])]
 
     prefix = f"body{body}_node{node}_displacement"
@@ -40,13 +39,12 @@ def _body_force(body: int) -> tuple[list[str], Sampler]:
 def _kinetic_energy(body: int | None) -> tuple[list[str], Sampler]:
     if body is not None:
         def sample_body(sim: Any, report: Any) -> list[float]:
-            b = sim.bodies[body]
-            return [0.5 * float(np.dot(b.mass, (b.velocities**2).sum(axis=1)))]
+            return [sim.bodies[body].kinetic_energy(sim.state.bodies[body])]
 
         return [f"body{body}_kinetic_energy [J/m]"], sample_body
 
     def sample_fluid(sim: Any, report: Any) -> list[float]:
-        state, h = sim.state, sim.grid.h
+        state, h = sim.state.fluid, sim.grid.h
         density = sim.fluid_solver.density
         energy = 0.5 * density * h * h * (np.sum(state.velocity_x**2) + np.sum(state.velocity_y**2))
         return [float(energy)]
@@ -71,7 +69,7 @@ def _traction_on(sim: Any, bodies: list[int], obstacles: list[int]
     """(points, nodal forces) of each chosen object, the fluid's traction on it."""
     forces = sim.traction_forces()
     count = len(sim.bodies)
-    chosen = [(sim.bodies[i].positions, forces[i]) for i in bodies]
+    chosen = [(sim.state.bodies[i].positions, forces[i]) for i in bodies]
     chosen += [(sim.obstacles[i].points_at(sim.time), forces[count + i]) for i in obstacles]
     return chosen
 
@@ -116,7 +114,7 @@ def _bilinear(values: np.ndarray, x0: float, y0: float, h: float, point: Any) ->
 def _pressure_at(sim: Any, point: Any) -> float:
     grid = sim.grid
     ox, oy = grid.origin
-    return _bilinear(sim.state.pressure, ox + 0.5 * grid.h, oy + 0.5 * grid.h, grid.h, point)
+    return _bilinear(sim.state.fluid.pressure, ox + 0.5 * grid.h, oy + 0.5 * grid.h, grid.h, point)
 
 
 def _point_name(point: Any) -> str:
@@ -145,7 +143,7 @@ def _velocity(spec: Any) -> tuple[list[str], Sampler]:
     point = tuple(spec.point)
 
     def sample(sim: Any, report: Any) -> list[float]:
-        grid, state = sim.grid, sim.state
+        grid, state = sim.grid, sim.state.fluid
         ox, oy = grid.origin
         h = grid.h
         u = _bilinear(state.velocity_x, ox, oy + 0.5 * h, h, point)

@@ -129,14 +129,15 @@ class OutputSession:
         if self._fields is not None and self._due("fields", out.fields, step, force):
             interior = getattr(sim, "interior", None)
             self._fields.write(snapshot_arrays(
-                sim.grid, sim.state, sim.bodies, sim.obstacles, time=sim.time, step=step,
+                sim.grid, sim.state.fluid, list(zip(sim.bodies, sim.state.bodies)),
+                sim.obstacles, time=sim.time, step=step,
                 solid_cells=None if interior is None else interior.solid_cells,
             ))
             self._written_at["fields"] = step
         if (out.meshes is not None and sim.bodies
                 and self._due("meshes", out.meshes, step, force)):
             write_extruded_meshes(self.out_dir / "meshes", step,
-                                  [(b.positions, b.mesh.triangles) for b in sim.bodies],
+                                  sim.body_geometry(),
                                   out.meshes.thickness, out.meshes.format)
             self._written_at["meshes"] = step
         if video and self._video is not None and self._due("video", out.video, step, force):
@@ -154,9 +155,10 @@ class OutputSession:
         from elastoflow.render import default_value_range, render_frame, view_values
 
         sim = self.simulation
-        values = view_values(sim.grid, sim.state, view)
+        values = view_values(sim.grid, sim.state.fluid, view)
         low, high = default_value_range(values, view)
-        return render_frame(sim.grid, sim.state, sim.bodies, sim.obstacles, view, sim.time,
+        return render_frame(sim.grid, sim.state.fluid, sim.body_geometry(), sim.obstacles,
+                            view, sim.time,
                             value_range=self._range.update(low, high), values=values, out=out)
 
     def after_step(self, simulation: Any, report: Any) -> None:

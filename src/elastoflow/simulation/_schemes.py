@@ -1,33 +1,43 @@
-"""Coupling schemes: what advances a `Simulation`'s fluid and bodies by one step.
+"""Coupling schemes: what advances a coupled state by one step.
 
-A scheme owns the order of the fluid phases, the fluid-to-body force and the body advance.
-`ExplicitCoupling` is the paper's partitioned scheme (METHOD.md §8); `MonolithicCoupling` solves
-the pressure and the bodies' answer to it in one symmetric positive definite system
-(docs/method_notes.md, "Strong coupling").
+A scheme steps ``state_in`` into ``state_out`` for a `CoupledModel` (Newton's
+``Solver.step(state_in, state_out, ...)``): it owns the order of the fluid phases, the
+fluid-to-body force and the body advance, and leaves ``state_in`` untouched, so a step that
+fails leaves the last good state. `ExplicitCoupling` is the paper's partitioned scheme
+(METHOD.md §8); `MonolithicCoupling` solves the pressure and the bodies' answer to it in one
+symmetric positive definite system (docs/method_notes.md, "Strong coupling").
 """
 
 from __future__ import annotations
 
 import time as _time
-from typing import TYPE_CHECKING, Protocol
+from typing import TYPE_CHECKING, Literal, Protocol
 
 import numpy as np
 
+from elastoflow.simulation._checks import check_fluid_finite, cfl_number
 from elastoflow.simulation._report import SimulationBlowUp, StepReport
+from elastoflow.simulation._state import CoupledModel, CoupledState, StepBoundary
+from elastoflow.solid import ElasticBody, ExplicitFem, NewmarkFem
 
 if TYPE_CHECKING:
     from elastoflow.coupling import BoundaryMap
     from elastoflow.fluid import InteriorBoundary
     from elastoflow.linalg import SolveReport
-    from elastoflow.simulation._simulation import Simulation
+
+ForceModel = Literal["traction", "momentum_exchange"]
+FORCE_MODELS: tuple[str, ...] = ("traction", "momentum_exchange")
 
 
 class CouplingScheme(Protocol):
-    """Advances a simulation by one fluid step; raises `SimulationBlowUp` on divergence."""
+    """Steps a coupled state by ``dt``; raises `SimulationBlowUp` on divergence."""
 
     name: str
 
-    def step(self, sim: Simulation) -> StepReport:
+    def step(self, model: CoupledModel, state_in: CoupledState, state_out: CoupledState,
+             dt: float) -> StepReport:
+        """Write the state after ``dt`` [s] into ``state_out``; ``state_in`` is not changed
+        (``state_out`` holds no data the step needs)."""
         ...
 
 
@@ -37,97 +47,154 @@ class ExplicitCoupling:
     Map and classification from the bodies' current state; advect, diffuse and force the
     fluid; take the momentum-exchange force from that intermediate velocity or, after the
     projection, the traction force; advance each body by its substeps under that force, held
-    constant (optionally under-relaxed, with an optional added-mass estimate). Unstable when
-    the fluid a body displaces outweighs it (added-mass effect): see `Simulation`.
+    constant (optionally under-relaxed, with an optional added-mass estimate).
+
+    Unstable when the fluid a body displaces outweighs it (added-mass effect): the fluid's
+    pressure answers the body's last acceleration with ``-m_a a^(n-1)``, which diverges when
+    the added mass ``m_a`` exceeds the body's mass. Such runs stop with `SimulationBlowUp`.
+
+    Args:
+        substeps: FEM substeps per fluid step, or "auto" for the stability bound.
+        force_model: Which fluid-to-solid force drives the bodies: "traction" (pressure and
+            viscous stress integrated along the edges) or "momentum_exchange" (paper eq. 8).
+        alpha: Volume fraction of the momentum-exchange model, in (0, 1].
+        force_relaxation: Under-relaxation ``omega`` in (0, 1] of the force handed to the
+            bodies: ``F_applied^n = F_applied^(n-1) + omega (F^n - F_applied^(n-1))`` (1: none).
+            Damps the added-mass feedback (stable for roughly ``omega (1 + m_a / m_s) < 2``)
+            at the price of a lag of about ``dt / omega`` in the force; steady forces are
+            unchanged.
+        added_mass: Coefficient ``c`` of the added-mass stabilisation (0: off). Each boundary
+            node gets the extra inertia ``c rho_f l_i R`` (``l_i`` its share of the boundary
+            length, ``R`` half the body's largest rest extent), and the force
+            ``m_i (v^n - v^(n-1)) / dt`` that cancels it at constant acceleration: the body
+            sees ``a^n = (F + (m~ - m_a) a^(n-1)) / (m_s + m~)``, stable whenever
+            ``m~ > (m_a - m_s) / 2``.
     """
 
     name = "explicit"
 
-    def step(self, sim: Simulation) -> StepReport:
+    def __init__(self, substeps: int | Literal["auto"] = "auto",
+                 force_model: ForceModel = "traction", alpha: float = 0.5,
+                 force_relaxation: float = 1.0, added_mass: float = 0.0) -> None:
+        if substeps != "auto" and not (
+            isinstance(substeps, (int, float)) and np.isfinite(substeps)
+            and int(substeps) == substeps and substeps >= 1
+        ):
+            raise ValueError(f"substeps = {substeps!r}: must be a positive integer or 'auto'")
+        if force_model not in FORCE_MODELS:
+            raise ValueError(f"force_model = {force_model!r}: must be one of {FORCE_MODELS}")
+        if not 0.0 < alpha <= 1.0:
+            raise ValueError(f"alpha = {alpha!r}: must lie in (0, 1]")
+        if not 0.0 < force_relaxation <= 1.0:
+            raise ValueError(
+                f"force_relaxation = {force_relaxation!r}: must lie in (0, 1] (1: no relaxation)"
+            )
+        if not (0.0 <= added_mass < np.inf):
+            raise ValueError(f"added_mass = {added_mass!r}: must be a finite number >= 0")
+        self.fem = ExplicitFem(substeps if substeps == "auto" else int(substeps))
+        self.force_model = force_model
+        self.alpha = float(alpha)
+        self.force_relaxation = float(force_relaxation)
+        self.added_mass_coefficient = float(added_mass)
+        self._added_mass: dict[int, np.ndarray] = {}
+
+    def added_mass(self, body: ElasticBody, fluid_density: float) -> np.ndarray:
+        """The nodal added-mass estimate of ``body`` [kg/m], shape (n,) (cached)."""
+        key = id(body)
+        if key not in self._added_mass:
+            self._added_mass[key] = _added_mass_estimate(
+                body, fluid_density, self.added_mass_coefficient
+            )
+        return self._added_mass[key]
+
+    def step(self, model: CoupledModel, state_in: CoupledState, state_out: CoupledState,
+             dt: float) -> StepReport:
         from elastoflow.coupling import (
             build_boundary_map,
             force_momentum_exchange,
             force_traction,
-            interior_boundary_from_map,
         )
 
         seconds: dict[str, float] = {}
         clock = _time.perf_counter
-        dt, fluid, state = sim.dt, sim.fluid_solver, sim.state
-        next_step = sim.step_index + 1
+        fluid = model.fluid
+        next_step = state_in.step_index + 1
+        state_out.assign(state_in)
+        out = state_out.fluid
 
-        interior = None
-        bmap = None
-        if sim.has_boundaries:
+        boundary = None
+        offsets = model.object_offsets()
+        if model.has_boundaries:
             t0 = clock()
-            points, velocities, edges, edge_body, offsets = sim._boundary_arrays()
-            bmap = build_boundary_map(sim.grid, points, velocities, edges, edge_body)
-            # Reusing the dense arrays keeps the per-step cost at the map's own work.
-            interior = interior_boundary_from_map(sim.grid, bmap, out=sim.interior)
+            points, velocities, edges, edge_body = model.boundary_points(state_in)
+            bmap = build_boundary_map(model.grid, points, velocities, edges, edge_body)
+            boundary = _step_boundary(model, bmap, state_out)
             seconds["map"] = clock() - t0
+        interior = None if boundary is None else boundary.interior
 
-        _intermediate_velocity(sim, interior, next_step, seconds)
+        _intermediate_velocity(model, state_out, interior, dt, next_step, seconds)
 
         nodal_force = np.zeros((0, 2))
-        if sim.bodies and sim.force_model == "momentum_exchange":
-            assert bmap is not None
+        if model.bodies and self.force_model == "momentum_exchange":
+            assert boundary is not None
             t0 = clock()
             nodal_force = force_momentum_exchange(
-                sim.grid, bmap, state.velocity_x, state.velocity_y,
-                fluid.density, dt, sim.alpha,
+                model.grid, boundary.boundary_map, out.velocity_x, out.velocity_y,
+                fluid.density, dt, self.alpha,
             )
             seconds["coupling_force"] = clock() - t0
 
         t0 = clock()
         try:
-            solve = fluid.project(state, dt, interior)
+            solve = fluid.project(out, dt, interior)
         except ValueError:
             # A non-finite velocity stops the linear solvers first: report it as a blow-up
             # naming the step (re-raised unchanged when the fields are finite).
-            sim._check_fluid(next_step)
+            check_fluid_finite(out, next_step, state_in.time + dt)
             raise
         seconds["pressure"] = clock() - t0
 
-        if sim.bodies and sim.force_model == "traction":
-            assert bmap is not None
+        if model.bodies and self.force_model == "traction":
+            assert boundary is not None
             t0 = clock()
             nodal_force = force_traction(
-                sim.grid, bmap, state.velocity_x, state.velocity_y,
-                state.pressure, fluid.density, fluid.viscosity, interior,
-                gravity=fluid.gravity,
+                model.grid, boundary.boundary_map, out.velocity_x, out.velocity_y,
+                out.pressure, fluid.density, fluid.viscosity, interior, gravity=fluid.gravity,
             )
             seconds["coupling_force"] = clock() - t0
 
-        cfl = sim._check_fluid(next_step)
+        # The bodies must not take a force from a diverged fluid: name the fluid field.
+        check_fluid_finite(out, next_step, state_in.time + dt)
 
         substeps_taken: list[int] = []
-        if sim.bodies:
+        if model.bodies:
             t0 = clock()
-            for index, body in enumerate(sim.bodies):
+            for index, body in enumerate(model.bodies):
+                body_in, body_out = state_in.bodies[index], state_out.bodies[index]
                 force = nodal_force[offsets[index]:offsets[index + 1]]
-                if sim.force_relaxation < 1.0 and sim.step_index > 0:
-                    previous = sim.body_forces[index]
-                    force = previous + sim.force_relaxation * (force - previous)
-                sim.body_forces[index] = force.copy()
+                if self.force_relaxation < 1.0 and state_in.step_index > 0:
+                    previous = state_in.body_forces[index]
+                    force = previous + self.force_relaxation * (force - previous)
+                state_out.body_forces[index][...] = force
                 extra = None
-                if sim.added_mass_coefficient > 0.0:
-                    extra = sim.added_mass[index]
-                    acceleration = (body.velocities - sim._previous_velocities[index]) / dt
+                if self.added_mass_coefficient > 0.0:
+                    extra = self.added_mass(body, fluid.density)
+                    acceleration = (body_in.velocities
+                                    - state_in.previous_velocities[index]) / dt
                     force = force + extra[:, None] * acceleration
-                sim._previous_velocities[index] = body.velocities.copy()
+                state_out.previous_velocities[index][...] = body_in.velocities
                 try:
-                    report = body.advance(
-                        dt, sim.substeps, force, step=next_step, added_mass=extra
-                    )
+                    report = self.fem.advance(body, body_in, body_out, dt, force,
+                                              step=next_step, added_mass=extra)
                 except Exception as error:  # re-raised with where it happened
                     raise SimulationBlowUp(
-                        f"step {next_step}, t = {sim.time + dt:.6g} s, body {index}: {error}"
+                        f"step {next_step}, t = {state_in.time + dt:.6g} s, body {index}: "
+                        f"{error}"
                     ) from error
                 substeps_taken.append(int(report.substeps))
             seconds["solid"] = clock() - t0
 
-        sim.time += dt
-        return _finish(sim, next_step, interior, bmap, solve, substeps_taken, cfl, seconds)
+        return _finish(model, state_in, state_out, dt, boundary, solve, substeps_taken, seconds)
 
 
 class MonolithicCoupling:
@@ -139,17 +206,17 @@ class MonolithicCoupling:
        scheme);
     2. the explicit part of the fluid's force, its viscous traction, from the current fields;
     3. the fluid's advection, viscosity and forces give the intermediate velocity ``w``;
-    4. predictor: each body takes its explicit substeps under its elastic forces, gravity and
-       that viscous traction, without the pressure: ``X*``, ``V*``;
+    4. predictor: each body takes its implicit Newmark step (`elastoflow.solid.NewmarkFem`)
+       under its elastic forces, gravity and that viscous traction, without the pressure:
+       ``X*``, ``V*``;
     5. one pressure solve for fluid and bodies together: the flux balance of every cell counts
-       the bodies' velocity ``V* + dv(p)``, where ``dv = dt A^-1 f_p`` is the body's linearised
-       backward-Euler answer (`elastoflow.solid.ElasticBody.step_response`) to the pressure's
-       nodal force ``f_p = h W^T D^T p`` (`elastoflow.coupling.interface_flux`). The system
+       the bodies' mean velocity ``(X* - X^n) / dt + dv(p)``, where ``dv = dt/2 A^-1 f_p`` is
+       the Newmark step's answer (`NewmarkFem.response`) to the pressure's nodal force
+       ``f_p = h W^T D^T p`` (`elastoflow.coupling.interface_flux`). The system
        ``(L + rho h^2 DW A^-1 (DW)^T) p = rhs`` is symmetric positive definite (Robinson-Mosher,
        Schroeder & Fedkiw 2011), solved by CG with the fluid's multigrid as preconditioner;
-    6. the bodies take ``dv``: ``V = V* + dv``, ``X = X* + (n+1)/(2n) dt dv`` (what ``n``
-       substeps under the constant force ``f_p`` would add to the positions of a rigid body),
-       and faces inside bodies their new velocity.
+    6. the bodies take ``dv``: ``X = X* + dt dv``, ``V = V* + 2 dv``, and faces inside bodies
+       their new velocity.
 
     No force relaxation and no added-mass estimate: the fluid that a body pushes answers in the
     same solve, so the added-mass instability of the explicit scheme does not arise for any
@@ -167,159 +234,187 @@ class MonolithicCoupling:
     name = "monolithic"
 
     def __init__(self, gamma: float = 0.55) -> None:
-        if not 0.5 <= gamma <= 1.0:
-            raise ValueError(f"gamma = {gamma!r}: must lie in [0.5, 1]")
-        self.gamma = float(gamma)
+        self.fem = NewmarkFem(gamma)
+        self.gamma = self.fem.gamma
         self._explicit = ExplicitCoupling()
 
-    def step(self, sim: Simulation) -> StepReport:
+    def step(self, model: CoupledModel, state_in: CoupledState, state_out: CoupledState,
+             dt: float) -> StepReport:
         from elastoflow.coupling import (
             PressureCoupledBodies,
             build_boundary_map,
             force_traction,
             interface_flux,
-            interior_boundary_from_map,
         )
 
-        if not sim.bodies:
+        if not model.bodies:
             # Nothing to couple: obstacles have prescribed velocities.
-            return self._explicit.step(sim)
+            return self._explicit.step(model, state_in, state_out, dt)
         seconds: dict[str, float] = {}
         clock = _time.perf_counter
-        dt, fluid, state, grid = sim.dt, sim.fluid_solver, sim.state, sim.grid
-        next_step = sim.step_index + 1
-        where = f"step {next_step}, t = {sim.time + dt:.6g} s"
+        fluid, grid = model.fluid, model.grid
+        next_step = state_in.step_index + 1
+        where = f"step {next_step}, t = {state_in.time + dt:.6g} s"
+        state_out.assign(state_in)
+        out = state_out.fluid
 
         t0 = clock()
-        points, velocities, edges, edge_body, offsets = sim._boundary_arrays()
+        offsets = model.object_offsets()
+        points, velocities, edges, edge_body = model.boundary_points(state_in)
         bmap = build_boundary_map(grid, points, velocities, edges, edge_body)
-        interior = interior_boundary_from_map(grid, bmap, out=sim.interior)
+        boundary = _step_boundary(model, bmap, state_out)
+        interior = boundary.interior
         seconds["map"] = clock() - t0
 
         t0 = clock()
         viscous = np.zeros_like(points)
         if fluid.viscosity > 0.0:
             viscous = force_traction(
-                grid, bmap, state.velocity_x, state.velocity_y, np.zeros(grid.shape_cells),
+                grid, bmap, out.velocity_x, out.velocity_y, np.zeros(grid.shape_cells),
                 fluid.density, fluid.viscosity, interior,
             )
         seconds["coupling_force"] = clock() - t0
 
-        _intermediate_velocity(sim, interior, next_step, seconds)
+        _intermediate_velocity(model, state_out, interior, dt, next_step, seconds)
 
         t0 = clock()
-        before = [(body.positions.copy(), body.velocities.copy()) for body in sim.bodies]
-        # Newmark's matrix M + dt/2 D + dt^2/4 K: the predictor's Newton matrix and the body's
-        # answer to the pressure in the coupled solve (the same rule, which keeps it stable).
-        responses = [body.newmark_response(dt, self.gamma) for body in sim.bodies]
+        # Newmark's matrix M + gamma dt D + beta dt^2 K: the predictor's Newton matrix and the
+        # body's answer to the pressure in the coupled solve (the same rule keeps it stable).
+        responses = [self.fem.response(body, body_state, dt)
+                     for body, body_state in zip(model.bodies, state_in.bodies)]
         substeps_taken: list[int] = []
-        for index, body in enumerate(sim.bodies):
+        for index, body in enumerate(model.bodies):
             try:
-                body.advance_newmark(
-                    dt, viscous[offsets[index]:offsets[index + 1]], responses[index],
-                    step=next_step, gamma=self.gamma,
+                self.fem.advance(
+                    body, state_in.bodies[index], state_out.bodies[index], dt,
+                    viscous[offsets[index]:offsets[index + 1]], responses[index],
+                    step=next_step,
                 )
             except Exception as error:  # re-raised with where it happened
-                _restore(sim, before)
                 raise SimulationBlowUp(f"{where}, body {index}: {error}") from error
             substeps_taken.append(1)
         # The flux balance counts what the bodies sweep over the step, their mean velocity
         # (X* - X^n) / dt; the answer to the pressure is Newmark's: mean velocity
         # dt/2 A^-1 f, end velocity twice that.
         predicted = np.array(velocities)
-        for index, body in enumerate(sim.bodies):
+        for index in range(len(model.bodies)):
             lo, hi = offsets[index], offsets[index + 1]
-            predicted[lo:hi] = (body.positions - before[index][0]) / dt
-        for index, obstacle in enumerate(sim.obstacles, start=len(sim.bodies)):
-            predicted[offsets[index]:offsets[index + 1]] = obstacle.velocities_at(sim.time + dt)
+            predicted[lo:hi] = (state_out.bodies[index].positions
+                                - state_in.bodies[index].positions) / dt
+        for index, obstacle in enumerate(model.obstacles, start=len(model.bodies)):
+            predicted[offsets[index]:offsets[index + 1]] = obstacle.velocities_at(
+                state_in.time + dt)
         seconds["solid"] = clock() - t0
 
         t0 = clock()
         triangles = np.concatenate([body.mesh.triangles + offsets[index]
-                                    for index, body in enumerate(sim.bodies)])
-        triangle_offsets = np.cumsum([0] + [body.mesh.triangle_count for body in sim.bodies])
+                                    for index, body in enumerate(model.bodies)])
+        triangle_offsets = np.cumsum([0] + [body.mesh.triangle_count for body in model.bodies])
         coupled = PressureCoupledBodies(
             interface_flux(grid, bmap, interior, triangles, triangle_offsets), predicted,
-            responses,
-            offsets[:len(sim.bodies) + 1], fluid.density, dt, bmap=bmap,
+            responses, offsets[:len(model.bodies) + 1].tolist(), fluid.density, dt, bmap=bmap,
             gravity=fluid.gravity,
         )
         try:
-            solve = fluid.project(state, dt, interior, bodies=coupled)
+            solve = fluid.project(out, dt, interior, bodies=coupled)
         except ValueError:
-            _restore(sim, before)
-            sim._check_fluid(next_step)
+            check_fluid_finite(out, next_step, state_in.time + dt)
             raise
         seconds["pressure"] = clock() - t0
 
         t0 = clock()
-        for index, body in enumerate(sim.bodies):
+        for index, body in enumerate(model.bodies):
             lo, hi = offsets[index], offsets[index + 1]
+            body_out = state_out.bodies[index]
             change = coupled.velocities[lo:hi] - predicted[lo:hi]
-            body.positions += dt * change
-            body.velocities += 2.0 * change
-            sim.body_forces[index] = viscous[lo:hi] + coupled.pressure_forces[lo:hi]
-            determinants = body.deformation_determinants()
-            if not (np.isfinite(body.positions).all() and determinants.min() > 0.0):
+            body_out.positions += dt * change
+            body_out.velocities += 2.0 * change
+            state_out.body_forces[index][...] = viscous[lo:hi] + coupled.pressure_forces[lo:hi]
+            determinants = body.deformation_determinants(body_out)
+            if not (np.isfinite(body_out.positions).all() and determinants.min() > 0.0):
                 element = int(np.argmin(np.nan_to_num(determinants, nan=-np.inf)))
-                _restore(sim, before)
                 raise SimulationBlowUp(
                     f"{where}, body {index}: the pressure's answer inverted element {element} "
                     f"(det F = {determinants[element]:.3g}); use a smaller dt"
                 )
         seconds["solid"] += clock() - t0
 
-        cfl = sim._check_fluid(next_step)
-        sim.time += dt
-        return _finish(sim, next_step, interior, bmap, solve, substeps_taken, cfl, seconds)
+        check_fluid_finite(out, next_step, state_in.time + dt)
+        return _finish(model, state_in, state_out, dt, boundary, solve, substeps_taken, seconds)
 
 
-def _finish(sim: Simulation, step: int, interior: InteriorBoundary | None,
-            bmap: BoundaryMap | None, solve: SolveReport, substeps: list[int], cfl: float,
+def _step_boundary(model: CoupledModel, bmap: BoundaryMap,
+                   state_out: CoupledState) -> StepBoundary:
+    """The step's boundary data, reusing the dense arrays of the classification ``state_out``
+    held two steps ago (keeps the per-step cost at the map's own work)."""
+    from elastoflow.coupling import interior_boundary_from_map
+
+    reuse = None if state_out.boundary is None else state_out.boundary.interior
+    interior = interior_boundary_from_map(model.grid, bmap, out=reuse)
+    return StepBoundary(bmap, interior)
+
+
+def _finish(model: CoupledModel, state_in: CoupledState, state_out: CoupledState, dt: float,
+            boundary: StepBoundary | None, solve: SolveReport, substeps: list[int],
             seconds: dict[str, float]) -> StepReport:
-    """Commit the step index and this step's boundary data; the report of the step (the
-    caller has advanced ``sim.time``)."""
-    sim.step_index = step
-    sim.interior = interior
-    sim.boundary_map = bmap
+    """Commit time, step index and this step's boundary data to ``state_out``; the report."""
+    state_out.step_index = state_in.step_index + 1
+    state_out.time = state_in.time + dt
+    state_out.boundary = boundary
     return StepReport(
-        step=step,
-        time=sim.time,
+        step=state_out.step_index,
+        time=state_out.time,
         pressure_iterations=int(solve.iterations),
         pressure_residual=float(solve.residual),
         substeps=substeps,
-        cfl=cfl,
-        crossing_count=0 if bmap is None else int(bmap.crossing_count),
+        cfl=cfl_number(model.grid, state_out.fluid, dt),
+        crossing_count=0 if boundary is None else int(boundary.boundary_map.crossing_count),
         seconds_by_phase=seconds,
     )
 
 
-def _intermediate_velocity(sim: Simulation, interior: InteriorBoundary | None, step: int,
+def _intermediate_velocity(model: CoupledModel, state: CoupledState,
+                           interior: InteriorBoundary | None, dt: float, step: int,
                            seconds: dict[str, float]) -> None:
     """The fluid phases before the projection: advect, diffuse, apply forces (timed)."""
     clock = _time.perf_counter
-    fluid, state, dt = sim.fluid_solver, sim.state, sim.dt
+    fluid, out = model.fluid, state.fluid
     t0 = clock()
-    fluid.advect(state, dt, interior)
+    fluid.advect(out, dt, interior)
     seconds["advection"] = clock() - t0
     t0 = clock()
     try:
-        fluid.diffuse(state, dt, interior)
+        fluid.diffuse(out, dt, interior)
     except ValueError:
         # A non-finite velocity stops the solver first: report the blow-up with its step.
-        sim._check_fluid(step)
+        check_fluid_finite(out, step, state.time + dt)
         raise
     seconds["viscosity"] = clock() - t0
     t0 = clock()
-    fluid.apply_forces(state, dt, sim.time)
+    fluid.apply_forces(out, dt, state.time)
     seconds["forces"] = clock() - t0
 
 
-def _restore(sim: Simulation, states: list[tuple[np.ndarray, np.ndarray]]) -> None:
-    """Put the bodies back to the state they had at the start of the step."""
-    for body, (positions, velocities) in zip(sim.bodies, states):
-        body.positions[...] = positions
-        body.velocities[...] = velocities
+def _added_mass_estimate(body: ElasticBody, fluid_density: float,
+                         coefficient: float) -> np.ndarray:
+    """Nodal added-mass estimate ``c rho_f l_i R`` [kg/m], shape (n,); 0 off the boundary.
+
+    ``l_i`` is half the rest length of the boundary edges at node i, ``R`` half the largest
+    side of the body's rest bounding box. For a plate of length b moving broadside this totals
+    ``c rho_f b^2`` against the potential-flow value ``pi rho_f b^2 / 4``; for a disc of radius
+    R it totals ``2 pi c rho_f R^2`` against ``pi rho_f R^2``: an overestimate for c = 1,
+    which only slows transients, never destabilises.
+    """
+    mesh = body.mesh
+    extra = np.zeros(len(mesh.points))
+    if coefficient == 0.0:
+        return extra
+    edges = mesh.boundary_edges
+    lengths = np.linalg.norm(mesh.points[edges[:, 1]] - mesh.points[edges[:, 0]], axis=1)
+    np.add.at(extra, edges[:, 0], 0.5 * lengths)
+    np.add.at(extra, edges[:, 1], 0.5 * lengths)
+    extent = mesh.points.max(axis=0) - mesh.points.min(axis=0)
+    return coefficient * fluid_density * extra * 0.5 * float(extent.max())
 
 
 COUPLING_SCHEMES: dict[str, type[ExplicitCoupling | MonolithicCoupling]] = {

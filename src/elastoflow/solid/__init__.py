@@ -1,13 +1,17 @@
 """Elastic bodies: triangle meshes, St. Venant-Kirchhoff material with Voigt damping, explicit FEM.
 
-Linear triangles in 2D (METHOD §4). A :class:`TriangleMesh` is the rest shape; an
-:class:`ElasticBody` holds the world state and advances it with symplectic Euler substeps::
+Linear triangles in 2D (METHOD §4). Model, state and what advances it are separate: a
+:class:`TriangleMesh` is the rest shape, an :class:`ElasticBody` the static model (mesh,
+material, constraints, masses), a :class:`BodyState` the changing positions and velocities,
+and an integrator (:class:`ExplicitFem`, :class:`NewmarkFem`, :func:`static_equilibrium`)
+steps one state into another::
 
     mesh = mesh_rectangle(0.02, 0.2, counts=(4, 24), origin=(0.5, 0.3))
     body = ElasticBody(mesh, MaterialStVK(1000.0, 1e6, 0.3, damping_mu=10.0),
                        fixed_nodes=nodes_in_box(mesh, (0.5, 0.5, 0.52, 0.5)),
                        gravity=(0.0, -9.81))
-    report = body.advance(dt=0.013, n_sub="auto", external_forces=fluid_force)
+    state = body.state()
+    report = ExplicitFem("auto").advance(body, state, state, 0.013, fluid_force)
 """
 
 
@@ -18,6 +22,7 @@ from elastoflow.solid._body import (
     SolidStepReport,
     stable_substep,
 )
+from elastoflow.solid._integrators import ExplicitFem, NewmarkFem, static_equilibrium
 from elastoflow.solid._material import MaterialStVK
 from elastoflow.solid._mesh import (
     TriangleMesh,
@@ -28,13 +33,19 @@ from elastoflow.solid._mesh import (
     nodes_in_box,
     read_mesh,
 )
+from elastoflow.solid._response import StepResponse
+from elastoflow.solid._state import BodyState
 
 __all__ = [
     "DEFAULT_SAFETY",
+    "BodyState",
     "ElasticBody",
+    "ExplicitFem",
     "MaterialStVK",
+    "NewmarkFem",
     "SolidInversionError",
     "SolidStepReport",
+    "StepResponse",
     "TriangleMesh",
     "mesh_from_polygon",
     "mesh_rectangle",
@@ -43,4 +54,5 @@ __all__ = [
     "nodes_in_box",
     "read_mesh",
     "stable_substep",
+    "static_equilibrium",
 ]

@@ -80,7 +80,7 @@ def _snapshot(simulation: Any, names: tuple[str, ...]) -> dict[str, Any]:
     from elastoflow.io import snapshot_arrays
 
     interior = getattr(simulation, "interior", None)
-    data = snapshot_arrays(simulation.grid, simulation.state, time=simulation.time,
+    data = snapshot_arrays(simulation.grid, simulation.state.fluid, time=simulation.time,
                            step=simulation.step_index,
                            solid_cells=None if interior is None else interior.solid_cells)
     at_cells = {"velocity_x": data["velocity"][..., 0], "velocity_y": data["velocity"][..., 1],

@@ -93,7 +93,7 @@ def run_flap(resolution: int = 20, *, duration: float | None = None, dt: float |
     coupling = MonolithicCoupling() if scheme == "monolithic" else "explicit"
     simulation = Simulation(grid, solver, bodies=[body], dt=setup.dt, coupling=coupling)
     # Impulsive start: the whole channel at the inflow speed.
-    simulation.state.velocity_x[...] = SPEED
+    simulation.state.fluid.velocity_x[...] = SPEED
     began = _time.perf_counter()
     steps = setup.steps
     times = np.zeros(steps + 1)
@@ -103,7 +103,7 @@ def run_flap(resolution: int = 20, *, duration: float | None = None, dt: float |
     for k in range(1, steps + 1):
         simulation.step()
         times[k] = simulation.time
-        d = body.positions[tip] - rest
+        d = simulation.state.bodies[0].positions[tip] - rest
         ux[k], uy[k] = float(d[0]), float(d[1])
         if progress is not None:
             progress(k, steps)

@@ -339,21 +339,26 @@ def _run_solid(setup: Setup, progress: Progress | None
     """CSM: the flag alone under gravity. Steady cases by Newton's method on the static
     equilibrium (one sample, the answer); CSM3 swings undamped from rest, sampled every
     ``dt``."""
+    from elastoflow.solid import ExplicitFem, static_equilibrium
+
     case = setup.case
     body, node_a = _flag_body(case, setup.layers)
     rest = body.mesh.points[node_a].copy()
     if not case.periodic:
-        iterations = body.static_equilibrium()
-        d = body.positions[node_a] - rest
+        state = body.state()
+        iterations = static_equilibrium(body, state)
+        d = state.positions[node_a] - rest
         if progress is not None:
             progress(1, 1)
         series = {"ux_A": np.array([float(d[0])]), "uy_A": np.array([float(d[1])])}
         return np.array([0.0]), series, body.mesh.triangle_count, iterations
     times, ux, uy = [0.0], [0.0], [0.0]
     steps = setup.steps
+    state = body.state()
+    fem = ExplicitFem("auto")
     for k in range(steps):
-        body.advance(setup.dt, "auto")
-        d = body.positions[node_a] - rest
+        fem.advance(body, state, state, setup.dt)
+        d = state.positions[node_a] - rest
         times.append((k + 1) * setup.dt)
         ux.append(float(d[0]))
         uy.append(float(d[1]))
@@ -410,7 +415,7 @@ def _run_fluid(setup: Setup, progress: Progress | None
         total = sum(force.sum(axis=0) for force in simulation.traction_forces())
         columns["drag"][k], columns["lift"][k] = float(total[0]), float(total[1])
         if rest is not None:
-            d = simulation.bodies[0].positions[node_a] - rest
+            d = simulation.state.bodies[0].positions[node_a] - rest
             columns["ux_A"][k], columns["uy_A"][k] = float(d[0]), float(d[1])
         if progress is not None:
             progress(k, steps)

@@ -136,7 +136,7 @@ class Viewer:
         if speed > cap:
             velocity *= cap / speed
         radius = PUSH_RADIUS_CELLS * grid.h
-        state = sim.state
+        state = sim.state.fluid
         for component, (x, y), array in ((0, self._faces_x, state.velocity_x),
                                          (1, self._faces_y, state.velocity_y)):
             weight = np.exp(-((x - end[0]) ** 2 + (y - end[1]) ** 2) / radius**2)
@@ -148,7 +148,7 @@ class Viewer:
 
     def _nearest_node(self, position: np.ndarray) -> tuple[int, int] | None:
         best: tuple[float, int, int] | None = None
-        for index, body in enumerate(self.simulation.bodies):
+        for index, body in enumerate(self.simulation.state.bodies):
             distance = np.linalg.norm(body.positions - position, axis=1)
             node = int(np.argmin(distance))
             if best is None or distance[node] < best[0]:
@@ -161,7 +161,7 @@ class Viewer:
         if self._grab is None or self._grab_target is None:
             return
         index, node = self._grab
-        body = self.simulation.bodies[index]
+        body = self.simulation.state.bodies[index]
         body.velocities[node] = (self._grab_target - body.positions[node]) / self.simulation.dt
         body.positions[node] = self._grab_target
 
@@ -190,7 +190,8 @@ class Viewer:
         from elastoflow.render import render_frame
 
         sim = self.simulation
-        image = render_frame(sim.grid, sim.state, sim.bodies, sim.obstacles, self.view,
+        image = render_frame(sim.grid, sim.state.fluid, sim.body_geometry(), sim.obstacles,
+                             self.view,
                              sim.time, scale=self.scale)
         self._frame = image
         return image

@@ -171,5 +171,5 @@ def test_bar_in_jet_gives_bitwise_the_same_results():
             assert 0 < area < 0.2 * simulation.grid.nx * simulation.grid.ny
             for regions in (interior.regions, _tight(interior)):
                 _assert_regions_change_nothing(
-                    simulation.fluid_solver, simulation.state, simulation.dt,
+                    simulation.fluid_solver, simulation.state.fluid, simulation.dt,
                     dataclasses.replace(interior, regions=regions), f"step {step}")

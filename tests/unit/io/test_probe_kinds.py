@@ -64,7 +64,7 @@ def test_pressure_and_velocity_interpolate_linear_fields_exactly(tmp_path: Path)
     scene = _channel([{"kind": "pressure", "point": (0.37, 0.13)},
                       {"kind": "velocity", "point": (0.51, 0.29)}])
     simulation = elastoflow.load(scene)
-    grid, state = simulation.grid, simulation.state
+    grid, state = simulation.grid, simulation.state.fluid
     x, y = grid.cell_centers()
     state.pressure[...] = 3.0 * x - 2.0 * y + 1.0
     h = grid.h

@@ -26,7 +26,7 @@ def test_session_video_has_every_step_in_order(tmp_path) -> None:
         session.after_step(simulation, None)
         # The session's colour range only widens; drawn here with the range it used.
         expected.append(render_frame(
-            simulation.grid, simulation.state, simulation.bodies, simulation.obstacles,
+            simulation.grid, simulation.state.fluid, simulation.body_geometry(), simulation.obstacles,
             "speed", simulation.time,
             value_range=(session._range.low, session._range.high)))
     written = session.close(final_checkpoint=False)

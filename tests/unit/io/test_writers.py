@@ -36,12 +36,13 @@ def _square_mesh() -> tuple[np.ndarray, np.ndarray]:
 def _fake_simulation(grid: Grid2D) -> SimpleNamespace:
     rng = np.random.default_rng(1)
     points, triangles = _square_mesh()
+    mass = np.full(len(points), 0.5)
     body = SimpleNamespace(
-        positions=points + 0.01, velocities=rng.normal(size=points.shape),
-        mesh=SimpleNamespace(points=points, triangles=triangles),
-        mass=np.full(len(points), 0.5),
+        mesh=SimpleNamespace(points=points, triangles=triangles), mass=mass,
+        kinetic_energy=lambda s: 0.5 * float(np.dot(mass, (s.velocities**2).sum(axis=1))),
     )
-    state = SimpleNamespace(
+    body_state = SimpleNamespace(positions=points + 0.01, velocities=rng.normal(size=points.shape))
+    fluid = SimpleNamespace(
         velocity_x=rng.normal(size=grid.shape_faces_x), velocity_y=rng.normal(size=grid.shape_faces_y),
         pressure=rng.normal(size=grid.shape_cells), dye=rng.random(grid.shape_cells),
     )
@@ -49,15 +50,16 @@ def _fake_simulation(grid: Grid2D) -> SimpleNamespace:
 
     def checkpoint() -> dict:
         return {"time": np.array(sim.time), "step_index": np.array(sim.step_index),
-                "fluid_velocity_x": state.velocity_x.copy(),
-                "body0_positions": body.positions.copy()}
+                "fluid.velocity_x": fluid.velocity_x.copy(),
+                "bodies.0.positions": body_state.positions.copy()}
 
     def restore(data: dict) -> None:
         sim.time = float(data["time"])
         sim.step_index = int(data["step_index"])
-        state.velocity_x[...] = data["fluid_velocity_x"]
-        body.positions[...] = data["body0_positions"]
+        fluid.velocity_x[...] = data["fluid.velocity_x"]
+        body_state.positions[...] = data["bodies.0.positions"]
 
+    state = SimpleNamespace(fluid=fluid, bodies=[body_state])
     sim = SimpleNamespace(grid=grid, state=state, bodies=[body], obstacles=[obstacle], time=0.25,
                           step_index=7, body_forces=[np.ones((5, 2))], interior=None,
                           fluid_solver=SimpleNamespace(density=2.0), checkpoint=checkpoint,
@@ -83,7 +85,8 @@ def test_fields_read_back_in_every_format(tmp_path) -> None:
     writer = FieldWriter(tmp_path, grid, formats=("npz", "vtk", "xdmf"))
     for step in (0, 5):
         sim.step_index, sim.time = step, 0.1 * step
-        writer.write(snapshot_arrays(grid, sim.state, sim.bodies, sim.obstacles, time=sim.time,
+        writer.write(snapshot_arrays(grid, sim.state.fluid, list(zip(sim.bodies, sim.state.bodies)),
+                                     sim.obstacles, time=sim.time,
                                      step=step))
     writer.close()
     assert not list(tmp_path.glob("*.tmp*")) and not list(tmp_path.glob(".*"))
@@ -92,17 +95,17 @@ def test_fields_read_back_in_every_format(tmp_path) -> None:
         assert {"velocity", "pressure", "dye", "solid", "vorticity", "time", "step",
                 "body0_points", "body0_triangles", "obstacle0_points"} <= set(data.files)
         assert data["velocity"].shape == (6, 4, 2)
-        np.testing.assert_array_equal(data["pressure"], sim.state.pressure)
+        np.testing.assert_array_equal(data["pressure"], sim.state.fluid.pressure)
 
     fluid = meshio.read(tmp_path / "fluid_000005.vtu")
     assert len(fluid.points) == 7 * 5
     pressure = fluid.cell_data["pressure"][0]
-    np.testing.assert_allclose(pressure, sim.state.pressure.ravel())
+    np.testing.assert_allclose(pressure, sim.state.fluid.pressure.ravel())
     # Cell (i, j) of the VTK file has the centre of MAC cell (i, j).
     quad = fluid.cells[0].data[1 * 4 + 2]
     np.testing.assert_allclose(fluid.points[quad, :2].mean(axis=0), [1.5 * 0.25, 2.5 * 0.25])
     body = meshio.read(tmp_path / "body0_000005.vtu")
-    np.testing.assert_allclose(body.points[:, :2], sim.bodies[0].positions)
+    np.testing.assert_allclose(body.points[:, :2], sim.state.bodies[0].positions)
 
     collection = ET.parse(tmp_path / "fluid.pvd").getroot()
     files = [d.get("file") for d in collection.iter("DataSet")]
@@ -114,7 +117,7 @@ def test_fields_read_back_in_every_format(tmp_path) -> None:
         for k in range(reader.num_steps):
             t, _, cell_data = reader.read_data(k)
             times.append(t)
-        np.testing.assert_allclose(cell_data["pressure"][0], sim.state.pressure.ravel())
+        np.testing.assert_allclose(cell_data["pressure"][0], sim.state.fluid.pressure.ravel())
     assert times == pytest.approx([0.0, 0.5])
 
 
@@ -157,7 +160,7 @@ def test_probes_csv_and_plot(tmp_path) -> None:
     row = dict(zip(columns, rows[-1]))
     assert row["body0_node4_displacement_x [m]"] == pytest.approx(0.01)
     assert row["body0_force_y [N/m]"] == pytest.approx(5.0)
-    expected = 0.5 * 2.0 * 0.25**2 * (np.sum(sim.state.velocity_x**2) + np.sum(sim.state.velocity_y**2))
+    expected = 0.5 * 2.0 * 0.25**2 * (np.sum(sim.state.fluid.velocity_x**2) + np.sum(sim.state.fluid.velocity_y**2))
     assert row["fluid_kinetic_energy [J/m]"] == pytest.approx(expected, rel=1e-9)
     assert row["pressure_iterations"] == 13
     assert (tmp_path / "probes.png").read_bytes()[:4] == b"\x89PNG"
@@ -168,13 +171,13 @@ def test_probes_csv_and_plot(tmp_path) -> None:
 def test_checkpoint_round_trip_and_latest(tmp_path) -> None:
     grid = Grid2D(6, 4, 0.25)
     sim = _fake_simulation(grid)
-    saved_velocity = sim.state.velocity_x.copy()
+    saved_velocity = sim.state.fluid.velocity_x.copy()
     save_checkpoint(tmp_path / "checkpoint_00000007.npz", sim)
     sim.step_index = 12
     save_checkpoint(tmp_path / "checkpoint_00000012.npz", sim)
-    sim.state.velocity_x[...] = 0.0
+    sim.state.fluid.velocity_x[...] = 0.0
     assert latest_checkpoint(tmp_path).name == "checkpoint_00000012.npz"
     load_checkpoint(tmp_path / "checkpoint_00000007.npz", sim)
     assert sim.step_index == 7
-    np.testing.assert_array_equal(sim.state.velocity_x, saved_velocity)
+    np.testing.assert_array_equal(sim.state.fluid.velocity_x, saved_velocity)
     assert latest_checkpoint(tmp_path / "missing") is None

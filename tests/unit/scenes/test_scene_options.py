@@ -56,8 +56,8 @@ def only(data: dict[str, Any], *, build: bool = False) -> str:
 
 
 def fluid_state(sim: Any) -> Any:
-    """The fluid's state, before and after `Simulation.state` holds the coupled state."""
-    return getattr(sim.state, "fluid", sim.state)
+    """The simulation's fluid state."""
+    return sim.state.fluid
 
 
 # --------------------------------------------------------------------------------------------

@@ -86,7 +86,7 @@ def test_checkpoint_restore_continues_bit_identically(force_model: str) -> None:
 def test_restore_rejects_a_checkpoint_of_another_scene() -> None:
     simulation = _scene()
     data = simulation.checkpoint()
-    del data["body0_positions"]
+    del data["bodies.0.positions"]
     with pytest.raises(ValueError, match="checkpoint"):
         simulation.restore(data)
 
@@ -94,7 +94,7 @@ def test_restore_rejects_a_checkpoint_of_another_scene() -> None:
 def test_non_finite_fluid_value_raises_blow_up_naming_the_step() -> None:
     simulation = _scene()
     simulation.run(2)
-    simulation.state.velocity_y[10, 10] = np.nan
+    simulation.state.fluid.velocity_y[10, 10] = np.nan
     with pytest.raises(SimulationBlowUp, match="step 3"):
         simulation.step()
 
@@ -104,7 +104,7 @@ def test_runaway_cfl_raises_blow_up_naming_the_step() -> None:
     simulation.step()
     # A speed that no projection can remove from a closed-off side: the jet region reset
     # keeps the rest, but the burst drives max |u| dt / h far past the limit.
-    simulation.state.velocity_x[5:8, 15:18] = 1e4
+    simulation.state.fluid.velocity_x[5:8, 15:18] = 1e4
     with pytest.raises(SimulationBlowUp, match=r"step 2.*CFL"):
         simulation.step()
 

@@ -64,13 +64,13 @@ def test_keys_pause_step_cycle_view_and_quit(viewer: Viewer) -> None:
 
 def test_left_drag_pushes_the_fluid_along_the_drag(viewer: Viewer) -> None:
     viewer.handle_event(_key(pygame.K_r))
-    viewer.simulation.state.velocity_x[...] = 0.0
-    viewer.simulation.state.velocity_y[...] = 0.0
+    viewer.simulation.state.fluid.velocity_x[...] = 0.0
+    viewer.simulation.state.fluid.velocity_y[...] = 0.0
     start, end = (20, 40), (28, 40)  # pixels: a drag to the right near (0.2, 0.69) m
     viewer.handle_event(pygame.event.Event(pygame.MOUSEBUTTONDOWN, button=1, pos=start))
     viewer.handle_event(pygame.event.Event(pygame.MOUSEMOTION, pos=end, rel=(8, 0), buttons=(1, 0, 0)))
     viewer.handle_event(pygame.event.Event(pygame.MOUSEBUTTONUP, button=1, pos=end))
-    state = viewer.simulation.state
+    state = viewer.simulation.state.fluid
     assert state.velocity_x.max() > 0.0 and state.velocity_x.min() >= 0.0
     assert np.abs(state.velocity_y).max() == 0.0
     near = viewer.to_world(end)
@@ -89,7 +89,8 @@ def test_right_drag_moves_the_nearest_body_node(viewer: Viewer) -> None:
                                            buttons=(0, 0, 1)))
     viewer.update()
     node = int(np.argmin(np.linalg.norm(body.mesh.points - [0.4, 0.4], axis=1)))
-    np.testing.assert_allclose(body.positions[node], viewer.to_world(target))
+    np.testing.assert_allclose(viewer.simulation.state.bodies[0].positions[node],
+                               viewer.to_world(target))
     viewer.handle_event(pygame.event.Event(pygame.MOUSEBUTTONUP, button=3, pos=target))
     assert viewer._grab is None
 
@@ -102,7 +103,8 @@ def test_draw_returns_the_frame_with_the_body(viewer: Viewer) -> None:
     assert surface.get_width() >= 16 * 8 and surface.get_height() >= 16 * 8
     pixels = pygame.surfarray.array3d(surface)  # (W, H, 3)
     body = viewer.simulation.bodies[0]
-    centroid = body.positions[body.mesh.triangles[3]].mean(axis=0)
+    positions = viewer.simulation.state.bodies[0].positions
+    centroid = positions[body.mesh.triangles[3]].mean(axis=0)
     x = centroid[0] / viewer.simulation.grid.h * 8
     y = (1.0 - centroid[1]) / viewer.simulation.grid.h * 8
     assert tuple(pixels[int(x), int(y)]) == tuple(BODY_FILL_COLOR)
@@ -113,7 +115,7 @@ def test_draw_reuses_its_surface_and_shows_the_new_frame(viewer: Viewer) -> None
     viewer.handle_event(_key(pygame.K_r))
     viewer.view = "speed"
     first = pygame.surfarray.array3d(viewer.draw())
-    viewer.simulation.state.velocity_x[...] = np.linspace(0.0, 1.0, viewer.simulation.grid.ny)
+    viewer.simulation.state.fluid.velocity_x[...] = np.linspace(0.0, 1.0, viewer.simulation.grid.ny)
     surface = viewer.draw()
     assert viewer.draw() is surface
     second = pygame.surfarray.array3d(surface)

@@ -1,0 +1,261 @@
+"""Model and state of a coupled simulation.
+
+`CoupledModel` is everything static: the grid, the fluid solver (properties and boundary
+conditions), the bodies' models and the obstacles. `CoupledState` is everything that changes:
+the fluid's fields, each body's positions and velocities, time, step index and the forces of
+the last step. A coupling scheme (`elastoflow.simulation.CouplingScheme`) steps one state into
+another; the `Simulation` keeps two and swaps them, so a failed step leaves the last good
+state untouched.
+
+A state checkpoints by its fields: `CoupledState.to_arrays` walks the dataclass fields and
+names each array by its path (``fluid.velocity_x``, ``bodies.0.positions``), and
+`CoupledState.load_arrays` reads them back by the same walk.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from elastoflow.coupling import BoundaryMap, Obstacle
+from elastoflow.fluid import FluidSolver, FluidState, InteriorBoundary
+from elastoflow.grid import Grid2D
+from elastoflow.solid import BodyState, ElasticBody
+
+NOT_SAVED = {"checkpoint": False}
+"""Field metadata of derived data a checkpoint leaves out (rebuilt by the next step)."""
+
+
+@dataclass(eq=False)
+class StepBoundary:
+    """The boundary geometry a step used: the map and the grid's classification, built from
+    the bodies and obstacles at the start of that step. Derived data: `Simulation.
+    traction_forces` evaluates the force on the boundary with it."""
+
+    boundary_map: BoundaryMap
+    interior: InteriorBoundary
+
+
+@dataclass(eq=False)
+class CoupledState:
+    """Everything a coupled run changes.
+
+    Attributes:
+        fluid: Velocity, pressure and dye fields.
+        bodies: Positions and velocities of each body, in the model's order.
+        time: Simulated time [s].
+        step_index: Steps taken (0 before the first).
+        body_forces: The fluid force each body received in the last step [N/m], (n, 2).
+        previous_velocities: Each body's velocities at the start of the last step (the
+            explicit scheme's added-mass estimate differentiates them).
+        boundary: The boundary geometry of the last step (None before the first step and
+            after a restore); not saved.
+    """
+
+    fluid: FluidState
+    bodies: list[BodyState]
+    time: float = 0.0
+    step_index: int = 0
+    body_forces: list[np.ndarray] = field(default_factory=list)
+    previous_velocities: list[np.ndarray] = field(default_factory=list)
+    boundary: StepBoundary | None = field(default=None, metadata=NOT_SAVED)
+
+    def copy(self) -> CoupledState:
+        """An independent copy (the boundary geometry is shared, it is never changed)."""
+        return CoupledState(
+            fluid=FluidState(**{name: array.copy() for name, array in _arrays(self.fluid)}),
+            bodies=[body.copy() for body in self.bodies],
+            time=self.time,
+            step_index=self.step_index,
+            body_forces=[force.copy() for force in self.body_forces],
+            previous_velocities=[v.copy() for v in self.previous_velocities],
+            boundary=self.boundary,
+        )
+
+    def assign(self, other: CoupledState) -> None:
+        """Copy ``other``'s saved values into this state's arrays; the derived boundary
+        geometry stays (a scheme replaces it, and reuses its arrays)."""
+        for (_, target), (_, source) in zip(_arrays(self.fluid), _arrays(other.fluid)):
+            target[...] = source
+        for body, source_body in zip(self.bodies, other.bodies):
+            body.assign(source_body)
+        for target, source in zip(self.body_forces, other.body_forces):
+            target[...] = source
+        for target, source in zip(self.previous_velocities, other.previous_velocities):
+            target[...] = source
+        self.time = other.time
+        self.step_index = other.step_index
+
+    def to_arrays(self) -> dict[str, np.ndarray]:
+        """Every saved field as an array, keyed by its path (bit-exact resume)."""
+        return {path: np.array(value) for path, value, _ in _leaves(self)}
+
+    def load_arrays(self, data: dict[str, np.ndarray]) -> None:
+        """Put the values of `to_arrays` back; accepts checkpoints of earlier versions.
+
+        Raises:
+            ValueError: ``data`` holds other fields than this state's (another scene: a
+                different number of bodies) or an array of another shape.
+        """
+        data = _upgrade_legacy_keys(data)
+        leaves = list(_leaves(self))
+        expected = {path for path, _, _ in leaves}
+        if set(data) != expected:
+            missing = sorted(expected - set(data))
+            extra = sorted(set(data) - expected)
+            raise ValueError(
+                f"checkpoint fields do not match this scene ({len(self.bodies)} bodies): "
+                f"missing {missing}, unexpected {extra}"
+            )
+        for path, value, store in leaves:
+            source = np.asarray(data[path])
+            if source.shape != np.shape(value):
+                raise ValueError(
+                    f"checkpoint {path} shape {source.shape}: must be {np.shape(value)}"
+                )
+            store(source)
+        self.boundary = None
+
+
+def _arrays(fluid: FluidState) -> Iterator[tuple[str, np.ndarray]]:
+    for item in dataclasses.fields(fluid):
+        yield item.name, getattr(fluid, item.name)
+
+
+Leaf = tuple[str, Any, Callable[[np.ndarray], None]]
+
+
+def _leaves(value: Any, path: str = "") -> Iterator[Leaf]:
+    """(path, value, store) of every saved array or number under ``value``: dataclass fields
+    by name, list items by index; ``store`` writes a loaded value back."""
+    for item in dataclasses.fields(value):
+        if not item.metadata.get("checkpoint", True):
+            continue
+        name = f"{path}{item.name}"
+        child = getattr(value, item.name)
+        if dataclasses.is_dataclass(child):
+            yield from _leaves(child, f"{name}.")
+        elif isinstance(child, list):
+            for index, entry in enumerate(child):
+                if dataclasses.is_dataclass(entry):
+                    yield from _leaves(entry, f"{name}.{index}.")
+                else:
+                    yield f"{name}.{index}", entry, _array_store(entry)
+        elif isinstance(child, np.ndarray):
+            yield name, child, _array_store(child)
+        else:
+            yield name, child, _scalar_store(value, item.name, type(child))
+
+
+def _array_store(target: np.ndarray) -> Callable[[np.ndarray], None]:
+    def store(source: np.ndarray) -> None:
+        target[...] = source
+
+    return store
+
+
+def _scalar_store(owner: Any, name: str, kind: type) -> Callable[[np.ndarray], None]:
+    def store(source: np.ndarray) -> None:
+        setattr(owner, name, kind(source))
+
+    return store
+
+
+_LEGACY_BODY_FIELDS = {
+    "positions": "bodies.{i}.positions",
+    "velocities": "bodies.{i}.velocities",
+    "previous_velocities": "previous_velocities.{i}",
+    "forces": "body_forces.{i}",
+}
+
+
+def _upgrade_legacy_keys(data: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """Checkpoints written before the state had fields used hand-made keys
+    (``fluid_velocity_x``, ``body0_positions``): rename them."""
+    if "fluid_velocity_x" not in data:
+        return data
+    renamed: dict[str, np.ndarray] = {}
+    for key, value in data.items():
+        if key.startswith("fluid_"):
+            renamed[f"fluid.{key[len('fluid_'):]}"] = value
+        elif key.startswith("body") and "_" in key:
+            index, _, rest = key[len("body"):].partition("_")
+            pattern = _LEGACY_BODY_FIELDS.get(rest)
+            renamed[pattern.format(i=index) if pattern and index.isdigit() else key] = value
+        else:
+            renamed[key] = value
+    return renamed
+
+
+@dataclass(frozen=True, eq=False)
+class CoupledModel:
+    """Everything static in a coupled run.
+
+    Attributes:
+        grid: The MAC grid.
+        fluid: The fluid solver: properties, boundary conditions, jets and the phases that
+            advance a `FluidState`.
+        bodies: The elastic bodies' models.
+        obstacles: Static or prescribed-motion obstacles.
+    """
+
+    grid: Grid2D
+    fluid: FluidSolver
+    bodies: tuple[ElasticBody, ...] = ()
+    obstacles: tuple[Obstacle, ...] = ()
+
+    @property
+    def has_boundaries(self) -> bool:
+        return bool(self.bodies or self.obstacles)
+
+    def state(self, fluid: FluidState | None = None) -> CoupledState:
+        """A new initial state: ``fluid`` (default at rest) and each body's initial state."""
+        if fluid is None:
+            fluid = FluidState.zeros(self.grid)
+        else:
+            fluid.check(self.grid)
+        bodies = [body.state() for body in self.bodies]
+        return CoupledState(
+            fluid=fluid,
+            bodies=bodies,
+            body_forces=[np.zeros_like(b.positions) for b in bodies],
+            previous_velocities=[b.velocities.copy() for b in bodies],
+        )
+
+    def object_offsets(self) -> np.ndarray:
+        """Start of each body's nodes, then each obstacle's vertices, in the concatenated
+        boundary points (`boundary_points`); one more entry for the end."""
+        counts = [body.point_count for body in self.bodies]
+        counts += [obstacle.point_count for obstacle in self.obstacles]
+        return np.cumsum([0, *counts]).astype(np.int64)
+
+    def boundary_points(self, state: CoupledState
+                        ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """All boundary points, their velocities, the edges and each edge's object index, at
+        ``state``: bodies first, then obstacles at ``state.time``.
+
+        Bodies contribute all their nodes (interior nodes are simply not on any edge), so a
+        nodal force array over these points slices by `object_offsets` into per-body forces.
+        """
+        points, velocities, edges, edge_body = [], [], [], []
+        offsets = self.object_offsets()
+        for index, (body, body_state) in enumerate(zip(self.bodies, state.bodies)):
+            points.append(body_state.positions)
+            velocities.append(body_state.velocities)
+            edges.append(body.mesh.boundary_edges + offsets[index])
+            edge_body.append(np.full(len(body.mesh.boundary_edges), index, dtype=np.int64))
+        for index, obstacle in enumerate(self.obstacles, start=len(self.bodies)):
+            points.append(obstacle.points_at(state.time))
+            velocities.append(obstacle.velocities_at(state.time))
+            edges.append(obstacle.edges + offsets[index])
+            edge_body.append(np.full(len(obstacle.edges), index, dtype=np.int64))
+        return (
+            np.ascontiguousarray(np.concatenate(points), dtype=np.float64),
+            np.ascontiguousarray(np.concatenate(velocities), dtype=np.float64),
+            np.ascontiguousarray(np.concatenate(edges), dtype=np.int64),
+            np.concatenate(edge_body),
+        )

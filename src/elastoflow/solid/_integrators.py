@@ -1,0 +1,380 @@
+"""What advances an elastic body's state: the FEM time integrators and the static solve.
+
+Each reads a `BodyState`, writes the result into another (or the same) one, and leaves both
+untouched when it fails. The body (`ElasticBody`) is the static model they read.
+
+* `ExplicitFem`: symplectic Euler substeps under a force held over the step (METHOD §4, the
+  paper's scheme; the explicit coupling uses it).
+* `NewmarkFem`: one implicit Newmark step by Newton's method (the monolithic coupling uses
+  it, because its answer to a held force is exactly the response the coupled pressure solve
+  sees: docs/method_notes.md, "Strong coupling").
+* `static_equilibrium`: the rest state under given loads (Turek–Hron CSM1/2).
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+import numpy as np
+
+from elastoflow.solid import _kernels
+from elastoflow.solid._body import (
+    DEFAULT_SAFETY,
+    ElasticBody,
+    SolidInversionError,
+    SolidStepReport,
+)
+from elastoflow.solid._response import StepResponse
+from elastoflow.solid._state import BodyState
+
+Substeps = int | Literal["auto"]
+
+
+class ExplicitFem:
+    """Symplectic Euler substeps: ``v += dt_s (f_internal + f_external + m g) / (m +
+    m_added)``; fixed nodes get ``v = 0``; ``x += dt_s v``. Gravity pulls on the body's own
+    mass ``m`` only.
+
+    Args:
+        substeps: Substeps per step, or ``"auto"`` for the fewest with ``dt / n`` below the
+            body's stable substep (``safety`` times its estimate).
+        safety: Fraction of the estimated critical substep that ``"auto"`` uses.
+    """
+
+    def __init__(self, substeps: Substeps = "auto", safety: float = DEFAULT_SAFETY) -> None:
+        if isinstance(substeps, str):
+            if substeps != "auto":
+                raise ValueError(f"n_sub = {substeps!r}: must be a positive integer or 'auto'")
+        elif int(substeps) != substeps or substeps < 1:
+            raise ValueError(f"n_sub = {substeps!r}: must be a positive integer or 'auto'")
+        self.substeps: Substeps = substeps if isinstance(substeps, str) else int(substeps)
+        self.safety = float(safety)
+
+    def substeps_for(self, body: ElasticBody, dt: float) -> int:
+        """The substep count this integrator takes for ``body`` over ``dt``."""
+        if isinstance(self.substeps, str):
+            return body.substeps_for(dt, self.safety)
+        return self.substeps
+
+    def advance(
+        self,
+        body: ElasticBody,
+        state_in: BodyState,
+        state_out: BodyState,
+        dt: float,
+        external_forces: np.ndarray | None = None,
+        *,
+        step: int | None = None,
+        added_mass: np.ndarray | None = None,
+    ) -> SolidStepReport:
+        """Advance ``state_in`` by ``dt`` [s] into ``state_out`` (may be ``state_in``).
+
+        Args:
+            body: The body's model.
+            state_in: State at the start of the step.
+            state_out: Receives the state at the end.
+            dt: Outer (fluid) step [s].
+            external_forces: Nodal forces [N/m], shape (n, 2), held constant over the
+                substeps (the fluid's force); default none.
+            step: Outer step index, only used to name the step in errors.
+            added_mass: Extra nodal inertia ``m_added`` [kg/m], shape (n,), >= 0, for this call
+                only (an added-mass estimate of the surrounding fluid, whose matching force
+                the caller puts in ``external_forces``); gravity still acts on ``m`` alone.
+
+        Raises:
+            SolidInversionError: An element inverted or a value became non-finite; both
+                states keep their values.
+        """
+        if not (np.isfinite(dt) and dt > 0.0):
+            raise ValueError(f"dt = {dt!r}: must be finite and > 0 [s]")
+        substeps = self.substeps_for(body, dt)
+        n = body.point_count
+        if external_forces is None:
+            forces = np.zeros((n, 2))
+        else:
+            forces = np.ascontiguousarray(external_forces, dtype=np.float64)
+            if forces.shape != (n, 2):
+                raise ValueError(f"external_forces shape {forces.shape}: must be ({n}, 2)")
+            if not np.all(np.isfinite(forces)):
+                node = int(np.flatnonzero(~np.isfinite(forces).all(axis=1))[0])
+                raise ValueError(f"external_forces at node {node} is not finite"
+                                 + ("" if step is None else f" (step {step})"))
+        # Gravity enters as a nodal force so that it pulls on m alone when m_added > 0.
+        forces = forces + body.mass[:, None] * body.gravity
+        inverse_mass = body.inverse_mass
+        if added_mass is not None:
+            extra = np.asarray(added_mass, dtype=np.float64)
+            if extra.shape != (n,) or not np.all(np.isfinite(extra)) or np.any(extra < 0.0):
+                raise ValueError(f"added_mass: must be finite, >= 0, shape ({n},), got shape "
+                                 f"{extra.shape}")
+            inverse_mass = 1.0 / (body.mass + extra)
+        positions = state_in.positions.copy()
+        velocities = state_in.velocities.copy()
+        status = np.zeros(3, dtype=np.int64)
+        determinant = np.zeros(1)
+        sub_dt = dt / substeps
+        material = body.material
+        arguments = (
+            positions, velocities, body.mesh.triangles, body.dm_inverse, body.rest_area,
+            inverse_mass, body.fixed_mask, forces, material.lame_lambda, material.lame_mu,
+            material.damping_lambda, material.damping_mu, body.velocity_damping, sub_dt,
+            substeps, status, determinant,
+        )
+        if body.parallel:
+            _kernels.advance_parallel(
+                *arguments, body.node_offsets, body.node_elements, body.node_corners
+            )
+        else:
+            _kernels.advance_serial(*arguments)
+        where = "" if step is None else f"step {step}, "
+        stable = body.stable_substep()
+        if status[0]:
+            raise SolidInversionError(
+                f"elastic body failed at {where}substep {int(status[1])} of {substeps} "
+                f"(dt_s = {sub_dt:.3g} s, stable estimate {stable:.3g} s): "
+                f"element {int(status[2])} has det F = {determinant[0]:.3g} (inverted or "
+                "non-finite); use more substeps or smaller forces",
+                step=step, substep=int(status[1]), element=int(status[2]),
+                determinant=float(determinant[0]), positions=positions,
+            )
+        if not np.all(np.isfinite(velocities)):
+            raise SolidInversionError(
+                f"elastic body failed at {where}substep {substeps} of {substeps}: velocities "
+                "became non-finite; use more substeps or smaller forces",
+                step=step, substep=substeps, element=-1, determinant=float("nan"),
+                positions=positions,
+            )
+        state_out.positions[...] = positions
+        state_out.velocities[...] = velocities
+        return SolidStepReport(
+            substeps=substeps, substep_dt=sub_dt, stable_substep=stable,
+            min_determinant=float(body.determinants_at(positions).min()),
+        )
+
+
+class NewmarkFem:
+    """One implicit step by Newmark's rule with ``beta = gamma / 2``.
+
+    ``x1 = x0 + dt v0 + dt^2 ((1/2 - beta) a0 + beta a1)``, ``v1 = v0 + dt ((1 - gamma) a0 +
+    gamma a1)``, with ``M a = f_internal(x, v) + f_external + M g``, solved by modified Newton
+    iterations on the matrix of `response`. With ``gamma = 1/2`` (average acceleration) it is
+    second order and conserves the energy of every linear mode; larger ``gamma`` damps the
+    modes the step does not resolve. Unconditionally stable for the linearised body; its answer
+    to a force held over the step is exactly `response`, which keeps the strongly coupled step
+    stable (docs/method_notes.md, "Strong coupling").
+
+    Args:
+        gamma: Newmark's gamma in [0.5, 1].
+        tolerance: Stop when the Newton update is below ``tolerance`` times the body's size.
+        max_iterations: Newton iterations at most.
+    """
+
+    def __init__(self, gamma: float = 0.5, tolerance: float = 1e-10,
+                 max_iterations: int = 12) -> None:
+        if not 0.5 <= gamma <= 1.0:
+            raise ValueError(f"gamma = {gamma!r}: must lie in [0.5, 1]")
+        self.gamma = float(gamma)
+        self.tolerance = float(tolerance)
+        self.max_iterations = int(max_iterations)
+
+    def response(self, body: ElasticBody, state: BodyState, dt: float) -> StepResponse:
+        """The answer of `advance` to a force held over the step, at the state's positions:
+        mean velocity ``dt/2 A^-1 f`` with ``A = M + gamma dt (D + alpha M) + beta dt^2 K``
+        (end velocity twice that)."""
+        gamma = self.gamma
+        return body.response_at(state.positions, gamma * dt, np.sqrt(0.5 * gamma) * dt,
+                                0.5 * dt)
+
+    def advance(
+        self, body: ElasticBody, state_in: BodyState, state_out: BodyState, dt: float,
+        external_forces: np.ndarray, response: StepResponse, *, step: int | None = None,
+    ) -> SolidStepReport:
+        """Advance ``state_in`` by ``dt`` [s] into ``state_out`` (may be ``state_in``).
+
+        Args:
+            body: The body's model.
+            state_in: State at the start of the step.
+            state_out: Receives the state at the end.
+            dt: Step [s].
+            external_forces: Nodal forces [N/m] held over the step, shape (n, 2).
+            response: ``response(body, state_in, dt)``.
+            step: Outer step index, only used to name the step in errors.
+
+        Raises:
+            SolidInversionError: An element inverted or a value became non-finite; both
+                states keep their values.
+        """
+        n = body.point_count
+        forces = np.ascontiguousarray(external_forces, dtype=np.float64)
+        if forces.shape != (n, 2) or not np.all(np.isfinite(forces)):
+            raise ValueError(f"external_forces: must be finite, shape ({n}, 2)")
+        gamma = self.gamma
+        mass = body.mass[:, None]
+        held = body.fixed_mask
+        x0 = state_in.positions
+        v0 = state_in.velocities
+        f_external = forces + mass * body.gravity
+        a0 = (body.forces_at(x0, v0) + f_external) / mass
+        a0[held] = 0.0
+        # The first Newton update solves the linearised step exactly; an explicit guess (a0
+        # extrapolated) would start stiff bodies far off.
+        x1 = x0 + dt * v0
+        x1[held] = x0[held]
+        size = float(np.ptp(body.mesh.points, axis=0).max())
+
+        beta = 0.5 * gamma
+        drift = x0 + dt * v0 + (0.5 - beta) * dt * dt * a0
+
+        def residual_at(x: np.ndarray) -> tuple[np.ndarray, float]:
+            # With beta = gamma / 2 the end velocity is 2 (x1 - x0) / dt - v0 for any gamma.
+            v = 2.0 * (x - x0) / dt - v0
+            r = beta * dt * dt * (body.forces_at(x, v) + f_external)
+            r -= mass * (x - drift)
+            r[held] = 0.0
+            norm = float(np.linalg.norm(r))
+            return r, norm if np.isfinite(norm) else np.inf
+
+        # Newton on Newmark's residual: the matrix of ``response`` (tangent at the start of
+        # the step) while it contracts, a fresh tangent at the iterate and a halving line
+        # search when it does not (fast rotations leave the start's tangent behind).
+        factor = response
+        fresh = False
+        residual, norm = residual_at(x1)
+        iterations = 0
+        for iterations in range(1, self.max_iterations + 1):
+            update = factor.solve(residual)
+            step_length = 1.0
+            for _ in range(8):
+                trial = x1 + step_length * update
+                trial_residual, trial_norm = residual_at(trial)
+                if trial_norm < norm:
+                    break
+                if not fresh:
+                    # Retry the full step with the tangent at the current iterate.
+                    factor = body.response_at(x1, gamma * dt, np.sqrt(beta) * dt, 0.5 * dt)
+                    fresh = True
+                    update = factor.solve(residual)
+                    continue
+                step_length *= 0.5
+            else:
+                break
+            x1 = trial
+            residual, norm = trial_residual, trial_norm
+            fresh = False
+            if step_length * float(np.abs(update).max()) <= self.tolerance * size:
+                break
+        v1 = 2.0 * (x1 - x0) / dt - v0
+        v1[held] = 0.0
+        determinants = body.determinants_at(x1)
+        where = "" if step is None else f"step {step}, "
+        if not (np.all(np.isfinite(x1)) and np.all(np.isfinite(v1))
+                and determinants.min() > 0.0):
+            element = int(np.argmin(np.nan_to_num(determinants, nan=-np.inf)))
+            raise SolidInversionError(
+                f"elastic body failed at {where}implicit step (dt = {dt:.3g} s): element "
+                f"{element} has det F = {determinants[element]:.3g} (inverted or non-finite); "
+                "use a smaller dt",
+                step=step, substep=0, element=element,
+                determinant=float(determinants[element]), positions=x1,
+            )
+        state_out.positions[...] = x1
+        state_out.velocities[...] = v1
+        return SolidStepReport(
+            substeps=iterations, substep_dt=dt, stable_substep=body.stable_substep(),
+            min_determinant=float(determinants.min()),
+        )
+
+
+def static_equilibrium(body: ElasticBody, state: BodyState,
+                       external_forces: np.ndarray | None = None, *,
+                       tolerance: float = 1e-10, max_iterations: int = 100) -> int:
+    """Move ``state`` to rest under the body's elastic forces, gravity and ``external_forces``.
+
+    Newton's method on ``f_internal(x) + f_external + M g = 0`` with the tangent of the
+    implicit step (`NewmarkFem.response`'s matrix with a step so long that the stiffness
+    dominates the mass, which only keeps it regular; compressive stress is left out of it,
+    so convergence is linear, about halving the error per iteration), updates halved
+    while they would invert an element, and the load applied in increments when a full
+    one does not converge. Velocities are set to zero.
+
+    Args:
+        body: The body's model.
+        state: Start of the iteration; receives the equilibrium.
+        external_forces: Nodal forces [N/m], shape (n, 2); default none.
+        tolerance: Stop when the update is below ``tolerance`` times the body's size.
+        max_iterations: Newton iterations at most per load increment.
+
+    Returns:
+        Newton iterations taken in all.
+
+    Raises:
+        SolidInversionError: No equilibrium found without inverting an element; ``state``
+            keeps its values.
+    """
+    n = body.point_count
+    forces = (np.zeros((n, 2)) if external_forces is None
+              else np.ascontiguousarray(external_forces, dtype=np.float64))
+    if forces.shape != (n, 2) or not np.all(np.isfinite(forces)):
+        raise ValueError(f"external_forces: must be finite, shape ({n}, 2)")
+    held = body.fixed_mask
+    still = np.zeros((n, 2))
+    size = float(np.ptp(body.mesh.points, axis=0).max())
+    load = forces + body.mass[:, None] * body.gravity
+    # A "step" of s seconds: s^2 K outweighs M by (s omega)^2 in every mode; 1e4 wave
+    # crossings exceed the slowest (bending) period of slender bodies by far.
+    pseudo_step = 1e4 * size / body.material.dilatational_wave_speed
+
+    def residual_at(x: np.ndarray, fraction: float) -> tuple[np.ndarray, float]:
+        r = body.forces_at(x, still) + fraction * load
+        r[held] = 0.0
+        norm = float(np.linalg.norm(r))
+        return r, norm if np.isfinite(norm) else np.inf
+
+    x = state.positions.copy()
+    total = 0
+    fraction, increment = 0.0, 1.0
+    while fraction < 1.0:
+        target = min(1.0, fraction + increment)
+        trial_x = x.copy()
+        residual, norm = residual_at(trial_x, target)
+        # Round-off floor of the residual: the forces' own size times machine precision.
+        floor = 1e3 * np.finfo(float).eps * (float(np.linalg.norm(load)) + 1e-300)
+        converged = False
+        for _ in range(max_iterations):
+            total += 1
+            response = body.response_at(trial_x, 0.0, pseudo_step, 1.0)
+            update = response.solve(pseudo_step**2 * residual)
+            # The residual is a poor merit function for the first, large updates (it
+            # jumps before it falls): only an inverted element shortens the step.
+            length = 1.0
+            for _ in range(30):
+                candidate = trial_x + length * update
+                if body.determinants_at(candidate).min() > 0.0:
+                    break
+                length *= 0.5
+            else:
+                break
+            trial_x = candidate
+            residual, norm = residual_at(trial_x, target)
+            if not np.isfinite(norm):
+                break
+            if length * float(np.abs(update).max()) <= tolerance * size or norm <= floor:
+                converged = True
+                break
+        determinants = body.determinants_at(trial_x)
+        if converged and determinants.min() > 0.0:
+            x, fraction = trial_x, target
+            increment = min(2.0 * increment, 1.0)
+            continue
+        increment *= 0.25
+        if increment < 1e-4:
+            element = int(np.argmin(determinants))
+            raise SolidInversionError(
+                f"elastic body: no static equilibrium found at {100 * target:.3g} % of "
+                f"the load (element {element}, det F = {determinants[element]:.3g})",
+                step=None, substep=0, element=element,
+                determinant=float(determinants[element]), positions=trial_x,
+            )
+    state.positions[...] = x
+    state.velocities[...] = 0.0
+    return total
