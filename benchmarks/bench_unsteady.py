@@ -1,7 +1,7 @@
 """Unsteady accuracy (issue 11): DFG 2D-2, the advection schemes' order, the drag's
 convergence, and what each advection scheme costs on the paper's scenes.
 
-``python -m benchmarks unsteady [--parts=order,dfg,drag,speed] [--resolutions=10,20,30]
+``python -m benchmarks unsteady [--parts=order,dfg,drag,pieces,speed] [--resolutions=10,20,30]
 [--advection=maccormack,semi_lagrangian] [--duration=10] [--name=NAME] [--quick]``
 
 Parts:
@@ -17,6 +17,9 @@ Parts:
   time step (CFL 0.25, 0.5, 1), the pressure-correction form (incremental pressure), the
   limiter (unclamped correction), the start-up kick. Each run also gives the drag by a
   control-volume balance, independent of the traction evaluation at cut cells.
+* ``pieces``: the same, N = 10 over 8 s, with one near-wall piece at a time taken back to
+  the plain grid: advection or viscosity without the cut distances, the projection with
+  open fractions rounded to 0/1 (how much the drag depends on each).
 * ``speed``: the paper's scenes (``bar_in_jet``, ``windmill``) stepped with each advection
   scheme: ms per step and the advection phase.
 
@@ -133,7 +136,9 @@ def _dfg_row(result: Any, part: str, label: str = "") -> dict[str, Any]:
             row[f"{key} growth"] = stats.growth
     if "drag" in result.statistics:
         part_mask = (result.time >= result.statistics["drag"].start)
-        row["drag_pressure mean"] = float(np.mean(result.series["drag_pressure"][part_mask]))
+        for key in ("drag_pressure", "drag_pressure_constant", "drag_pressure_linear"):
+            if key in result.series:
+                row[f"{key} mean"] = float(np.mean(result.series[key][part_mask]))
     if result.failure:
         row["note"] = result.failure
     return row
@@ -304,8 +309,72 @@ def drag_part(resolution: int, duration: float, quick: bool) -> list[dict[str, A
         result = _run_dfg(n, "maccormack", duration, copy=False, label=label, **options)
         rows.append(_dfg_row(result, "drag", label))
     print(markdown_table(rows, ["variant", "N", "dt [s]", "wall [s]", *QUANTITIES,
-                                "drag mean", "drag_cv mean", "drag_pressure mean", "note"]),
+                                "drag mean", "drag_cv mean", "drag_pressure mean",
+                                "drag_pressure_linear mean", "note"]),
           flush=True)
+    return rows
+
+
+def pieces_part(resolution: int, duration: float) -> list[dict[str, Any]]:
+    """How much the drag depends on each near-wall piece: one fluid phase at a time gets
+    the cylinder without its cut distances (advection, viscosity: the solid point's own
+    value instead of the cut-distance ghost) or with its open fractions rounded to 0/1
+    (projection: a staircase). The forces are always the traction on the real polygon."""
+    import dataclasses
+
+    from elastoflow.analysis import periodic_statistics
+    from elastoflow.coupling import force_traction
+    from elastoflow.validation import dfg_setup
+    from elastoflow.validation._dfg import (
+        DENSITY,
+        DIAMETER,
+        MEAN_SPEED,
+        VISCOSITY,
+        dfg_solver,
+        initial_state,
+    )
+
+    rows = []
+    for variant in ("advection without cut distances", "viscosity without cut distances",
+                    "projection as a staircase"):
+        setup = dfg_setup(resolution, duration=duration)
+        grid, solver, bmap, interior = dfg_solver(setup)
+        no_cut = dataclasses.replace(
+            interior, cut_theta_x=np.full_like(interior.cut_theta_x, np.inf),
+            cut_theta_y=np.full_like(interior.cut_theta_y, np.inf))
+        stairs = dataclasses.replace(
+            interior, open_fraction_x=(~interior.solid_faces_x).astype(np.float64),
+            open_fraction_y=(~interior.solid_faces_y).astype(np.float64))
+        advected = no_cut if variant.startswith("advection") else interior
+        diffused = no_cut if variant.startswith("viscosity") else interior
+        projected = stairs if variant.startswith("projection") else interior
+        state = initial_state(grid, interior, setup.kick)
+        scale = 2.0 / (DENSITY * MEAN_SPEED**2 * DIAMETER)
+        times = np.arange(1, setup.steps + 1) * setup.dt
+        forces = np.zeros((setup.steps, 2))
+        began = time.perf_counter()
+        for k in range(setup.steps):
+            solver.advect(state, setup.dt, advected)
+            solver.diffuse(state, setup.dt, diffused)
+            solver.apply_forces(state, setup.dt, k * setup.dt)
+            solver.project(state, setup.dt, projected)
+            forces[k] = scale * force_traction(
+                grid, bmap, state.velocity_x, state.velocity_y, state.pressure, DENSITY,
+                VISCOSITY, interior).sum(axis=0)
+        row: dict[str, Any] = {"part": "pieces", "variant": variant, "N": resolution,
+                               "wall [s]": round(time.perf_counter() - began, 1)}
+        try:
+            lift = periodic_statistics(times, forces[:, 1])
+            drag = periodic_statistics(times, forces[:, 0])
+            row.update({"strouhal": DIAMETER * lift.frequency / MEAN_SPEED,
+                        "drag_max": drag.maximum, "lift_max": lift.maximum,
+                        "drag mean": drag.mean})
+        except ValueError as error:
+            row["note"] = str(error)
+        print(row, flush=True)
+        rows.append(row)
+    print(markdown_table(rows, ["variant", "N", "wall [s]", "strouhal", "drag_max", "lift_max",
+                                "drag mean", "note"]), flush=True)
     return rows
 
 
@@ -355,7 +424,7 @@ def main(argv: list[str] | None = None) -> list[dict[str, Any]]:
     argv = list(argv or [])
     quick = "--quick" in argv
     REEVALUATE = "--reevaluate" in argv
-    parts = _option(argv, "parts", "order,dfg,drag,speed").split(",")
+    parts = _option(argv, "parts", "order,dfg,drag,pieces,speed").split(",")
     resolutions = [int(v) for v in _option(argv, "resolutions",
                                            "8,12" if quick else "10,20,30").split(",")]
     schemes = _option(argv, "advection", ",".join(SCHEMES)).split(",")
@@ -367,6 +436,9 @@ def main(argv: list[str] | None = None) -> list[dict[str, Any]]:
         rows += dfg_part(resolutions, schemes, duration, quick, _option(argv, "name", "unsteady"))
     if "drag" in parts:
         rows += drag_part(int(_option(argv, "drag-resolution", "10")), duration, quick)
+    if "pieces" in parts:
+        rows += pieces_part(int(_option(argv, "drag-resolution", "10")),
+                            float(_option(argv, "pieces-duration", "8")))
     if "speed" in parts:
         rows += speed_part(20 if quick else 100, quick)
     write_results(_option(argv, "name", "unsteady"), rows)
