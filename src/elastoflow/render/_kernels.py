@@ -68,13 +68,36 @@ def fill_polygon(image: np.ndarray, polygon: np.ndarray, color: np.ndarray) -> N
 
 
 @njit(cache=True, inline="always")
+def _clip(p: float, q: float, t0: float, t1: float) -> tuple[float, float, bool]:
+    """One side of Liang-Barsky clipping: the part of [t0, t1] where q - p t >= 0."""
+    if p == 0.0:
+        return t0, t1, q >= 0.0
+    r = q / p
+    if p < 0.0:
+        return max(t0, r), t1, r <= t1
+    return t0, min(t1, r), r >= t0
+
+
+@njit(cache=True, inline="always")
 def _draw_segment(image: np.ndarray, xa: float, ya: float, xb: float, yb: float,
                   color: np.ndarray) -> None:
-    """One-pixel segment from (xa, ya) to (xb, yb) in pixel coordinates (DDA)."""
+    """One-pixel segment from (xa, ya) to (xb, yb) in pixel coordinates (DDA), clipped to a
+    pixel around the image first (a segment far outside, from a damaged file, would otherwise
+    take as many samples as it is long)."""
     height, width = image.shape[0], image.shape[1]
     dx, dy = xb - xa, yb - ya
     if not (math.isfinite(dx) and math.isfinite(dy)):
         return
+    if not (0.0 <= xa <= width and 0.0 <= xb <= width and 0.0 <= ya <= height
+            and 0.0 <= yb <= height):
+        t0, t1, left = _clip(-dx, xa + 1.0, 0.0, 1.0)
+        t0, t1, right = _clip(dx, width + 1.0 - xa, t0, t1)
+        t0, t1, below = _clip(-dy, ya + 1.0, t0, t1)
+        t0, t1, above = _clip(dy, height + 1.0 - ya, t0, t1)
+        if not (left and right and below and above) or t1 < t0:
+            return
+        xa, ya, xb, yb = xa + t0 * dx, ya + t0 * dy, xa + t1 * dx, ya + t1 * dy
+        dx, dy = xb - xa, yb - ya
     samples = int(max(abs(dx), abs(dy))) + 1
     for s in range(samples + 1):
         f = s / samples

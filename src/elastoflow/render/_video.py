@@ -168,6 +168,15 @@ class VideoWriter:
             if temporary.exists():
                 temporary.unlink()
 
+    def abort(self) -> None:
+        """Stop without writing the file (after an error while producing the frames): no
+        temporary is left, nothing is written at `path`."""
+        if self._encoder is not None:
+            self._encoder.abort()
+            self._encoder = None
+        self._discard_temporary()
+        self._frames_for_gif = []
+
     def _discard_temporary(self) -> None:
         if self._temporary is not None and self._temporary.exists():
             self._temporary.unlink()
