@@ -118,9 +118,25 @@ class _StopRequest:
         signal.signal(signal.SIGINT, self._previous)
 
     def _handle(self, signum: int, frame: Any) -> None:
-        if self.requested:
+        # Never raised inside Numba's compiler or cache loader: the exception lands in an
+        # llvmlite ctypes callback, which ignores it and then crashes the process (SIGSEGV,
+        # seen on a double Ctrl-C during the first step). There the second Ctrl-C stops after
+        # the step, as the first one does.
+        if self.requested and not _inside_compiler(frame):
             raise KeyboardInterrupt
         self.requested = True
+
+
+def _inside_compiler(frame: Any) -> bool:
+    """Whether a Python frame of Numba or llvmlite is on the stack of ``frame``."""
+    import os
+
+    marks = (f"{os.sep}numba{os.sep}", f"{os.sep}llvmlite{os.sep}")
+    while frame is not None:
+        if any(mark in frame.f_code.co_filename for mark in marks):
+            return True
+        frame = frame.f_back
+    return False
 
 
 def _option_words(options: dict[str, Any]) -> list[str]:
