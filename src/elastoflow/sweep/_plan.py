@@ -119,6 +119,9 @@ def _base_scene(spec: SweepSpec) -> Any:
     path = Path(name)
     if not path.is_absolute() and spec.base_dir is not None:
         path = Path(spec.base_dir) / path
+    if name not in list_scenes() and not path.exists():
+        raise SweepError([f"scene = {name!r}: neither a built-in scene ({', '.join(list_scenes())})"
+                          f" nor a file ({path} does not exist)"], spec.source)
     try:
         if name in list_scenes() and not path.exists():
             return get_scene(name)

@@ -166,3 +166,15 @@ def test_summary_frame_has_typed_columns() -> None:
     assert frame["b"].tolist() == ["[1, 2]", "[3, 4]"]
     assert frame["x_final"].dtype == np.float64 and math.isnan(frame["x_final"][1])
     assert frame["status"].tolist() == ["done", "pending"]
+
+
+def test_a_scene_that_is_neither_built_in_nor_a_file_says_both(tmp_path: Path) -> None:
+    spec = parse_sweep({"scene": "cavty", "grid": {"fluid.viscosity": [0.01]}},
+                       base_dir=tmp_path, source="s.toml")
+    with pytest.raises(SweepError) as caught:
+        plan_sweep(spec)
+    from elastoflow.scenes import list_scenes
+
+    assert caught.value.problems == [
+        f"scene = 'cavty': neither a built-in scene ({', '.join(list_scenes())}) nor a file "
+        f"({tmp_path / 'cavty'} does not exist)"]
