@@ -135,21 +135,42 @@ def run_point(task: PointTask) -> dict[str, Any]:
     checkpoint in the folder, as ``elastoflow run --resume`` does.
 
     Returns:
-        ``point``, ``parameters``, ``status`` (done or failed), ``message``,
+        ``point``, ``parameters``, ``status`` (done, failed, or lost when its folder cannot
+        be written: no ``result.json`` then, the next run of the sweep runs it again), ``message``,
         ``wall_time [s]``, ``steps``, ``time [s]``, ``attempts``, ``resumed_from_step``,
         ``worker``, ``folder``, ``results`` (`scalar_results` of the probes).
     """
     from elastoflow.io import remove_temporaries
 
     folder = Path(task.folder)
-    folder.mkdir(parents=True, exist_ok=True)
-    with _folder_lock(folder):
-        previous = read_result(folder)
-        if previous is not None and previous.get("status") == "done":
-            return previous
-        # What a killed run of this point was writing when it died.
-        remove_temporaries(folder)
-        return _run_locked(task, folder)
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        with _folder_lock(folder):
+            previous = read_result(folder)
+            if previous is not None and previous.get("status") == "done":
+                return previous
+            # What a killed run of this point was writing when it died.
+            remove_temporaries(folder)
+            return _run_locked(task, folder)
+    except OSError as error:
+        # The folder cannot be written (a full or read-only disk): not the point's result.
+        return _lost(task, folder, error)
+
+
+def _lost(task: PointTask, folder: Path, error: OSError, row: dict[str, Any] | None = None
+          ) -> dict[str, Any]:
+    """The row of a point that could not write its outputs: ``lost``, so that the next run of
+    the sweep runs it again (no ``result.json``), the error kept as its message."""
+    where = f" ({error.filename})" if error.filename else ""
+    lost = dict(row) if row is not None else {
+        "point": task.index, "parameters": task.parameters, "wall_time [s]": math.nan,
+        "steps": 0, "time [s]": math.nan, "attempts": 1, "resumed_from_step": 0,
+        "worker": _worker_name(), "folder": folder.name, "results": {}}
+    lost.update(status="lost", message=f"cannot write its outputs: {error.strerror or error}"
+                f"{where}")
+    with contextlib.suppress(OSError):
+        (folder / RUNNING_FILE).unlink(missing_ok=True)
+    return lost
 
 
 @contextlib.contextmanager
@@ -190,13 +211,20 @@ def _run_locked(task: PointTask, folder: Path) -> dict[str, Any]:
     }
     try:
         _run(task, folder, row)
+    except OSError as error:
+        # A full or read-only disk is no result of the point: it runs again next time.
+        row["wall_time [s]"] = _time.perf_counter() - began
+        return _lost(task, folder, error, row)
     except Exception as error:  # noqa: BLE001 - every failure of a point is its result
         message = str(error).splitlines()[0] if str(error) else ""
         row["status"] = "failed"
         row["message"] = f"{type(error).__name__}: {message}" if not message.startswith(
             "step") else message
     row["wall_time [s]"] = _time.perf_counter() - began
-    _write_json(folder / RESULT_FILE, row)
+    try:
+        _write_json(folder / RESULT_FILE, row)
+    except OSError as error:
+        return _lost(task, folder, error, row)
     (folder / RUNNING_FILE).unlink(missing_ok=True)
     return row
 
