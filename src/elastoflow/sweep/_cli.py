@@ -153,6 +153,8 @@ def sweep_command(
         _fail([f"cannot write the sweep's results in {folder}: "
                f"{unwritable.strerror or unwritable}{where}; the finished points are kept: "
                f"once the disk is writable, resume with: {resume}"], _EXIT_FAILED)
+    for line in outcome.warnings:
+        typer.echo(f"warning: {line}", err=True)
     typer.echo(f"wrote {outcome.summary}")
     if outcome.zarr is not None:
         typer.echo(f"wrote {outcome.zarr}")

@@ -127,6 +127,8 @@ class SweepOutcome:
     zarr: Path | None = None
     stopped: bool = False
     failed_points: list[str] = field(default_factory=list)
+    warnings: list[str] = field(default_factory=list)
+    """Problems that did not stop the sweep (unreadable snapshot files)."""
 
 
 def local_worker_count() -> int:
@@ -267,6 +269,7 @@ def run_sweep(plan: SweepPlan, out: Path, client: Any, *, retry_failed: bool = F
     from distributed import as_completed
 
     prepare_folder(plan, out)
+    warnings: list[str] = []
     rows: dict[int, dict[str, Any]] = {}
     pending: list[SweepPoint] = []
     for point in plan.points:
@@ -358,7 +361,7 @@ def run_sweep(plan: SweepPlan, out: Path, client: Any, *, retry_failed: bool = F
         if plan.spec.snapshots is not None:
             from elastoflow.sweep._zarr import write_snapshots_zarr
 
-            zarr_path = write_snapshots_zarr(out / ZARR_FILE, plan, rows, out)
+            zarr_path = write_snapshots_zarr(out / ZARR_FILE, plan, rows, out, warnings)
     failed = [f"point {i}: {row.get('message', '')}" for i, row in sorted(rows.items())
               if row.get("status") in ("failed", "lost")]
-    return SweepOutcome(rows, progress, summary, zarr_path, stopped, failed)
+    return SweepOutcome(rows, progress, summary, zarr_path, stopped, failed, warnings)

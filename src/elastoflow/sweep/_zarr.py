@@ -20,7 +20,7 @@ def _coordinate(values: list[Any]) -> np.ndarray:
 
 
 def write_snapshots_zarr(path: Path, plan: Any, rows: Mapping[int, Mapping[str, Any]],
-                         out: Path) -> Path:
+                         out: Path, warnings: list[str] | None = None) -> Path:
     """Write ``path`` (a Zarr store, format 2: readable by every Zarr library) from the snapshot files of the points in ``out``.
 
     The Dataset has one variable per field, dimensions ``(point, time, x, y)``, float32, NaN
@@ -29,6 +29,8 @@ def write_snapshots_zarr(path: Path, plan: Any, rows: Mapping[int, Mapping[str, 
     coordinate along ``point`` per varied parameter (named by its key path) and ``status``;
     ``snapshot_time`` (point, time) holds the time [s] each snapshot was actually taken.
     The store is written beside ``path`` and then swapped in, so a reader never sees half.
+    A snapshot file that cannot be read, or lacks a field (taken before ``[snapshots]`` asked
+    for it), gives NaN there and a line in ``warnings``.
     """
     import dask.array as da
     import xarray as xr
@@ -71,11 +73,27 @@ def write_snapshots_zarr(path: Path, plan: Any, rows: Mapping[int, Mapping[str, 
         block = {name: np.full((1, t, nx, ny), np.nan, dtype=np.float32) for name in spec.fields}
         taken = np.full((1, t), np.nan)
         for k, file in enumerate(files):
-            if file.exists():
-                with np.load(file) as data:
-                    for name in spec.fields:
-                        block[name][0, k] = data[name]
-                    taken[0, k] = float(data["time"])
+            if not file.exists():
+                continue
+            try:
+                with np.load(file, allow_pickle=False) as data:
+                    arrays = {name: np.array(data[name]) for name in data.files}
+            except Exception as error:  # noqa: BLE001 - numpy/zipfile fail in many ways
+                if warnings is not None:
+                    warnings.append(f"{file}: cannot be read ({type(error).__name__}: "
+                                    f"{error}); its fields are NaN in {path.name}")
+                continue
+            missing = [name for name in spec.fields
+                       if name not in arrays or arrays[name].shape != (nx, ny)]
+            if missing and warnings is not None:
+                warnings.append(f"{file}: holds no {', '.join(missing)} of {nx}x{ny} cells "
+                                f"(taken before [snapshots] asked for it?): NaN in {path.name}; "
+                                "run the sweep into a new folder to have them")
+            for name in spec.fields:
+                if name not in missing:
+                    block[name][0, k] = arrays[name]
+            if "time" in arrays and arrays["time"].shape == ():
+                taken[0, k] = float(arrays["time"])
         region = xr.Dataset({**{name: (dims, block[name]) for name in spec.fields},
                              "snapshot_time": (("point", "time"), taken)})
         region.to_zarr(staging, region={"point": slice(position, position + 1)},
