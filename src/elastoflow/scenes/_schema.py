@@ -156,7 +156,7 @@ class FluidSpec(_Spec):
     """Transport of velocity and dye: MacCormack's limited correction of the semi-Lagrangian
     step (second order where the flow is smooth; the default, for wakes:
     docs/validation/unsteady.md) or the paper's plain semi-Lagrangian step (first order,
-    diffusive, about 1.3-1.6x cheaper to advect)."""
+    diffusive; its advection phase about half the cost, docs/benchmarks.md)."""
     incremental_pressure: bool = False
     """Solve for the pressure increment (removes the plain splitting's O(dt) error at walls
     in steady flow; docs/method_notes.md item 6)."""
