@@ -446,8 +446,8 @@ def main(argv: list[str] | None = None) -> list[dict[str, Any]]:
     if "drag" in parts:
         rows += drag_part(int(_option(argv, "drag-resolution", "10")), duration, quick)
     if "pieces" in parts:
-        rows += pieces_part(int(_option(argv, "drag-resolution", "10")),
-                            float(_option(argv, "pieces-duration", "8")))
+        rows += pieces_part(8 if quick else int(_option(argv, "drag-resolution", "10")),
+                            float(_option(argv, "pieces-duration", "2" if quick else "8")))
     if "speed" in parts:
         rows += speed_part(20 if quick else 100, quick)
     write_results(_option(argv, "name", "unsteady"), rows)
