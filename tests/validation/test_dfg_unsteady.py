@@ -26,7 +26,7 @@ PUBLISHED_STROUHAL = 0.5 * sum(BOUNDS["strouhal"])
 def test_coarse_run_sheds_with_strouhal_within_10_percent() -> None:
     """12 cells per diameter, 6 s (2195 steps), MacCormack (the scene default). Measured:
     St = 0.2789 (-7.0 % from the bounds' midpoint 0.300), lift amplitude 0.908, mean c_D
-    3.487; 138 s on one core at a load average of 6."""
+    3.487; 30 s and 138 s on one core in two runs at load averages of 5 and 6."""
     result = run_dfg(12, duration=6.0, advection="maccormack")
     assert result.failure is None, result.failure
     lift = result.statistics["lift"]
