@@ -500,7 +500,8 @@ def validate(
                                                "FSI1-3 (turek-hron).")] = None,
     resolution: Annotated[int, typer.Option(help="Benchmark: about this many cells per "
                                             "cylinder diameter (turek-hron) or metre "
-                                            "(perpendicular-flap), 5-200.")] = 20,
+                                            "(perpendicular-flap), 5-200; cells per diameter, "
+                                            "4-160 (dfg-2d-2).")] = 20,
     duration: Annotated[float | None, typer.Option(help="Benchmark: simulated time [s] "
                                                    "(default: the case's).")] = None,
     dt: Annotated[float | None, typer.Option(help="Benchmark: time step [s] (default: CFL "
