@@ -3,7 +3,8 @@
 Linear triangles in 2D (METHOD §4). Model, state and what advances it are separate: a
 :class:`TriangleMesh` is the rest shape, an :class:`ElasticBody` the static model (mesh,
 material, constraints, masses), a :class:`BodyState` the changing positions and velocities,
-and an integrator (:class:`ExplicitFem`, :class:`NewmarkFem`, :func:`static_equilibrium`)
+and an integrator (:class:`ExplicitFem`, :class:`MidpointFem`, :class:`NewmarkFem`,
+:func:`static_equilibrium`)
 steps one state into another::
 
     mesh = mesh_rectangle(0.02, 0.2, counts=(4, 24), origin=(0.5, 0.3))
@@ -22,7 +23,12 @@ from elastoflow.solid._body import (
     SolidStepReport,
     stable_substep,
 )
-from elastoflow.solid._integrators import ExplicitFem, NewmarkFem, static_equilibrium
+from elastoflow.solid._integrators import (
+    ExplicitFem,
+    MidpointFem,
+    NewmarkFem,
+    static_equilibrium,
+)
 from elastoflow.solid._material import MaterialStVK
 from elastoflow.solid._mesh import (
     TriangleMesh,
@@ -42,6 +48,7 @@ __all__ = [
     "ElasticBody",
     "ExplicitFem",
     "MaterialStVK",
+    "MidpointFem",
     "NewmarkFem",
     "SolidInversionError",
     "SolidStepReport",

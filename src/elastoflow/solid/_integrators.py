@@ -5,14 +5,16 @@ untouched when it fails. The body (`ElasticBody`) is the static model they read.
 
 * `ExplicitFem`: symplectic Euler substeps under a force held over the step (METHOD §4, the
   paper's scheme; the explicit coupling uses it).
-* `NewmarkFem`: one implicit Newmark step by Newton's method (the monolithic coupling uses
-  it, because its answer to a held force is exactly the response the coupled pressure solve
-  sees: docs/method_notes.md, "Strong coupling").
+* `MidpointFem`, `NewmarkFem`: one implicit step by Newton's method (the monolithic coupling
+  uses them, because their answer to a held force is exactly the response the coupled
+  pressure solve sees: docs/method_notes.md, "Strong coupling"); the midpoint rule keeps the
+  angular momentum, Newmark's damps the unresolved modes.
 * `static_equilibrium`: the rest state under given loads (Turek–Hron CSM1/2).
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Literal
 
 import numpy as np
@@ -204,10 +206,7 @@ class NewmarkFem:
             SolidInversionError: An element inverted or a value became non-finite; both
                 states keep their values.
         """
-        n = body.point_count
-        forces = np.ascontiguousarray(external_forces, dtype=np.float64)
-        if forces.shape != (n, 2) or not np.all(np.isfinite(forces)):
-            raise ValueError(f"external_forces: must be finite, shape ({n}, 2)")
+        forces = _checked_forces(body, external_forces)
         gamma = self.gamma
         mass = body.mass[:, None]
         held = body.fixed_mask
@@ -216,73 +215,156 @@ class NewmarkFem:
         f_external = forces + mass * body.gravity
         a0 = (body.forces_at(x0, v0) + f_external) / mass
         a0[held] = 0.0
-        # The first Newton update solves the linearised step exactly; an explicit guess (a0
-        # extrapolated) would start stiff bodies far off.
-        x1 = x0 + dt * v0
-        x1[held] = x0[held]
-        size = float(np.ptp(body.mesh.points, axis=0).max())
-
         beta = 0.5 * gamma
         drift = x0 + dt * v0 + (0.5 - beta) * dt * dt * a0
 
-        def residual_at(x: np.ndarray) -> tuple[np.ndarray, float]:
+        def residual_at(x: np.ndarray) -> np.ndarray:
             # With beta = gamma / 2 the end velocity is 2 (x1 - x0) / dt - v0 for any gamma.
             v = 2.0 * (x - x0) / dt - v0
-            r = beta * dt * dt * (body.forces_at(x, v) + f_external)
-            r -= mass * (x - drift)
-            r[held] = 0.0
-            norm = float(np.linalg.norm(r))
-            return r, norm if np.isfinite(norm) else np.inf
+            return beta * dt * dt * (body.forces_at(x, v) + f_external) - mass * (x - drift)
 
-        # Newton on Newmark's residual: the matrix of ``response`` (tangent at the start of
-        # the step) while it contracts, a fresh tangent at the iterate and a halving line
-        # search when it does not (fast rotations leave the start's tangent behind).
-        factor = response
+        def tangent_at(x: np.ndarray) -> StepResponse:
+            return body.response_at(x, gamma * dt, np.sqrt(beta) * dt, 0.5 * dt)
+
+        return _implicit_step(body, state_in, state_out, dt, residual_at, response, tangent_at,
+                              self.tolerance, self.max_iterations, step)
+
+
+class MidpointFem:
+    """One step of the implicit midpoint rule.
+
+    ``v1 = v0 + dt M^-1 (f_internal(x_m, v_m) + f_external + M g)`` and ``x1 = x0 + dt (v0 +
+    v1) / 2``, with the internal forces at the midpoint ``x_m = (x0 + x1) / 2``, ``v_m = (x1 -
+    x0) / dt``. Second order, unconditionally stable for the linearised body, and it keeps the
+    linear and the angular momentum of a free body exactly (the internal forces of a
+    frame-indifferent material have no net force and no torque at ``x_m``, and the rule makes
+    the momenta change by exactly those) and the energy of linear vibrations. Newmark's rule
+    with forces at the ends (`NewmarkFem`) keeps the angular momentum only to ``O(dt^2)`` of
+    the vibration's forces: coupled to a fluid, whose pressure keeps exciting a body's stiff
+    modes, that error spun discs up exponentially (docs/method_notes.md item 8).
+
+    Its answer to a force held over the step is `response`: mean velocity ``dt/2 A^-1 f``
+    with ``A = M + dt/2 (D + alpha M) + dt^2/4 K`` (end velocity twice that), the matrix of
+    Newmark's average-acceleration rule, so the strongly coupled solve is the same SPD system.
+
+    Args:
+        tolerance: Stop when the Newton update is below ``tolerance`` times the body's size.
+        max_iterations: Newton iterations at most.
+    """
+
+    gamma = 0.5
+
+    def __init__(self, tolerance: float = 1e-10, max_iterations: int = 12) -> None:
+        self.tolerance = float(tolerance)
+        self.max_iterations = int(max_iterations)
+
+    def response(self, body: ElasticBody, state: BodyState, dt: float) -> StepResponse:
+        """The answer of `advance` to a force held over the step, at the state's positions:
+        mean velocity ``dt/2 A^-1 f`` (end velocity twice that)."""
+        return body.response_at(state.positions, 0.5 * dt, 0.5 * dt, 0.5 * dt)
+
+    def advance(
+        self, body: ElasticBody, state_in: BodyState, state_out: BodyState, dt: float,
+        external_forces: np.ndarray, response: StepResponse, *, step: int | None = None,
+    ) -> SolidStepReport:
+        """Advance ``state_in`` by ``dt`` [s] into ``state_out`` (may be ``state_in``); as
+        `NewmarkFem.advance`."""
+        forces = _checked_forces(body, external_forces)
+        mass = body.mass[:, None]
+        x0 = state_in.positions
+        v0 = state_in.velocities
+        f_external = forces + mass * body.gravity
+
+        def residual_at(x: np.ndarray) -> np.ndarray:
+            middle = 0.5 * (x0 + x)
+            return (0.5 * dt * dt * (body.forces_at(middle, (x - x0) / dt) + f_external)
+                    - mass * (x - x0 - dt * v0))
+
+        def tangent_at(x: np.ndarray) -> StepResponse:
+            return body.response_at(0.5 * (x0 + x), 0.5 * dt, 0.5 * dt, 0.5 * dt)
+
+        return _implicit_step(body, state_in, state_out, dt, residual_at, response, tangent_at,
+                              self.tolerance, self.max_iterations, step)
+
+
+def _checked_forces(body: ElasticBody, external_forces: np.ndarray) -> np.ndarray:
+    n = body.point_count
+    forces = np.ascontiguousarray(external_forces, dtype=np.float64)
+    if forces.shape != (n, 2) or not np.all(np.isfinite(forces)):
+        raise ValueError(f"external_forces: must be finite, shape ({n}, 2)")
+    return forces
+
+
+def _implicit_step(
+    body: ElasticBody, state_in: BodyState, state_out: BodyState, dt: float,
+    residual: Callable[[np.ndarray], np.ndarray], response: StepResponse,
+    tangent_at: Callable[[np.ndarray], StepResponse], tolerance: float, max_iterations: int,
+    step: int | None,
+) -> SolidStepReport:
+    """Newton on an implicit rule's residual in the end positions (end velocity ``2 (x1 - x0)
+    / dt - v0``): the matrix of ``response`` (tangent at the start of the step) while it
+    contracts, a fresh tangent at the iterate and a halving line search when it does not
+    (fast rotations leave the start's tangent behind)."""
+    held = body.fixed_mask
+    x0 = state_in.positions
+    v0 = state_in.velocities
+
+    def residual_at(x: np.ndarray) -> tuple[np.ndarray, float]:
+        r = residual(x)
+        r[held] = 0.0
+        norm = float(np.linalg.norm(r))
+        return r, norm if np.isfinite(norm) else np.inf
+
+    # The first Newton update solves the linearised step exactly; an explicit guess (the
+    # acceleration extrapolated) would start stiff bodies far off.
+    x1 = x0 + dt * v0
+    x1[held] = x0[held]
+    size = float(np.ptp(body.mesh.points, axis=0).max())
+    factor = response
+    fresh = False
+    current, norm = residual_at(x1)
+    iterations = 0
+    for iterations in range(1, max_iterations + 1):
+        update = factor.solve(current)
+        step_length = 1.0
+        for _ in range(8):
+            trial = x1 + step_length * update
+            trial_residual, trial_norm = residual_at(trial)
+            if trial_norm < norm:
+                break
+            if not fresh:
+                # Retry the full step with the tangent at the current iterate.
+                factor = tangent_at(x1)
+                fresh = True
+                update = factor.solve(current)
+                continue
+            step_length *= 0.5
+        else:
+            break
+        x1 = trial
+        current, norm = trial_residual, trial_norm
         fresh = False
-        residual, norm = residual_at(x1)
-        iterations = 0
-        for iterations in range(1, self.max_iterations + 1):
-            update = factor.solve(residual)
-            step_length = 1.0
-            for _ in range(8):
-                trial = x1 + step_length * update
-                trial_residual, trial_norm = residual_at(trial)
-                if trial_norm < norm:
-                    break
-                if not fresh:
-                    # Retry the full step with the tangent at the current iterate.
-                    factor = body.response_at(x1, gamma * dt, np.sqrt(beta) * dt, 0.5 * dt)
-                    fresh = True
-                    update = factor.solve(residual)
-                    continue
-                step_length *= 0.5
-            else:
-                break
-            x1 = trial
-            residual, norm = trial_residual, trial_norm
-            fresh = False
-            if step_length * float(np.abs(update).max()) <= self.tolerance * size:
-                break
-        v1 = 2.0 * (x1 - x0) / dt - v0
-        v1[held] = 0.0
-        determinants = body.determinants_at(x1)
-        where = "" if step is None else f"step {step}, "
-        if not (np.all(np.isfinite(x1)) and np.all(np.isfinite(v1))
-                and determinants.min() > 0.0):
-            element = int(np.argmin(np.nan_to_num(determinants, nan=-np.inf)))
-            raise SolidInversionError(
-                f"elastic body failed at {where}implicit step (dt = {dt:.3g} s): element "
-                f"{element} has det F = {determinants[element]:.3g} (inverted or non-finite); "
-                "use a smaller dt",
-                step=step, substep=0, element=element,
-                determinant=float(determinants[element]), positions=x1,
-            )
-        state_out.positions[...] = x1
-        state_out.velocities[...] = v1
-        return SolidStepReport(
-            substeps=iterations, substep_dt=dt, stable_substep=body.stable_substep(),
-            min_determinant=float(determinants.min()),
+        if step_length * float(np.abs(update).max()) <= tolerance * size:
+            break
+    v1 = 2.0 * (x1 - x0) / dt - v0
+    v1[held] = 0.0
+    determinants = body.determinants_at(x1)
+    where = "" if step is None else f"step {step}, "
+    if not (np.all(np.isfinite(x1)) and np.all(np.isfinite(v1)) and determinants.min() > 0.0):
+        element = int(np.argmin(np.nan_to_num(determinants, nan=-np.inf)))
+        raise SolidInversionError(
+            f"elastic body failed at {where}implicit step (dt = {dt:.3g} s): element "
+            f"{element} has det F = {determinants[element]:.3g} (inverted or non-finite); "
+            "use a smaller dt",
+            step=step, substep=0, element=element,
+            determinant=float(determinants[element]), positions=x1,
         )
+    state_out.positions[...] = x1
+    state_out.velocities[...] = v1
+    return SolidStepReport(
+        substeps=iterations, substep_dt=dt, stable_substep=body.stable_substep(),
+        min_determinant=float(determinants.min()),
+    )
 
 
 def static_equilibrium(body: ElasticBody, state: BodyState,
