@@ -173,7 +173,7 @@ def plan_sweep(spec: SweepSpec, *, build: bool = True) -> SweepPlan:
 
     points: list[SweepPoint] = []
     warnings: dict[str, None] = {}
-    shapes: dict[tuple[int, int], int] = {}
+    shapes: dict[tuple[Any, ...], int] = {}
     for index, parameters in enumerate(spec.parameter_points()):
         data = copy.deepcopy(base_data)
         errors: list[str] = []
@@ -200,10 +200,14 @@ def plan_sweep(spec: SweepSpec, *, build: bool = True) -> SweepPlan:
             problems.append(f"{point.describe()}: {'; '.join(errors)}")
             continue
         assert scene is not None
-        shapes.setdefault(scene.domain.cells, index)
+        domain = scene.domain
+        origin = tuple(float(v) for v in getattr(domain, "origin", (0.0, 0.0)))
+        shapes.setdefault((*domain.cells, float(domain.cell_size), origin), index)
         points.append(point)
     if spec.snapshots is not None and len(shapes) > 1:
-        listed = ", ".join(f"{nx}x{ny} (point {index})" for (nx, ny), index in shapes.items())
+        # The store's x and y are one set of cell centres: cells, size and origin must agree.
+        listed = ", ".join(f"{nx}x{ny} cells of {h:.6g} m from ({x0:.6g}, {y0:.6g}) (point "
+                           f"{index})" for (nx, ny, h, (x0, y0)), index in shapes.items())
         problems.append(f"snapshots: every point must have the same grid to share one Zarr "
                         f"store; the points have {listed}")
     if problems:

@@ -41,14 +41,15 @@ def write_snapshots_zarr(path: Path, plan: Any, rows: Mapping[int, Mapping[str, 
     domain = points[0].scene.domain
     nx, ny = domain.cells
     h = domain.cell_size
+    x0, y0 = (float(v) for v in getattr(domain, "origin", (0.0, 0.0)))
     n, t = len(points), len(times)
     dims = ("point", "time", "x", "y")
     chunks = (1, t, nx, ny)
     coords: dict[str, Any] = {
         "point": [p.index for p in points],
         "time": ("time", times, {"units": "s"}),
-        "x": ("x", (np.arange(nx) + 0.5) * h, {"units": "m"}),
-        "y": ("y", (np.arange(ny) + 0.5) * h, {"units": "m"}),
+        "x": ("x", x0 + (np.arange(nx) + 0.5) * h, {"units": "m"}),
+        "y": ("y", y0 + (np.arange(ny) + 0.5) * h, {"units": "m"}),
         "status": ("point", np.asarray([str(rows.get(p.index, {}).get("status", "pending"))
                                         for p in points])),
     }

@@ -127,6 +127,13 @@ def test_bad_sweep_files_say_where(tmp_path: Path, scene_file: Path) -> None:
     with pytest.raises(SweepError, match="snapshots: every point must have the same grid"):
         plan_sweep(parse_sweep({"scene": "tiny.toml", "grid": {"domain.nx": [8, 16]},
                                 "snapshots": {"times": [0.1]}}, base_dir=tmp_path))
+    # Same cells, other origin: the store's x and y would be those of point 0 for both.
+    with pytest.raises(SweepError, match=r"8x8 cells of 0\.125 m from \(0, 0\) \(point 0\), "
+                                         r"8x8 cells of 0\.125 m from \(1, 0\) \(point 1\)"):
+        plan_sweep(parse_sweep({"scene": "tiny.toml", "grid": {"domain.origin": [[0.0, 0.0],
+                                                                                  [1.0, 0.0]]},
+                                "snapshots": {"times": [0.1]}}, base_dir=tmp_path),
+                   build=False)
 
 
 def test_set_key_path_walks_tables_and_arrays_and_drops_the_alternative() -> None:

@@ -20,7 +20,7 @@ N = 8
 
 def test_unreadable_or_older_snapshots_are_nan_with_a_warning(tmp_path: Path) -> None:
     plan = plan_sweep(parse_sweep({
-        "scene": "cavity", "set": {"domain.nx": N, "time.steps": 4},
+        "scene": "cavity", "set": {"domain.nx": N, "time.steps": 4, "domain.origin": [2.0, -1.0]},
         "grid": {"boundaries.top.velocity": [0.5, 1.0, 1.5]},
         "snapshots": {"times": [0.0], "fields": ["velocity_x", "vorticity"]}},
         base_dir=tmp_path), build=False)
@@ -43,5 +43,8 @@ def test_unreadable_or_older_snapshots_are_nan_with_a_warning(tmp_path: Path) ->
     assert np.isnan(data["vorticity"].values[1]).all()
     assert np.isnan(data["velocity_x"].values[2]).all()
     assert len(warnings) == 2
+    # Cell centres in the domain's coordinates, its origin included.
+    np.testing.assert_allclose(data["x"].values, 2.0 + (np.arange(N) + 0.5) / N)
+    np.testing.assert_allclose(data["y"].values, -1.0 + (np.arange(N) + 0.5) / N)
     assert str(files[1]) in warnings[0] and "holds no vorticity" in warnings[0]
     assert str(files[2]) in warnings[1] and "cannot be read" in warnings[1]
