@@ -68,11 +68,21 @@ class CheckpointError(ValueError):
     from another scene. The message names the file and says which."""
 
 
-def damage(error: BaseException) -> str:
-    """What a failed ``np.load`` of an ``.npz`` says about the file, in a user's words."""
+def damage(error: BaseException, path: str | Path | None = None) -> str:
+    """What a failed ``np.load`` of an ``.npz`` (``path``, when given) says about the file,
+    in a user's words."""
     if "allow_pickle" in str(error):
-        # Never advise allow_pickle: loading pickles from a file runs code from that file.
-        return "it holds pickled Python objects, which elastoflow never writes"
+        # NumPy says this also of any file that is neither a zip nor an .npy. Never advise allow_pickle: loading pickles
+        # from a file runs code from that file.
+        try:
+            with open(path, "rb") as handle:  # type: ignore[arg-type]
+                start = handle.read(8)
+        except (OSError, TypeError):
+            start = b"\x80"
+        # A pickle, or an .npz / .npy whose arrays hold Python objects (pickled inside).
+        if start.startswith((b"\x80", b"PK", b"\x93NUMPY")):
+            return "it holds pickled Python objects, which elastoflow never writes"
+        return f"not a NumPy .npz file: it starts with {start!r}"
     return f"truncated or corrupt: {type(error).__name__}: {error}"
 
 
@@ -96,7 +106,7 @@ def read_checkpoint(path: str | Path) -> dict[str, np.ndarray]:
     except OSError as error:
         raise CheckpointError(f"cannot read checkpoint {path}: {error.strerror or error}") from None
     except Exception as error:  # noqa: BLE001 - numpy/zipfile fail with many exception types
-        raise CheckpointError(f"checkpoint {path} is damaged ({damage(error)})") from None
+        raise CheckpointError(f"checkpoint {path} is damaged ({damage(error, path)})") from None
     missing = [key for key in ("time", "step_index") if key not in data]
     if missing:
         raise CheckpointError(f"checkpoint {path} is not an elastoflow checkpoint (no "

@@ -87,7 +87,7 @@ def _read_snapshot(path: Path) -> dict[str, np.ndarray]:
         with np.load(path, allow_pickle=False) as archive:
             data = {key: np.array(archive[key]) for key in archive.files}
     except Exception as error:  # noqa: BLE001 - numpy/zipfile fail with many exception types
-        raise ValueError(f"field snapshot {path} is damaged ({damage(error)}); delete it and "
+        raise ValueError(f"field snapshot {path} is damaged ({damage(error, path)}); delete it and "
                          "render again") from None
     missing = [key for key in _SNAPSHOT_KEYS if key not in data]
     if missing or data["pressure"].ndim != 2:
