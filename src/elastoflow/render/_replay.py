@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import glob
 import re
 from pathlib import Path
 from types import SimpleNamespace
@@ -49,6 +50,7 @@ def render_saved_frames(folder: str | Path, output: str | Path, *, view: str = "
         snapshots.append((grid, state, data))
     # Every snapshot is read and checked before the video starts; a failure while writing it
     # (ffmpeg, Ctrl-C) leaves no partial file.
+    _remove_stale_temporaries(Path(output))
     video = VideoWriter(output, fps=fps)
     try:
         for grid, state, data in snapshots:
@@ -61,6 +63,24 @@ def render_saved_frames(folder: str | Path, output: str | Path, *, view: str = "
         video.abort()
         raise
     return video.close() or video.path, len(snapshots)
+
+
+def _remove_stale_temporaries(output: Path) -> None:
+    """Delete ``.{stem}.{pid}.tmp.*`` beside ``output`` left by a render that was killed (its
+    process is gone); those of a render still running are kept."""
+    import os
+
+    prefix = f".{output.stem}."
+    for stale in output.parent.glob(f"{glob.escape(prefix)}*.tmp.*"):
+        pid = stale.name[len(prefix):].split(".")[0]
+        if not pid.isdigit() or int(pid) == os.getpid():
+            continue
+        try:
+            os.kill(int(pid), 0)
+        except ProcessLookupError:
+            stale.unlink(missing_ok=True)
+        except OSError:
+            pass  # alive, another user's
 
 
 _BODY = re.compile(r"^body(\d+)_(points|triangles)$")

@@ -21,6 +21,16 @@ def _coordinate(values: list[Any]) -> np.ndarray:
 
 def write_snapshots_zarr(path: Path, plan: Any, rows: Mapping[int, Mapping[str, Any]],
                          out: Path, warnings: list[str] | None = None) -> Path:
+    """`_write_store` in this process: never through the sweep's cluster (a Client makes
+    itself dask's default scheduler, also after it closed, in the same process)."""
+    import dask
+
+    with dask.config.set(scheduler="synchronous"):
+        return _write_store(path, plan, rows, out, warnings)
+
+
+def _write_store(path: Path, plan: Any, rows: Mapping[int, Mapping[str, Any]], out: Path,
+                 warnings: list[str] | None = None) -> Path:
     """Write ``path`` (a Zarr store, format 2: readable by every Zarr library) from the snapshot files of the points in ``out``.
 
     The Dataset has one variable per field, dimensions ``(point, time, x, y)``, float32, NaN

@@ -4,6 +4,7 @@ snapshot whose arrays do not fit each other rendered garbage (or hung) without a
 
 from __future__ import annotations
 
+import os
 from collections.abc import Callable
 from pathlib import Path
 
@@ -104,3 +105,21 @@ def test_a_long_segment_is_clipped_to_the_image() -> None:
     inside = np.zeros((10, 20, 3), dtype=np.uint8)
     draw_segments(inside, np.array([[2.5, 2.5]]), np.array([[7.5, 2.5]]), color)
     assert inside[2, 2:8, 0].tolist() == [255] * 6 and inside[:, :2].max() == 0
+
+
+def test_the_temporary_of_a_killed_render_is_removed(tmp_path: Path) -> None:
+    import subprocess
+    import sys
+
+    run = _run_folder(tmp_path)
+    gone = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"],
+                          capture_output=True, text=True, check=True)
+    dead = int(gone.stdout)  # a process that has ended: its temporary is stale
+    stale = run / f".render_speed.{dead}.tmp.mp4"
+    stale.write_bytes(b"half a video")
+    alive = run / f".render_speed.{os.getppid()}.tmp.mp4"  # a process still running
+    alive.write_bytes(b"being written")
+    result = CliRunner().invoke(app, ["render", str(run)])
+    assert result.exit_code == 0, result.output
+    assert not stale.exists() and alive.exists()
+    assert (run / "render_speed.mp4").exists()

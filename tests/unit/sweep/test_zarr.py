@@ -37,7 +37,11 @@ def test_unreadable_or_older_snapshots_are_nan_with_a_warning(tmp_path: Path) ->
     rows = {k: {"status": "done"} for k in range(3)}
     warnings: list[str] = []
     path = write_snapshots_zarr(out / "fields.zarr", plan, rows, out, warnings)
-    data = xr.open_zarr(path)
+    import dask
+
+    # Read in this process, whatever scheduler an earlier test's Client left configured.
+    with dask.config.set(scheduler="synchronous"):
+        data = xr.open_zarr(path).load()
     assert (data["velocity_x"].values[0] == 1.0).all() and (data["vorticity"].values[0] == 2).all()
     assert (data["velocity_x"].values[1] == 3.0).all()
     assert np.isnan(data["vorticity"].values[1]).all()
