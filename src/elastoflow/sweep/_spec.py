@@ -249,8 +249,12 @@ def load_sweep(path: str | Path) -> SweepSpec:
     path = Path(path)
     try:
         text = path.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as error:
-        raise SweepError([f"cannot read sweep file: {getattr(error, 'strerror', None) or error}"],
+    except UnicodeDecodeError as error:
+        raise SweepError([f"not a text file in UTF-8 (byte 0x{error.object[error.start]:02x} "
+                          f"at offset {error.start}); a sweep file is UTF-8 TOML"],
+                         str(path)) from None
+    except OSError as error:
+        raise SweepError([f"cannot read sweep file: {error.strerror or error}"],
                          str(path)) from None
     try:
         data = tomllib.loads(text)

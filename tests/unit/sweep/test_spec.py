@@ -185,3 +185,12 @@ def test_a_scene_that_is_neither_built_in_nor_a_file_says_both(tmp_path: Path) -
     assert caught.value.problems == [
         f"scene = 'cavty': neither a built-in scene ({', '.join(list_scenes())}) nor a file "
         f"({tmp_path / 'cavty'} does not exist)"]
+
+
+def test_a_sweep_file_not_in_utf8_is_one_line(tmp_path: Path) -> None:
+    path = tmp_path / "s.toml"
+    path.write_bytes(b'name = "caf\xe9"\n')
+    with pytest.raises(SweepError) as caught:
+        load_sweep(path)
+    assert caught.value.problems == [
+        "not a text file in UTF-8 (byte 0xe9 at offset 11); a sweep file is UTF-8 TOML"]
