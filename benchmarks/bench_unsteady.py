@@ -232,16 +232,20 @@ def dfg_part(resolutions: list[int], schemes: list[str], duration: float, quick:
     # of minutes on two cores.
     for n in resolutions:
         for advection in schemes:
-            result = _run_dfg(n, advection, duration, copy=not quick)
+            try:
+                result = _run_dfg(n, advection, duration, copy=not quick)
+            except FileNotFoundError:
+                # --reevaluate: this resolution was not run with this scheme.
+                continue
             results[(advection, n)] = result
             rows.append(_dfg_row(result, "dfg"))
             write_results(name, rows)
     columns = ["advection", "N", "cells", "dt [s]", "wall [s]", *QUANTITIES, "drag mean",
                "drag_cv mean", "note"]
     print(markdown_table(rows, columns), flush=True)
-    finest = sorted(resolutions)[-3:]
     for advection in schemes:
-        chosen = [results[(advection, n)] for n in finest]
+        done = sorted(n for (a, n) in results if a == advection)[-3:]
+        chosen = [results[(advection, n)] for n in done]
         if len(chosen) < 3 or any(r.failure for r in chosen):
             continue
         h = [r.setup.h for r in chosen]
@@ -259,11 +263,12 @@ def dfg_part(resolutions: list[int], schemes: list[str], duration: float, quick:
                 fit[f"two finest, p = {order}"] = values[2] - (values[1] - values[2]) * (
                     h[2] ** order / (h[1] ** order - h[2] ** order))
             row = {"part": "richardson", "advection": advection, "quantity": key,
-                   **{f"N={n}": v for n, v in zip(finest, values)}, **fit}
+                   "grids": ",".join(map(str, done)),
+                   **{f"N{k + 1}": v for k, v in enumerate(values)}, **fit}
             rows.append(row)
     table = [r for r in rows if r["part"] == "richardson"]
     if table:
-        print(markdown_table(table, ["advection", "quantity", *[f"N={n}" for n in finest],
+        print(markdown_table(table, ["advection", "quantity", "grids", "N1", "N2", "N3",
                                      "order", "extrapolated", "two finest, p = 1",
                                      "two finest, p = 2"]), flush=True)
     if not quick:
