@@ -219,7 +219,18 @@ def _as_polygon(name: str, polygon: np.ndarray | Sequence) -> np.ndarray:
 
 
 def check_simple_polygons(polygons: Sequence[np.ndarray], names: Sequence[str]) -> None:
-    """Raise ValueError when an outline intersects itself or another outline."""
+    """Raise ValueError when an outline repeats a vertex or intersects itself or another
+    outline."""
+    for polygon, name in zip(polygons, names):
+        # A repeated vertex makes a zero-length edge, which the crossing test would report as
+        # two other edges crossing; name the vertex instead.
+        _, first_seen, counts = np.unique(polygon, axis=0, return_index=True,
+                                          return_counts=True)
+        if np.any(counts > 1):
+            twice = np.flatnonzero(np.all(polygon == polygon[first_seen[counts > 1][0]], axis=1))
+            x, y = polygon[twice[0]]
+            raise ValueError(f"{name} repeats a vertex: vertices {int(twice[0])} and "
+                             f"{int(twice[1])} are both ({x:g}, {y:g})")
     starts = np.concatenate(polygons)
     ends = np.concatenate([np.roll(p, -1, axis=0) for p in polygons])
     loop_id = np.concatenate([np.full(len(p), k, np.int64) for k, p in enumerate(polygons)])
@@ -298,7 +309,10 @@ def mesh_from_polygon(
         geometry["holes"] = np.array([_interior_point(h) for h in hole_polygons])
     flags = f"pq{min_angle:g}Q"
     if element_size is not None:
-        flags += f"a{np.sqrt(3.0) / 4.0 * element_size**2:.17g}"
+        # Positional digits: Triangle reads a switch's number up to the first letter, so
+        # "a9.7e-05" would bound the area by 9.7 (and turn on the -e switch).
+        area = np.sqrt(3.0) / 4.0 * element_size**2
+        flags += "a" + np.format_float_positional(area, precision=17, unique=True, trim="-")
     result = triangle.triangulate(geometry, flags)
     points = np.asarray(result["vertices"], dtype=np.float64)
     triangles = np.asarray(result["triangles"], dtype=np.int64)

@@ -170,3 +170,21 @@ def test_read_mesh_flips_clockwise_and_rejects_3d(tmp_path) -> None:
     meshio.write(str(path), meshio.Mesh(bent, [("triangle", mesh.triangles)]))
     with pytest.raises(ValueError, match="vertex 1 has z"):
         read_mesh(path)
+
+
+@pytest.mark.parametrize("element_size", [0.02, 0.015, 0.01, 0.005, 0.001])
+def test_polygon_mesh_honours_every_element_size(element_size: float) -> None:
+    """Every triangle within the equilateral area of the requested side, at sizes whose area
+    bound Python writes with an exponent (0.015 and below gave 2 triangles when the bound
+    reached Triangle as "a9.7e-05", which it reads as 9.7)."""
+    square = np.array([[0.0, 0.0], [0.2, 0.0], [0.2, 0.2], [0.0, 0.2]])
+    mesh = mesh_from_polygon(square, element_size=element_size)
+    bound = np.sqrt(3.0) / 4.0 * element_size**2
+    assert mesh.triangle_areas.max() <= bound * (1.0 + 1e-9)
+    assert mesh.triangle_count >= 0.04 / bound
+
+
+def test_repeated_vertex_is_named_as_such() -> None:
+    with pytest.raises(ValueError, match=r"outer polygon repeats a vertex: vertices 1 and 2 are "
+                                         r"both \(1, 0\)"):
+        mesh_from_polygon(np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 0.0], [0.0, 1.0]]))
