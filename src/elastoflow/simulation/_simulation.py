@@ -203,8 +203,9 @@ class Simulation:
         for check in self.checks:
             check(self.model, self._next, self.dt, report)
         # Copied rather than swapped: `state` and its arrays stay the same objects for the
-        # whole run (a user's reference to them stays valid), for a copy that costs about 1 %
-        # of a step. The last step's boundary arrays go to the spare state for reuse.
+        # whole run (a user's reference to them stays valid), for a copy of 0.1 ms on
+        # bar_in_jet (0.1-0.3 % of its step). The last step's boundary arrays go to the spare
+        # state for reuse.
         self.state.assign(self._next)
         self.state.boundary, self._next.boundary = self._next.boundary, previous
         self.last_report = report
