@@ -9,6 +9,7 @@ from __future__ import annotations
 import signal
 import sys
 import time as _time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Annotated, Any, NoReturn, Self
 
@@ -600,16 +601,9 @@ def _benchmark(name: str, case: str | None, resolution: int, duration: float | N
             result = run(lambda done, total: progress.update(task, completed=done, total=total))
         except (SimulationBlowUp, SolidInversionError) as error:
             _fail(f"{title} failed: {error}", EXIT_RUN_FAILED)
-    typer.echo(describe(result))
-    for line in format_quantities(result):
-        typer.echo(f"  {line}")
-    try:
-        paths = write_report(result, out, json_file=json_file)
-    except OSError as error:
-        _fail(f"--out = {str(out)!r}: cannot write ({error.strerror or error})")
-    typer.echo("wrote " + ", ".join(str(path) for path in paths))
-    if result.failure is not None:
-        raise typer.Exit(EXIT_RUN_FAILED)
+    _report_benchmark(describe(result), format_quantities(result),
+                      lambda: write_report(result, out, json_file=json_file), out,
+                      result.failure is not None)
 
 
 def _dfg_benchmark(case: str | None, resolution: int, duration: float | None,
@@ -634,15 +628,24 @@ def _dfg_benchmark(case: str | None, resolution: int, duration: float | None,
         task = progress.add_task("run", total=setup.steps)
         result = run_dfg(resolution, duration=setup.duration, dt=setup.dt, advection=advection,
                          progress=lambda done, total: progress.update(task, completed=done))
-    typer.echo(describe(result))
-    for line in format_quantities(result):
+    _report_benchmark(describe(result), format_quantities(result),
+                      lambda: write_dfg_report(result, out, json_file=json_file), out,
+                      result.failure is not None)
+
+
+def _report_benchmark(title: str, quantities: list[str], write: Callable[[], list[Path]],
+                      out: Path, failed: bool) -> None:
+    """Print a benchmark run's summary and quantities, write its files (one line if the
+    folder refuses them); exit 1 when the run did not finish as a valid result."""
+    typer.echo(title)
+    for line in quantities:
         typer.echo(f"  {line}")
     try:
-        paths = write_dfg_report(result, out, json_file=json_file)
+        paths = write()
     except OSError as error:
         _fail(f"--out = {str(out)!r}: cannot write ({error.strerror or error})")
     typer.echo("wrote " + ", ".join(str(path) for path in paths))
-    if result.failure is not None:
+    if failed:
         raise typer.Exit(EXIT_RUN_FAILED)
 
 

@@ -491,28 +491,12 @@ def write_dfg_report(result: DfgResult, folder: str | Path, *, json_file: bool =
                      ) -> list[Path]:
     """Write ``dfg2d2_<advection>_n<N>.csv`` (time series), ``.png`` (plots) and, with
     ``json_file``, ``.json`` into ``folder``; each file appears whole or not at all."""
-    import csv
-    import io
-    import json
+    from elastoflow.validation._report import write_series_report
 
-    from elastoflow.io import write_text_atomic
-
-    folder = Path(folder)
-    folder.mkdir(parents=True, exist_ok=True)
     stem = f"dfg2d2_{result.setup.advection}_n{result.setup.resolution}"
-    keys = list(result.series)
-    text = io.StringIO()
-    writer = csv.writer(text, lineterminator="\n")
-    writer.writerow(["time [s]"] + keys)
-    for k, t in enumerate(result.time):
-        writer.writerow([f"{t:.9g}"] + [f"{result.series[key][k]:.9g}" for key in keys])
-    paths = [folder / f"{stem}.csv", folder / f"{stem}.png"]
-    write_text_atomic(paths[0], text.getvalue())
-    _plot(result, paths[1])
-    if json_file:
-        paths.append(folder / f"{stem}.json")
-        write_text_atomic(paths[2], json.dumps(quantities_json(result), indent=2) + "\n")
-    return paths
+    return write_series_report(folder, stem, result.time, result.series, list(result.series),
+                               lambda path: _plot(result, path),
+                               quantities_json(result) if json_file else None)
 
 
 def _plot(result: DfgResult, path: Path) -> None:

@@ -6,6 +6,7 @@ import csv
 import io
 import json
 import math
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -90,22 +91,33 @@ def write_report(result: Result, folder: str | Path, *, json_file: bool = True) 
     """Write ``<case>_n<resolution>.csv`` (time series), ``.png`` (plots) and, with
     ``json_file``, ``.json`` (quantities) into ``folder``; each file appears whole or not at
     all. Returns the paths written."""
+    stem = f"{result.setup.case.name.lower()}_n{result.setup.resolution}"
+    units = {key: "m" if key.startswith("u") else "N/m" for key in result.series}
+    return write_series_report(
+        folder, stem, result.time, result.series, [f"{key} [{units[key]}]" for key in units],
+        lambda path: _plot(result, path), quantities_json(result) if json_file else None,
+    )
+
+
+def write_series_report(folder: str | Path, stem: str, time: Any, series: dict[str, Any],
+                        headers: list[str], plot: Callable[[Path], None],
+                        quantities: dict[str, Any] | None) -> list[Path]:
+    """A benchmark run's files in ``folder``: ``<stem>.csv`` (the time series under
+    ``headers``), ``<stem>.png`` (drawn by ``plot``) and, given ``quantities``,
+    ``<stem>.json``; each appears whole or not at all. Returns the paths written."""
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
-    stem = f"{result.setup.case.name.lower()}_n{result.setup.resolution}"
-    keys = list(result.series)
     text = io.StringIO()
     writer = csv.writer(text, lineterminator="\n")
-    writer.writerow(["time [s]"] + [f"{key} [{'m' if key.startswith('u') else 'N/m'}]"
-                                    for key in keys])
-    for k, t in enumerate(result.time):
-        writer.writerow([f"{t:.9g}"] + [f"{result.series[key][k]:.9g}" for key in keys])
+    writer.writerow(["time [s]"] + headers)
+    for k, t in enumerate(time):
+        writer.writerow([f"{t:.9g}"] + [f"{series[key][k]:.9g}" for key in series])
     paths = [folder / f"{stem}.csv", folder / f"{stem}.png"]
     write_text_atomic(paths[0], text.getvalue())
-    _plot(result, paths[1])
-    if json_file:
+    plot(paths[1])
+    if quantities is not None:
         paths.append(folder / f"{stem}.json")
-        write_text_atomic(paths[2], json.dumps(quantities_json(result), indent=2) + "\n")
+        write_text_atomic(paths[2], json.dumps(quantities, indent=2) + "\n")
     return paths
 
 

@@ -68,6 +68,18 @@ class _Held:
         return np.zeros((len(dofs), len(dofs)))
 
 
+def _active_cells(grid, interior):
+    """Active as in the pressure operator: a cell with an interior face open by OPEN_MIN."""
+    open_x = interior.open_fraction_x >= OPEN_MIN
+    open_y = interior.open_fraction_y >= OPEN_MIN
+    active = np.zeros(grid.shape_cells, dtype=bool)
+    active[1:, :] |= open_x[1:-1, :]
+    active[:-1, :] |= open_x[1:-1, :]
+    active[:, 1:] |= open_y[:, 1:-1]
+    active[:, :-1] |= open_y[:, 1:-1]
+    return active
+
+
 def _pressure_forces(obstacle, pressure_of, gravity=(0.0, 0.0)):
     """Nodal forces of a cell pressure field on the outline, meshed, as a held body."""
     mesh = mesh_from_polygon(obstacle.points_at(0.0), element_size=0.05)
@@ -77,14 +89,7 @@ def _pressure_forces(obstacle, pressure_of, gravity=(0.0, 0.0)):
     interior = interior_boundary_from_map(GRID, bmap)
     flux = interface_flux(GRID, bmap, interior, mesh.triangles,
                           np.array([0, mesh.triangle_count]))
-    # Active as in the pressure operator: a cell with an interior face open by OPEN_MIN.
-    open_x = interior.open_fraction_x >= OPEN_MIN
-    open_y = interior.open_fraction_y >= OPEN_MIN
-    active = np.zeros(GRID.shape_cells, dtype=bool)
-    active[1:, :] |= open_x[1:-1, :]
-    active[:-1, :] |= open_x[1:-1, :]
-    active[:, 1:] |= open_y[:, 1:-1]
-    active[:, :-1] |= open_y[:, 1:-1]
+    active = _active_cells(GRID, interior)
     x, y = GRID.cell_centers()
     coupled = PressureCoupledBodies(flux, zeros, [_Held()], [0, points.shape[0]], 1000.0, 0.01,
                                     bmap=bmap, gravity=gravity)
@@ -159,13 +164,7 @@ def test_pressure_force_and_torque_on_a_slender_body_match_the_boundary_integral
     interior = interior_boundary_from_map(grid, bmap)
     flux = interface_flux(grid, bmap, interior, mesh.triangles,
                           np.array([0, mesh.triangle_count]))
-    open_x = interior.open_fraction_x >= OPEN_MIN
-    open_y = interior.open_fraction_y >= OPEN_MIN
-    active = np.zeros(grid.shape_cells, dtype=bool)
-    active[1:, :] |= open_x[1:-1, :]
-    active[:-1, :] |= open_x[1:-1, :]
-    active[:, 1:] |= open_y[:, 1:-1]
-    active[:, :-1] |= open_y[:, 1:-1]
+    active = _active_cells(grid, interior)
 
     def pressure_of(x, y):
         if field == "linear":
