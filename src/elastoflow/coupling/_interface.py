@@ -63,8 +63,11 @@ def _solid_intervals(
         begin = offsets[line]
         end = offsets[line + 1]
         across = origin_across + l * h
-        for c in range(begin, end):
-            windings[edge_body[edge_index[c]]] = 0
+        # Every body's winding starts at zero on every line: the loop below stops before a
+        # line's last crossing, so a body crossed on an earlier line is left at +-1 there and,
+        # kept, would claim the solid intervals of another body on a later line (a pipe wall's
+        # pressure pushed on a windmill's node).
+        windings[:] = 0
         winding = 0
         for c in range(begin, end - 1):
             winding += sign[c]

@@ -185,3 +185,36 @@ def test_pressure_force_and_torque_on_a_slender_body_match_the_boundary_integral
     assert np.abs(forces.sum(axis=0) - exact_force).max() <= 0.01 * scale
     if field == "swirl":
         assert torque == pytest.approx(exact_torque, rel=0.01)
+
+
+def test_each_covered_face_takes_the_velocity_of_the_body_that_covers_it() -> None:
+    """An elastic disc below a wall (as the windmill below its pipe): rows of faces that
+    cross the disc come before rows that cross only the wall. Every face row must use the
+    nodes of the body whose outline covers the face; a winding left over from the disc's
+    rows once handed the wall's faces, and their pressure, to a node of the disc."""
+    grid = Grid2D(64, 64, 1.0 / 64)
+    angles = np.linspace(0.0, 2.0 * np.pi, 40, endpoint=False)
+    disc = mesh_from_polygon(np.column_stack((0.5 + 0.15 * np.cos(angles),
+                                              0.35 + 0.15 * np.sin(angles))), element_size=0.05)
+    wall = obstacle_rectangle((0.1011, 0.7043), (0.8937, 0.7791))
+    nb = disc.points.shape[0]
+    points = np.concatenate([disc.points, wall.points_at(0.0)])
+    edges = np.concatenate([disc.boundary_edges, wall.edges + nb])
+    edge_body = np.concatenate([np.zeros(len(disc.boundary_edges), dtype=np.int64),
+                                np.ones(len(wall.edges), dtype=np.int64)])
+    bmap = build_boundary_map(grid, points, np.zeros_like(points), edges, edge_body)
+    interior = interior_boundary_from_map(grid, bmap)
+    flux = interface_flux(grid, bmap, interior, disc.triangles,
+                          np.array([0, disc.triangle_count]))
+    u_faces = (grid.nx + 1) * grid.ny
+    is_u = flux.faces < u_faces
+    face_y = np.where(is_u, (flux.faces % grid.ny + 0.5) * grid.h,
+                      ((flux.faces - u_faces) % (grid.ny + 1)) * grid.h)
+    matrix = flux.matrix.tocsr()
+    for row, y in enumerate(face_y):
+        nodes = matrix.indices[matrix.indptr[row]:matrix.indptr[row + 1]] // 2
+        nodes = nodes[matrix.data[matrix.indptr[row]:matrix.indptr[row + 1]] != 0.0]
+        if y > 0.6:
+            assert (nodes >= nb).all(), (row, y, nodes)
+        else:
+            assert (nodes < nb).all(), (row, y, nodes)
