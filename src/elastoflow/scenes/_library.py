@@ -111,14 +111,12 @@ _PAPER_SCENE_CHOICES: dict[str, dict[str, Any]] = {
         "pipe_walls": ((0.06, 0.74, 0.32, 0.78), (0.06, 0.56, 0.32, 0.60)),
         "jet_region": (0.12, 0.60, 0.18, 0.74),
         "jet_velocity": (0.3, 0.0),
-        # Explicit coupling with the traction relaxed to 0.1 turns the windmill clockwise,
-        # 35 degrees in 10 s (eq. 8 gives the blades almost nothing in a steady stream, 1.3
-        # degrees). The monolithic scheme runs it unrelaxed for its 400 steps but turns it the
-        # other way after 2 s (+1.3 rad in 10 s) for a reason not yet found
-        # (docs/method_notes.md item 8), so the scene stays on the explicit step for now.
-        "scheme": "explicit",
-        "force_model": "traction",
-        "force_relaxation": 0.1,
+        # The monolithic scheme, unrelaxed: the windmill turns clockwise (-0.66 rad at 10 s,
+        # -2.36 rad at 20 s), with the held windmill's torque (a control-volume balance of
+        # angular momentum agrees with the scheme's applied torque, docs/method_notes.md
+        # item 8). The explicit step needs the traction relaxed to 0.1 here (unrelaxed it
+        # diverges at step 11) and gives -0.6 rad at 10 s.
+        "scheme": "monolithic",
     },
 }
 
@@ -179,8 +177,7 @@ def _windmill() -> dict:
             "pivot": c["center"],
         }],
         "time": {"dt": 0.05, "duration": 20.0, "substeps": 100},
-        "coupling": {"scheme": c["scheme"], "force_model": c["force_model"],
-                     "force_relaxation": c["force_relaxation"]},
+        "coupling": {"scheme": c["scheme"]},
         "outputs": {
             "video": {"view": "speed", "fps": 20},
             "meshes": {"format": "obj", "thickness": 0.05, "every": 1},
