@@ -5,8 +5,14 @@ bodies' boundary edges with the half-grid lines. From it come the classification
 (``classify_points``), the fluid's ``InteriorBoundary`` (``interior_boundary_from_map``) and the
 fluid-to-solid force (``force_momentum_exchange``, the paper's eq. 8; ``force_traction``, the
 stress integral). Static or rigidly moving obstacles (``Obstacle``) go through the same map.
+
+How the fluid sees the bodies is a swappable part (``BoundaryTreatment``): ``BoundaryCutCell``
+(open fractions and cut distances, the default) or ``BoundaryStaircase`` (cells by their
+centres, faces open or closed: ``interior_boundary_staircase``). ``classify_points_brute_force``
+tests every grid point against every element, the cost the map avoids.
 """
 
+from elastoflow.coupling._brute_force import classify_points_brute_force
 from elastoflow.coupling._classify import (
     PointClassification,
     classify_points,
@@ -28,21 +34,42 @@ from elastoflow.coupling._obstacle import (
     obstacle_rectangle,
     polygon_signed_area,
 )
+from elastoflow.coupling._staircase import (
+    StaircaseInteriorBoundary,
+    interface_flux_staircase,
+    interior_boundary_staircase,
+)
+from elastoflow.coupling._treatment import (
+    BOUNDARY_TREATMENTS,
+    BoundaryCutCell,
+    BoundaryStaircase,
+    BoundaryTreatment,
+    boundary_treatment,
+)
 
 __all__ = [
+    "BOUNDARY_TREATMENTS",
+    "BoundaryCutCell",
     "BoundaryMap",
+    "BoundaryStaircase",
+    "BoundaryTreatment",
     "InterfaceFlux",
     "Obstacle",
     "PointClassification",
     "PressureCoupledBodies",
     "RigidMotion",
+    "StaircaseInteriorBoundary",
+    "boundary_treatment",
     "build_boundary_map",
     "classify_points",
+    "classify_points_brute_force",
     "concatenate_boundaries",
     "force_momentum_exchange",
     "force_traction",
     "interface_flux",
+    "interface_flux_staircase",
     "interior_boundary_from_map",
+    "interior_boundary_staircase",
     "obstacle_circle",
     "obstacle_pipe",
     "obstacle_rectangle",

@@ -223,7 +223,8 @@ def interface_flux(grid: Grid2D, bmap: BoundaryMap, interior: InteriorBoundary,
     Args:
         grid: The grid.
         bmap: This step's boundary map.
-        interior: The fluid's view of it (open fractions).
+        interior: The fluid's view of it (open fractions); a staircase one
+            (`StaircaseInteriorBoundary`) is handed to `interface_flux_staircase`.
         triangles: The elastic bodies' triangles, indices into ``bmap.points``, shape (T, 3);
             none: every covered face takes the velocity of the nearest boundary edge.
         triangle_offsets: Body b's triangles are ``triangles[offsets[b]:offsets[b+1]]``; body
@@ -234,6 +235,14 @@ def interface_flux(grid: Grid2D, bmap: BoundaryMap, interior: InteriorBoundary,
     if triangles is None or triangle_offsets is None:
         triangles = np.zeros((0, 3), dtype=np.int64)
         triangle_offsets = np.zeros(1, dtype=np.int64)
+    from elastoflow.coupling._staircase import (
+        StaircaseInteriorBoundary,
+        interface_flux_staircase,
+    )
+
+    if isinstance(interior, StaircaseInteriorBoundary):
+        # Its closed faces carry their whole length of flux, its open ones none.
+        return interface_flux_staircase(grid, bmap, interior, triangles, triangle_offsets)
     nx, ny, h = grid.nx, grid.ny, grid.h
     ox, oy = grid.origin
     u_faces = (nx + 1) * ny

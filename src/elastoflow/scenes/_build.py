@@ -479,6 +479,7 @@ def build_simulation(scene: Scene, *, steps: int | None = None,
             added_mass=scene.coupling.added_mass,
             coupling=(MonolithicCoupling(scene.coupling.newmark_gamma)
                       if scene.coupling.scheme == "monolithic" else "explicit"),
+            boundary=scene.coupling.boundary,
         )
     except (ValueError, ArithmeticError) as error:
         raise SceneError([f"time or coupling: {error}"], scene.source) from None

@@ -355,12 +355,11 @@ class MonolithicCoupling:
 
 def _step_boundary(model: CoupledModel, bmap: BoundaryMap,
                    state_out: CoupledState) -> StepBoundary:
-    """The step's boundary data, reusing the dense arrays of the classification ``state_out``
-    held two steps ago (keeps the per-step cost at the map's own work)."""
-    from elastoflow.coupling import interior_boundary_from_map
-
+    """The step's boundary data, built by the model's boundary treatment (cut cell or
+    staircase), reusing the dense arrays of the classification ``state_out`` held two steps
+    ago (keeps the per-step cost at the map's own work)."""
     reuse = None if state_out.boundary is None else state_out.boundary.interior
-    interior = interior_boundary_from_map(model.grid, bmap, out=reuse)
+    interior = model.boundary.interior(model.grid, bmap, out=reuse)
     return StepBoundary(bmap, interior)
 
 

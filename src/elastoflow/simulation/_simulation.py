@@ -5,7 +5,7 @@ from typing import Literal
 
 import numpy as np
 
-from elastoflow.coupling import BoundaryMap, Obstacle
+from elastoflow.coupling import BoundaryMap, BoundaryTreatment, Obstacle, boundary_treatment
 from elastoflow.fluid import FluidSolver, FluidState, InteriorBoundary
 from elastoflow.grid import Grid2D
 from elastoflow.simulation._checks import CflLimit, FiniteFields, StepCheck, cfl_number
@@ -50,6 +50,9 @@ class Simulation:
             bodies' inertia, stable for any density ratio without relaxation), or a scheme
             object.
         checks: What each new state must pass; default `FiniteFields` and `CflLimit`.
+        boundary: How the fluid sees bodies and obstacles: "cut_cell" (default: open
+            fractions and cut distances from the boundary map), "staircase" (cells by their
+            centres, faces open or closed), or a `elastoflow.coupling.BoundaryTreatment`.
     """
 
     def __init__(
@@ -69,6 +72,7 @@ class Simulation:
         added_mass: float = 0.0,
         coupling: str | CouplingScheme = "explicit",
         checks: Sequence[StepCheck] | None = None,
+        boundary: str | BoundaryTreatment = "cut_cell",
     ) -> None:
         if not (dt > 0.0 and np.isfinite(dt)):
             raise ValueError(f"dt = {dt!r}: must be a finite positive time step [s]")
@@ -87,7 +91,9 @@ class Simulation:
                 "force_relaxation and added_mass belong to the explicit coupling; the monolithic "
                 "coupling needs neither (leave them at 1 and 0)"
             )
-        self.model = CoupledModel(grid, fluid_solver, tuple(bodies), tuple(obstacles))
+        treatment = boundary_treatment(boundary) if isinstance(boundary, str) else boundary
+        self.model = CoupledModel(grid, fluid_solver, tuple(bodies), tuple(obstacles),
+                                  treatment)
         self.scheme = scheme
         self.dt = float(dt)
         self.checks: list[StepCheck] = (

@@ -21,7 +21,7 @@ from typing import Any
 
 import numpy as np
 
-from elastoflow.coupling import BoundaryMap, Obstacle
+from elastoflow.coupling import BoundaryCutCell, BoundaryMap, BoundaryTreatment, Obstacle
 from elastoflow.fluid import FluidSolver, FluidState, InteriorBoundary
 from elastoflow.grid import Grid2D
 from elastoflow.solid import BodyState, ElasticBody
@@ -201,12 +201,17 @@ class CoupledModel:
             advance a `FluidState`.
         bodies: The elastic bodies' models.
         obstacles: Static or prescribed-motion obstacles.
+        boundary: How the fluid sees bodies and obstacles: `BoundaryCutCell` (open fractions
+            and cut distances from the map, the default) or `BoundaryStaircase` (cells by
+            their centres, faces open or closed; the baseline of docs/validation/
+            boundary_study.md). Both schemes build each step's interior through it.
     """
 
     grid: Grid2D
     fluid: FluidSolver
     bodies: tuple[ElasticBody, ...] = ()
     obstacles: tuple[Obstacle, ...] = ()
+    boundary: BoundaryTreatment = BoundaryCutCell()
 
     @property
     def has_boundaries(self) -> bool:
