@@ -33,6 +33,7 @@ app = typer.Typer(
         "  elastoflow validate windmill.toml                # check a scene file\n\n"
         "  elastoflow validate turek-hron FSI3              # a published benchmark\n\n"
         "  elastoflow validate dfg-2d-2 --resolution 20     # vortex shedding at Re 100\n\n"
+        "  elastoflow validate boundary-study --out docs/validation  # map vs staircase\n\n"
         "  elastoflow view jet_in_box                       # interactive window\n\n"
         "  elastoflow render out/bar_in_jet --view vorticity  # new video from saved fields\n\n"
         "  elastoflow warmup                                # compile the kernels once, ahead"
@@ -496,9 +497,11 @@ def list_command() -> None:
 def validate(
     scene: Annotated[str, typer.Argument(help="Scene TOML file (or built-in name), or a "
                                          "benchmark: turek-hron, perpendicular-flap, "
-                                         "dfg-2d-2.")],
+                                         "dfg-2d-2, boundary-study.")],
     case: Annotated[str | None, typer.Argument(help="The benchmark's case: CFD1-3, CSM1-3, "
-                                               "FSI1-3 (turek-hron).")] = None,
+                                               "FSI1-3 (turek-hron); the study's part, "
+                                               "default all (boundary-study: poisson).")
+                    ] = None,
     resolution: Annotated[int, typer.Option(help="Benchmark: about this many cells per "
                                             "cylinder diameter (turek-hron) or metre "
                                             "(perpendicular-flap), 5-200; cells per diameter, "
@@ -525,12 +528,19 @@ def validate(
     A benchmark (``elastoflow validate turek-hron FSI3 --resolution 20``, ``elastoflow
     validate perpendicular-flap``): runs the case in its exact geometry, prints its quantities in the benchmark's format (periodic: mean ± amplitude
     [frequency] over the last period), writes the time series (CSV) and plots (PNG) to --out.
+
+    The boundary study (``elastoflow validate boundary-study --out docs/validation``): the
+    boundary map against the staircase boundary (issue 13); prints each part's table and
+    rewrites its block of ``boundary_study.md`` and its files in ``boundary_study/``.
     """
     from elastoflow.scenes import SceneError, memory_estimate, step_count, time_step
     from elastoflow.validation import BENCHMARKS
 
     if scene == "dfg-2d-2":
         _dfg_benchmark(case, resolution, duration, dt, advection, out, json_file)
+        return
+    if scene == "boundary-study":
+        _boundary_study(case, out)
         return
     if scene in BENCHMARKS:
         _benchmark(scene, case, resolution, duration, dt, scheme, out, json_file)
@@ -631,6 +641,22 @@ def _dfg_benchmark(case: str | None, resolution: int, duration: float | None,
     _report_benchmark(describe(result), format_quantities(result),
                       lambda: write_dfg_report(result, out, json_file=json_file), out,
                       result.failure is not None)
+
+
+def _boundary_study(part: str | None, out: Path) -> None:
+    """Run the boundary study's parts (all, or the one named), print and write each."""
+    from elastoflow.validation import STUDY_PARTS, run_poisson_study, write_poisson_report
+    from elastoflow.validation._boundary_study import poisson_table
+
+    if part is not None and part not in STUDY_PARTS:
+        _fail(f"{part!r}: the boundary study's parts are {', '.join(STUDY_PARTS)}")
+    _output_folder(out, "--out")
+    study = run_poisson_study()
+    orders = ", ".join(f"{name} {study.order(name):.2f}" for name in study.treatments)
+    _report_benchmark(
+        f"boundary study, accuracy: -lap u = f on a disk, du/dn = 0 ({study.seconds:.1f} s)",
+        [*poisson_table(study), f"observed order: {orders}"],
+        lambda: write_poisson_report(study, out), out, False)
 
 
 def _report_benchmark(title: str, quantities: list[str], write: Callable[[], list[Path]],

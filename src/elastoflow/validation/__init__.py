@@ -6,8 +6,23 @@ the benchmark defines them.
 series (CSV), plots (PNG) and quantities (JSON); ``elastoflow validate turek-hron FSI3`` does
 both. ``run_dfg(20)`` runs DFG 2D-2 (vortex shedding at Re = 100) and `write_dfg_report`
 writes its report; ``elastoflow validate dfg-2d-2`` does both.
+
+The boundary study (issue 13: the boundary map against the staircase boundary) is not a
+published benchmark but is run the same way: ``run_poisson_study()`` solves the pressure
+equation on a disk with both treatments, `write_poisson_report` writes its part of
+``docs/validation/boundary_study.md``; ``elastoflow validate boundary-study`` does both.
 """
 
+from elastoflow.validation._boundary_study import (
+    STUDY_PARTS,
+    PoissonDisk,
+    PoissonSolve,
+    PoissonStudy,
+    observed_order,
+    run_poisson_study,
+    solve_poisson_disk,
+    write_poisson_report,
+)
 from elastoflow.validation._dfg import (
     DfgResult,
     DfgSetup,
@@ -46,9 +61,13 @@ __all__ = [
     "CASES",
     "FLAP_CASE",
     "REFERENCE",
+    "STUDY_PARTS",
     "Case",
     "DfgResult",
     "DfgSetup",
+    "PoissonDisk",
+    "PoissonSolve",
+    "PoissonStudy",
     "Result",
     "Setup",
     "case_simulation",
@@ -62,11 +81,15 @@ __all__ = [
     "flap_setup",
     "format_quantities",
     "get_case",
+    "observed_order",
     "quantities_json",
     "rigid_flag_polygon",
     "run_case",
     "run_dfg",
     "run_flap",
+    "run_poisson_study",
+    "solve_poisson_disk",
     "write_dfg_report",
+    "write_poisson_report",
     "write_report",
 ]

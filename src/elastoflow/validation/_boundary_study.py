@@ -1,0 +1,462 @@
+"""Boundary map against staircase, measured (issue 13): the accuracy of the pressure equation.
+
+**The problem.** ``-lap u = f`` in the disk ``|x - c| < R`` with ``du/dn = 0`` on its circle,
+
+    u = r^4 / 4 - R^2 r^2 / 2 + k (r^2 / 3 - R^2) (x - c_x),   f = -lap u
+      = 2 R^2 - 4 r^2 - (8 k / 3) (x - c_x),
+
+(``r = |x - c|``; both parts have ``du/dr = 0`` at ``r = R``, the second is not radially
+symmetric, and ``f`` integrates to zero over the disk as a pure Neumann problem needs). This is
+the pressure equation's own boundary condition: the projection solves ``div(A grad p) = rhs``
+with ``dp/dn`` given by the body's velocity, zero around a body at rest, and the open
+fractions ``A`` of the faces are where the boundary map enters it (the cut distances enter
+advection and viscosity, not the projection). A Dirichlet problem would test the viscosity's
+cut-distance stencil instead.
+
+**The discretisation is the projection's own.** The disk is the hole of a solid frame (an
+outer square beyond the domain, counter-clockwise, and the circle as a clockwise polygon of
+4096 vertices, inscribed: 1e-7 m from the circle at R = 0.37 m), given to `build_boundary_map`
+and to the treatment's ``interior`` exactly as bodies are in a run; the operator is
+`FluidSolver.pressure_operator` of that interior (face weights = open fractions, faces open by
+less than ``OPEN_MIN`` closed) and `PoissonSolverMGPCG` solves it (it removes the constant
+null space). The right-hand side of a cell is the integral of ``f`` over the cell's fluid part
+as the treatment sees it: the cell's part inside the disk (cut cell) or the whole cell
+(staircase, where a cell is fluid or not). Both are integrated exactly, as minus the flux of
+``grad u`` through the part's faces (Gauss-Legendre, exact for this polynomial; faces the
+operator closes are left out, so the cut-cell right-hand side is exactly compatible).
+
+**The error** is measured at the cell centres inside the disk (the points both treatments
+have), in the max norm, up to the constant a Neumann problem leaves free (the best one:
+half the spread of ``u_h - u``); ``h`` runs over halvings and the observed order is the slope
+of ``log error`` against ``log h``. The disk's centre moves between a few positions and each
+``h`` reports its worst, so that a lucky alignment of the staircase with the circle does not
+set the order.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+import re
+import textwrap
+import time as _time
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+DOCUMENT = "boundary_study.md"
+"""The study's page, under the report folder (``docs/validation``)."""
+FIGURES = "boundary_study"
+"""The folder of its CSV and PNG files, beside the page."""
+
+RADIUS = 0.37
+ASYMMETRY = 1.0
+CENTRES: tuple[tuple[float, float], ...] = ((0.5123, 0.4871), (0.4937, 0.5069),
+                                            (0.5031, 0.4962))
+"""Disk centres [m] in the unit square; each resolution reports the worst of them."""
+CELLS: tuple[int, ...] = (16, 32, 64, 128, 256)
+VERTICES = 4096
+TREATMENTS: tuple[str, ...] = ("cut_cell", "staircase")
+
+
+@dataclass(frozen=True)
+class PoissonDisk:
+    """The manufactured solution on a disk (module docstring).
+
+    Attributes:
+        centre: Disk centre [m].
+        radius: Disk radius R [m].
+        asymmetry: k, the weight of the part that is not radially symmetric [1/m].
+    """
+
+    centre: tuple[float, float] = CENTRES[0]
+    radius: float = RADIUS
+    asymmetry: float = ASYMMETRY
+
+    def solution(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+        dx, dy = x - self.centre[0], y - self.centre[1]
+        r2 = dx * dx + dy * dy
+        big = self.radius**2
+        return r2 * r2 / 4.0 - big * r2 / 2.0 + self.asymmetry * (r2 / 3.0 - big) * dx
+
+    def gradient(self, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        dx, dy = x - self.centre[0], y - self.centre[1]
+        r2 = dx * dx + dy * dy
+        big = self.radius**2
+        k = self.asymmetry
+        return ((r2 - big) * dx + k * (r2 / 3.0 - big + 2.0 * dx * dx / 3.0),
+                (r2 - big) * dy + k * 2.0 * dx * dy / 3.0)
+
+    def frame(self, vertices: int = VERTICES) -> tuple[np.ndarray, np.ndarray]:
+        """The solid around the disk: boundary points (P, 2) and edges (E, 2), body on the
+        left (an outer square beyond the unit square, the circle clockwise)."""
+        outer = np.array([[-1.0, -1.0], [2.0, -1.0], [2.0, 2.0], [-1.0, 2.0]])
+        angles = -2.0 * np.pi * np.arange(vertices) / vertices
+        circle = np.column_stack((self.centre[0] + self.radius * np.cos(angles),
+                                  self.centre[1] + self.radius * np.sin(angles)))
+        loop = np.arange(vertices)
+        edges = np.concatenate([np.column_stack((np.arange(4), (np.arange(4) + 1) % 4)),
+                                4 + np.column_stack((loop, (loop + 1) % vertices))])
+        return np.concatenate([outer, circle]), edges
+
+    def face_flux(self, along_low: np.ndarray, along_high: np.ndarray, across: np.ndarray,
+                  axis: int) -> np.ndarray:
+        """``int du/dx_axis`` over segments of faces normal to ``axis`` at ``across``, from
+        ``along_low`` to ``along_high`` (the other coordinate) [m * u / m]."""
+        nodes, weights = np.polynomial.legendre.leggauss(3)
+        middle = 0.5 * (along_low + along_high)
+        half = 0.5 * (along_high - along_low)
+        total = np.zeros(np.broadcast(middle, across).shape)
+        for node, weight in zip(nodes, weights):
+            along = middle + half * node
+            if axis == 0:
+                total += weight * half * self.gradient(across, along)[0]
+            else:
+                total += weight * half * self.gradient(along, across)[1]
+        return total
+
+
+@dataclass(frozen=True)
+class PoissonSolve:
+    """One solve of the disk problem.
+
+    Attributes:
+        treatment: "cut_cell" or "staircase".
+        cells: Cells across the unit square.
+        centre: The disk's centre [m].
+        error: Max-norm error at the cell centres inside the disk, up to a constant.
+        error_active: The same over every cell the operator has (cut cells whose centre lies
+            outside the disk included; the staircase has no others).
+        iterations: Iterations of the solver (rtol 1e-11).
+        incompatibility: Share of the right-hand side the solver removed (the staircase's
+            sources do not balance over its cells).
+        seconds: Wall time of map, interior, operator and solve [s].
+    """
+
+    treatment: str
+    cells: int
+    centre: tuple[float, float]
+    error: float
+    error_active: float
+    iterations: int
+    incompatibility: float
+    seconds: float
+
+    @property
+    def h(self) -> float:
+        return 1.0 / self.cells
+
+
+def solve_poisson_disk(cells: int, treatment: str, problem: PoissonDisk | None = None,
+                       *, vertices: int = VERTICES) -> PoissonSolve:
+    """Solve the disk problem on ``cells`` x ``cells`` cells of the unit square with the
+    boundary treatment named ``treatment`` (module docstring)."""
+    from elastoflow.coupling import boundary_treatment, build_boundary_map
+    from elastoflow.fluid import DomainBoundaries, FluidSolver, WallNoSlip
+    from elastoflow.grid import Grid2D
+    from elastoflow.linalg import PoissonSolverMGPCG
+
+    problem = PoissonDisk() if problem is None else problem
+    boundary = boundary_treatment(treatment)
+    grid = Grid2D(cells, cells, 1.0 / cells)
+    h = grid.h
+    walls = DomainBoundaries(WallNoSlip(), WallNoSlip(), WallNoSlip(), WallNoSlip())
+    fluid = FluidSolver(grid, density=1.0, viscosity=0.0, boundaries=walls)
+    points, edges = problem.frame(vertices)
+    start = _time.perf_counter()
+    bmap = build_boundary_map(grid, points, np.zeros_like(points), edges)
+    interior = boundary.interior(grid, bmap)
+    operator = fluid.pressure_operator(interior)
+    centres = (np.arange(cells) + 0.5) * h
+    lines = np.arange(cells + 1) * h
+    clip = treatment != "staircase"
+    # Fluxes of grad u through the faces' fluid parts; u faces (x = lines[i]) then v faces.
+    fluxes = []
+    for axis in (0, 1):
+        across, along = np.meshgrid(lines, centres, indexing="ij")
+        low, high = along - 0.5 * h, along + 0.5 * h
+        if clip:
+            offset = problem.centre[axis]
+            reach = np.sqrt(np.maximum(problem.radius**2 - (across - offset) ** 2, 0.0))
+            centre_along = problem.centre[1 - axis]
+            low = np.clip(centre_along - reach, low, high)
+            high = np.clip(centre_along + reach, low, high)
+        flux = problem.face_flux(low, high, across, axis)
+        if clip:
+            weights = interior.open_fraction_x if axis == 0 else interior.open_fraction_y.T
+            flux = np.where(_open(weights), flux, 0.0)
+        fluxes.append(flux if axis == 0 else flux.T)
+    flux_x, flux_y = fluxes
+    rhs = -(flux_x[1:, :] - flux_x[:-1, :] + flux_y[:, 1:] - flux_y[:, :-1])
+    active = _active(operator)
+    rhs[~active] = 0.0
+    solution, report = PoissonSolverMGPCG(rtol=1e-11).solve(operator, rhs)
+    seconds = _time.perf_counter() - start
+    x, y = np.meshgrid(centres, centres, indexing="ij")
+    difference = solution - problem.solution(x, y)
+    inside = (x - problem.centre[0]) ** 2 + (y - problem.centre[1]) ** 2 < problem.radius**2
+    return PoissonSolve(treatment, cells, problem.centre, _spread(difference[inside]),
+                        _spread(difference[active]), int(report.iterations),
+                        float(report.incompatibility), seconds)
+
+
+def _open(weights: np.ndarray) -> np.ndarray:
+    from elastoflow.fluid import OPEN_MIN
+
+    return np.asarray(weights >= OPEN_MIN)
+
+
+def _active(operator: object) -> np.ndarray:
+    diagonal = getattr(operator, "diagonal")
+    weights_x = getattr(operator, "weights_x")
+    weights_y = getattr(operator, "weights_y")
+    active = np.asarray(diagonal > 0.0)
+    active[:-1, :] |= weights_x > 0.0
+    active[1:, :] |= weights_x > 0.0
+    active[:, :-1] |= weights_y > 0.0
+    active[:, 1:] |= weights_y > 0.0
+    return active
+
+
+def _spread(values: np.ndarray) -> float:
+    """Max-norm of ``values`` less the constant that minimises it."""
+    return 0.5 * float(values.max() - values.min())
+
+
+def observed_order(h: Sequence[float], error: Sequence[float]) -> float:
+    """Slope of ``log error`` against ``log h`` (least squares)."""
+    return float(np.polyfit(np.log(np.asarray(h)), np.log(np.asarray(error)), 1)[0])
+
+
+@dataclass(frozen=True)
+class PoissonStudy:
+    """The disk problem at each resolution, treatment and centre.
+
+    Attributes:
+        solves: Every solve.
+        cells: The resolutions (cells across the unit square).
+        treatments: The treatments compared.
+        seconds: Wall time of the whole study [s].
+    """
+
+    solves: tuple[PoissonSolve, ...]
+    cells: tuple[int, ...]
+    treatments: tuple[str, ...]
+    seconds: float = 0.0
+
+    def worst(self, treatment: str, cells: int) -> PoissonSolve:
+        """The solve of the largest error among the centres."""
+        chosen = [s for s in self.solves if s.treatment == treatment and s.cells == cells]
+        return max(chosen, key=lambda s: s.error)
+
+    def errors(self, treatment: str, *, active: bool = False) -> list[float]:
+        """The worst error over the centres at each resolution."""
+        if active:
+            return [max(s.error_active for s in self.solves
+                        if s.treatment == treatment and s.cells == n) for n in self.cells]
+        return [self.worst(treatment, n).error for n in self.cells]
+
+    def order(self, treatment: str, *, active: bool = False) -> float:
+        """Observed order of the worst errors over all resolutions."""
+        return observed_order([1.0 / n for n in self.cells], self.errors(treatment,
+                                                                          active=active))
+
+
+def run_poisson_study(cells: Sequence[int] = CELLS, treatments: Sequence[str] = TREATMENTS,
+                      centres: Sequence[tuple[float, float]] = CENTRES) -> PoissonStudy:
+    """`solve_poisson_disk` for every resolution, treatment and centre."""
+    start = _time.perf_counter()
+    solves = tuple(solve_poisson_disk(n, treatment, PoissonDisk(centre=(centre[0], centre[1])))
+                   for treatment in treatments for n in cells for centre in centres)
+    return PoissonStudy(solves, tuple(cells), tuple(treatments),
+                        seconds=_time.perf_counter() - start)
+
+
+# -- the report ------------------------------------------------------------------------------
+
+_LABEL = {"cut_cell": "cut cell (boundary map)", "staircase": "staircase"}
+
+
+def poisson_table(study: PoissonStudy) -> list[str]:
+    """The study's Markdown table: worst max-norm error per h and treatment, step orders,
+    and the fitted order in the last row."""
+    header = "| cells | h [m] |"
+    rule = "|---:|---:|"
+    for treatment in study.treatments:
+        header += f" {_LABEL[treatment]}: error | order |"
+        rule += "---:|---:|"
+    lines = [header, rule]
+    errors = {t: study.errors(t) for t in study.treatments}
+    for k, n in enumerate(study.cells):
+        row = f"| {n} | {1.0 / n:.5f} |"
+        for treatment in study.treatments:
+            error = errors[treatment][k]
+            step = ""
+            if k > 0:
+                refinement = math.log(study.cells[k] / study.cells[k - 1])
+                step = f"{math.log(errors[treatment][k - 1] / error) / refinement:.2f}"
+            row += f" {error:.3e} | {step} |"
+        lines.append(row)
+    fitted = "| fitted order | |"
+    for treatment in study.treatments:
+        fitted += f" | **{study.order(treatment):.2f}** |"
+    lines.append(fitted)
+    return lines
+
+
+def poisson_csv(study: PoissonStudy) -> str:
+    text = io.StringIO()
+    writer = csv.writer(text, lineterminator="\n")
+    writer.writerow(["treatment", "cells", "h [m]", "centre_x [m]", "centre_y [m]",
+                     "error (inside)", "error (active cells)", "iterations", "incompatibility",
+                     "seconds"])
+    for s in study.solves:
+        writer.writerow([s.treatment, s.cells, f"{s.h:.9g}", s.centre[0], s.centre[1],
+                         f"{s.error:.6e}", f"{s.error_active:.6e}", s.iterations,
+                         f"{s.incompatibility:.3e}", f"{s.seconds:.4f}"])
+    return text.getvalue()
+
+
+def plot_poisson(study: PoissonStudy, path: Path) -> None:
+    """Log-log error against h for each treatment, with slopes 1 and 2 for reference."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import matplotlib.ticker
+
+    from elastoflow.io import atomic_path
+
+    h = np.array([1.0 / n for n in study.cells])
+    figure, axis = plt.subplots(figsize=(5.5, 4.2))
+    for treatment, marker in zip(study.treatments, "os"):
+        errors = np.array(study.errors(treatment))
+        axis.loglog(h, errors, marker=marker, lw=1.2,
+                    label=f"{_LABEL[treatment]} (order {study.order(treatment):.2f})")
+        for centre in {s.centre for s in study.solves}:
+            each = [next(s.error for s in study.solves if s.treatment == treatment
+                         and s.cells == n and s.centre == centre) for n in study.cells]
+            axis.loglog(h, each, lw=0.5, alpha=0.35, color=axis.lines[-1].get_color())
+    anchor = study.errors(study.treatments[0])[0]
+    for slope, style in ((1, ":"), (2, "--")):
+        axis.loglog(h, anchor * (h / h[0]) ** slope, style, color="0.5", lw=0.8,
+                    label=f"slope {slope}")
+    axis.set_xticks(h, [f"1/{n}" for n in study.cells])
+    axis.xaxis.set_minor_locator(matplotlib.ticker.NullLocator())
+    axis.set_xlabel("h [m]")
+    axis.set_ylabel("max-norm error (cell centres in the disk)")
+    axis.set_title("-lap u = f in a disk, du/dn = 0: the projection's operator", fontsize=9)
+    axis.grid(alpha=0.3, which="both")
+    axis.legend(fontsize=8)
+    figure.tight_layout()
+    with atomic_path(path) as temporary:
+        figure.savefig(temporary, dpi=110, format="png")
+    plt.close(figure)
+
+
+_INTRODUCTION = """# Boundary map against staircase, measured
+
+Issue 13 asks for the comparison the paper leaves to future work: its boundary map (cut
+cells: open fractions of faces and cut distances from the map's crossings) against the usual
+staircase (cells by their centres, faces fully open or closed, no cut distances;
+`coupling.boundary = "staircase"`, `elastoflow.coupling.BoundaryStaircase`). Each part below
+is regenerated, tables and figures, by
+
+    elastoflow validate boundary-study --out docs/validation
+
+which rewrites only the marked block of each part it runs (all, or the one named after
+`boundary-study`); the figures and CSV files are in `docs/validation/boundary_study/`.
+"""
+
+
+def poisson_section(study: PoissonStudy, figure: str, table_csv: str) -> str:
+    """The Markdown block of the accuracy part."""
+    cut, stair = study.order("cut_cell"), study.order("staircase")
+    finest = study.cells[-1]
+    ratio = study.worst("staircase", finest).error / study.worst("cut_cell", finest).error
+    timing = {t: np.mean([s.seconds for s in study.solves if s.treatment == t
+                          and s.cells == finest]) for t in study.treatments}
+    paragraphs = [
+        "`-lap u = f` inside a disk of radius 0.37 m in the unit square, `du/dn = 0` on its "
+        "circle, with a known solution that is not radially symmetric "
+        "(`elastoflow.validation.PoissonDisk`). This is the projection's own problem: the "
+        "pressure equation's condition at a body is a normal derivative (zero for a body at "
+        "rest), and the open fractions of faces are where the boundary map enters it (its cut "
+        "distances enter advection and viscosity, whose Dirichlet problem is not tested "
+        "here). The operator is `FluidSolver.pressure_operator` of each treatment's interior, "
+        "built from the boundary map of a 4096-gon exactly as bodies are in a run, solved by "
+        "`PoissonSolverMGPCG` (rtol 1e-11); each cell's source is the exact integral of `f` "
+        "over its fluid part as the treatment sees it (the part inside the disk, or the "
+        "whole cell). Error: max norm over the cell centres inside the disk, up to the free "
+        "constant; the worst of three disk centres per resolution.",
+        f"Observed order (least squares over h = 1/{study.cells[0]} to 1/{finest}): "
+        f"**{cut:.2f}** with the boundary map, **{stair:.2f}** with the staircase; at "
+        f"{finest}^2 the staircase's error is {ratio:.0f} times the cut cells'. The cut-cell "
+        "order is what Ng, Min & Gibou (2009) report for this finite-volume Neumann "
+        "discretisation (face apertures, sources over each cell's fluid part): second order "
+        "in the max norm, although the local truncation error in the cut cells is of lower "
+        "order. The staircase puts the wall up to half a cell off the circle and along the "
+        "wrong normal: its flux error is O(h) on every boundary face, and its order about 1, "
+        "erratic from one resolution to the next (thin lines: the single centres). Over "
+        "every cell the cut-cell operator has (small cut cells whose centre lies outside the "
+        f"disk included) the order is {study.order('cut_cell', active=True):.2f}. "
+        f"One {finest}^2 solve (map, interior, operator, solve) took "
+        f"{timing['cut_cell']:.2f} s with cut cells and {timing['staircase']:.2f} s with "
+        f"the staircase (shared 2-core machine; the whole part {study.seconds:.1f} s).",
+        f"Data: [{Path(table_csv).name}]({table_csv}) (every solve: centre, both error "
+        "measures, iterations, the share of the right-hand side the solver removed to make "
+        "it compatible, seconds). Test: `tests/validation/test_boundary_study.py` "
+        "(cut cell >= 1.8, staircase <= 1.2).",
+    ]
+    wrap = textwrap.TextWrapper(width=96, break_on_hyphens=False, break_long_words=False)
+    lines = [
+        "## Accuracy: the pressure equation on a disk", "",
+        wrap.fill(paragraphs[0]), "",
+        *poisson_table(study), "",
+        wrap.fill(paragraphs[1]), "",
+        f"![error against h]({figure})", "",
+        wrap.fill(paragraphs[2]),
+    ]
+    return "\n".join(lines) + "\n"
+
+
+def write_section(document: Path, name: str, text: str) -> None:
+    """Put ``text`` between the markers of part ``name`` in ``document`` (appended, with the
+    markers, when the part is new; the page is started when it does not exist)."""
+    from elastoflow.io import write_text_atomic
+
+    begin, end = f"<!-- {name}:begin -->", f"<!-- {name}:end -->"
+    block = f"{begin}\n{text}{end}\n"
+    current = document.read_text(encoding="utf-8") if document.exists() else _INTRODUCTION
+    pattern = re.compile(re.escape(begin) + r".*?" + re.escape(end) + r"\n?", re.DOTALL)
+    if pattern.search(current):
+        updated = pattern.sub(lambda _: block, current)
+    else:
+        updated = current.rstrip("\n") + "\n\n" + block
+    write_text_atomic(document, updated)
+
+
+def write_poisson_report(study: PoissonStudy, folder: str | Path) -> list[Path]:
+    """Write the accuracy part: ``<folder>/boundary_study/poisson_disk.csv`` and ``.png``,
+    and its block of ``<folder>/boundary_study.md``. Returns the paths written."""
+    from elastoflow.io import write_text_atomic
+
+    folder = Path(folder)
+    figures = folder / FIGURES
+    figures.mkdir(parents=True, exist_ok=True)
+    csv_path = figures / "poisson_disk.csv"
+    png_path = figures / "poisson_disk.png"
+    write_text_atomic(csv_path, poisson_csv(study))
+    plot_poisson(study, png_path)
+    document = folder / DOCUMENT
+    write_section(document, "poisson-disk", poisson_section(
+        study, f"{FIGURES}/poisson_disk.png", f"{FIGURES}/poisson_disk.csv"))
+    return [csv_path, png_path, document]
+
+
+STUDY_PARTS: tuple[str, ...] = ("poisson",)
+"""The parts `elastoflow validate boundary-study` can run (later: DFG 2D-1, spurious
+velocities, leakage, force smoothness, cost, stability)."""
