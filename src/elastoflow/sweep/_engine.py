@@ -33,7 +33,7 @@ from typing import Any
 from elastoflow.sweep._plan import SweepPlan, SweepPoint
 from elastoflow.sweep._results import read_result, write_summary
 from elastoflow.sweep._spec import SweepError
-from elastoflow.sweep._worker import RUNNING_FILE, PointTask, run_point
+from elastoflow.sweep._worker import RUNNING_FILE, PointTask, run_point, stop_points
 
 SUMMARY_FILE = "summary.parquet"
 ZARR_FILE = "fields.zarr"
@@ -43,6 +43,11 @@ _SUMMARY_INTERVAL = 5.0
 
 _POLL = 0.05
 """Seconds between two looks at the finished tasks (a Ctrl-C is seen within this)."""
+
+_STOP_WAIT = 60.0
+"""Most seconds a stopped sweep waits for its running points to save their state (each stops
+at its next step); those still running then are left to the cluster (a local one is closed,
+killing them: they resume from their last regular checkpoint)."""
 
 
 class _StopRequest:
@@ -90,11 +95,15 @@ class SweepProgress:
     queued: int = 0
     elapsed: float = 0.0
     eta: float | None = None
+    stopping: bool = False
+    """Stopped (Ctrl-C): the running points are saving their state."""
 
     def line(self) -> str:
-        """``12/40 done, 1 failed, 2 running, 25 queued, 0:01:10 elapsed, ETA 0:03:20``."""
+        """``12/40 done, 1 failed, 2 running, 25 queued, 0:01:10 elapsed, ETA 0:03:20``
+        (``stopping: 12/40 done, ...`` while the running points of a stopped sweep save their
+        state)."""
         finished = self.skipped + self.done
-        parts = [f"{finished}/{self.total} done"]
+        parts = [f"{'stopping: ' if self.stopping else ''}{finished}/{self.total} done"]
         if self.skipped:
             parts[0] += f" ({self.skipped} before)"
         parts += [f"{self.failed} failed"] + ([f"{self.lost} lost"] if self.lost else [])
@@ -179,19 +188,56 @@ def open_client(scheduler: str | None = None, *, workers: int | None = None,
     env = {"NUMBA_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1"}
     # The workers' statistical profiler samples the running thread's stack every 10 ms under
     # the GIL; a point's steps are long single calls that gain nothing from it.
-    with dask.config.set({"distributed.worker.profile.enabled": False}):
-        # Without the dashboard the scheduler's HTTP server (health, metrics) still runs: on
-        # any free port then, leaving 8787 to others.
-        cluster = LocalCluster(n_workers=count, threads_per_worker=1, processes=True,
-                               dashboard_address=":8787" if dashboard else ":0",
-                               scheduler_kwargs={"dashboard": dashboard}, env=env,
-                               silence_logs=40)
-    client = Client(cluster)
+    cluster = None
     try:
-        yield client
+        with dask.config.set({"distributed.worker.profile.enabled": False}), _sigint_blocked():
+            # Without the dashboard the scheduler's HTTP server (health, metrics) still runs:
+            # on any free port then, leaving 8787 to others.
+            cluster = LocalCluster(n_workers=count, threads_per_worker=1, processes=True,
+                                   dashboard_address=":8787" if dashboard else ":0",
+                                   scheduler_kwargs={"dashboard": dashboard}, env=env,
+                                   silence_logs=40)
+        client = Client(cluster)
+        try:
+            yield client
+        finally:
+            client.close()
     finally:
-        client.close()
-        cluster.close()
+        if cluster is not None:
+            cluster.close()
+
+
+@contextlib.contextmanager
+def _sigint_blocked() -> Iterator[None]:
+    """SIGINT blocked in this thread and in every thread and process started from it meanwhile.
+
+    The worker processes of a local cluster share the terminal's process group: a Ctrl-C
+    would reach each of them, and a worker's own KeyboardInterrupt stops it with a traceback,
+    its point cut off in the middle of a step. Dask offers no way to start them in a session
+    of their own, but a blocked signal stays blocked across fork and exec: the cluster's event
+    loop thread, started in here, blocks it, so do the threads it starts and the processes
+    those spawn (Nanny -> AsyncProcess -> multiprocessing), also a worker the nanny starts
+    again later. The command alone then sees Ctrl-C and stops the points in order
+    (`stop_points`). A Ctrl-C meanwhile waits until the cluster is up."""
+    import signal
+    import threading
+
+    if (not hasattr(signal, "pthread_sigmask")
+            or threading.current_thread() is not threading.main_thread()):
+        yield
+        return
+    # multiprocessing starts its resource tracker with SIGINT blocked and then unblocks it in
+    # the thread that started it: from the loop thread (its first Queue), that undid the block
+    # for every worker. Started here first, it is not started again.
+    with contextlib.suppress(ImportError, OSError):
+        from multiprocessing import resource_tracker
+
+        resource_tracker.ensure_running()
+    previous = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
 
 
 def prepare_folder(plan: SweepPlan, out: Path, text: str | None = None) -> None:
@@ -237,7 +283,7 @@ def _pending_row(point: SweepPoint, out: Path, status: str = "pending",
             "folder": point.folder_name, "results": {}}
 
 
-def _task(plan: SweepPlan, point: SweepPoint, out: Path) -> PointTask:
+def _task(plan: SweepPlan, point: SweepPoint, out: Path, sweep: str = "") -> PointTask:
     snapshots = plan.spec.snapshots
     return PointTask(
         index=point.index, parameters=point.parameters, scene=point.scene, steps=point.steps,
@@ -245,8 +291,32 @@ def _task(plan: SweepPlan, point: SweepPoint, out: Path) -> PointTask:
         results_after=plan.spec.run.results_after,
         snapshot_times=tuple(snapshots.times) if snapshots else (),
         snapshot_fields=tuple(snapshots.fields) if snapshots else (),
-        probe_plot=plan.spec.run.probe_plot,
+        probe_plot=plan.spec.run.probe_plot, sweep=sweep,
     )
+
+
+def _stop(client: Any, token: str, futures: dict[Any, SweepPoint],
+          rows: dict[int, dict[str, Any]]) -> None:
+    """Stop the points of the sweep run ``token`` on every worker (`stop_points`: each saves a
+    checkpoint at its next step; queued ones return as they start), wait for them at most
+    `_STOP_WAIT` seconds, take their rows, and cancel what is left."""
+    from distributed import wait
+
+    unfinished = [future for future in futures if not future.done()]
+    if unfinished:
+        # A scheduler gone or unreachable: the points are left to the cluster, as below.
+        with contextlib.suppress(Exception):
+            client.run(stop_points, token, on_error="ignore")
+        with contextlib.suppress(TimeoutError):
+            wait(unfinished, timeout=_STOP_WAIT)
+    for future, point in futures.items():
+        if future.status != "finished":
+            continue
+        try:
+            rows[point.index] = future.result()
+        except Exception:  # noqa: BLE001 - KilledWorker, a lost connection: still pending
+            continue
+    client.cancel([future for future in futures if not future.done()])
 
 
 def run_sweep(plan: SweepPlan, out: Path, client: Any, *, retry_failed: bool = False,
@@ -254,9 +324,10 @@ def run_sweep(plan: SweepPlan, out: Path, client: Any, *, retry_failed: bool = F
     """Run every point of ``plan`` not finished in ``out`` on the Dask ``client``.
 
     Writes the summary (Parquet) as points finish, at most every few seconds, and at the end;
-    the Zarr store at the end. Ctrl-C (SIGINT, in the main thread) cancels what has not
-    finished, writes the summary and returns with ``stopped`` set: running the sweep again goes
-    on from there. A second Ctrl-C raises KeyboardInterrupt at once.
+    the Zarr store at the end. Ctrl-C (SIGINT, in the main thread) stops the running points at
+    their next step (each saves a checkpoint there, `stop_points`), waits for them, writes the
+    summary and returns with ``stopped`` set: running the sweep again goes on from there. A
+    second Ctrl-C raises KeyboardInterrupt at once.
 
     Args:
         plan: The checked sweep (`plan_sweep`).
@@ -309,11 +380,12 @@ def run_sweep(plan: SweepPlan, out: Path, client: Any, *, retry_failed: bool = F
     finished_here = 0
     token = uuid.uuid4().hex[:8]
     futures = {
-        client.submit(run_point, _task(plan, point, out), pure=False,
+        client.submit(run_point, _task(plan, point, out, token), pure=False,
                       key=f"elastoflow-{plan.spec.name}-point{point.index}-{token}"): point
         for point in pending
     }
     last_summary = _time.perf_counter()
+    counted: set[int] = set()  # points whose rows the progress counts already
     report()
     completed = as_completed(list(futures))
     # The first Ctrl-C only asks the loop to stop: the summary below is never cut short (an
@@ -331,6 +403,7 @@ def run_sweep(plan: SweepPlan, out: Path, client: Any, *, retry_failed: bool = F
                     row = _pending_row(point, out, "lost", f"{type(error).__name__}: {error}")
                     (out / "points" / point.folder_name / RUNNING_FILE).unlink(missing_ok=True)
                 rows[point.index] = row
+                counted.add(point.index)
                 remaining -= 1
                 finished_here += 1
                 status = row.get("status")
@@ -346,15 +419,22 @@ def run_sweep(plan: SweepPlan, out: Path, client: Any, *, retry_failed: bool = F
             report()
         stopped = stop.requested and remaining > 0
         if stopped:
-            client.cancel([f for f in futures if not f.done()])
-            # Points that ended on their workers before their results reached this loop.
+            progress.stopping = True
+            report()
+            _stop(client, token, {f: p for f, p in futures.items() if p.index not in counted},
+                  rows)
             for point in futures.values():
+                if point.index in counted:
+                    continue
                 if rows[point.index]["status"] == "pending":
+                    # Ended on its worker before its result reached this loop and the
+                    # cluster went away (or after the wait for the stopped points).
                     row = read_result(out / "points" / point.folder_name)
-                    if row is not None and row.get("status") in ("done", "failed"):
+                    if row is not None:
                         rows[point.index] = row
-                        setattr(progress, str(row["status"]),
-                                getattr(progress, str(row["status"])) + 1)
+                status = str(rows[point.index]["status"])
+                if status in ("done", "failed", "lost"):
+                    setattr(progress, status, getattr(progress, status) + 1)
         # Still under the stop request: a Ctrl-C now does not cut the files short.
         write_summary(summary, [rows[i] for i in sorted(rows)], names)
         zarr_path = None

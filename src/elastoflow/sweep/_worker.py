@@ -24,7 +24,21 @@ import numpy as np
 from elastoflow.sweep._results import RESULT_FILE, read_result, scalar_results
 
 RUNNING_FILE = "running.json"
-"""In a point's folder while it runs: process id, host, worker and attempt."""
+"""In a point's folder while it runs: process id, host, worker and attempt (left by a point
+that was stopped or killed: the next attempt counts on from it)."""
+
+_STOPPED: set[str] = set()
+"""The sweep runs (`PointTask.sweep`) told to stop in this process (`stop_points`)."""
+
+
+def stop_points(sweep: str) -> None:
+    """Stop this process's points of the sweep run ``sweep`` at their next step (each saves a
+    checkpoint and returns ``pending``) and return at once from any that starts later.
+
+    Sent to every worker by ``client.run`` when the sweep is stopped (Ctrl-C): Dask cannot
+    interrupt a running task, and a worker closed with its task still running either waits
+    for it or is killed after a timeout, losing the work since the last checkpoint."""
+    _STOPPED.add(sweep)
 
 
 @dataclass(frozen=True)
@@ -42,6 +56,7 @@ class PointTask:
         snapshot_fields: Which fields (`SNAPSHOT_FIELDS`).
         numba_threads: Numba threads the run may use on its worker.
         probe_plot: Draw ``probes.png``.
+        sweep: Which run of the sweep sent it (`stop_points`); empty: never stopped.
     """
 
     index: int
@@ -54,6 +69,7 @@ class PointTask:
     snapshot_fields: tuple[str, ...] = ()
     numba_threads: int = 1
     probe_plot: bool = True
+    sweep: str = ""
 
 
 def _write_json(path: Path, data: dict[str, Any]) -> None:
@@ -135,17 +151,22 @@ def run_point(task: PointTask) -> dict[str, Any]:
     checkpoint in the folder, as ``elastoflow run --resume`` does.
 
     Returns:
-        ``point``, ``parameters``, ``status`` (done, failed, or lost when its folder cannot
-        be written: no ``result.json`` then, the next run of the sweep runs it again), ``message``,
+        ``point``, ``parameters``, ``status`` (done, failed, lost when its folder cannot
+        be written, or pending when the sweep was stopped, `stop_points`: no ``result.json``
+        for these two, the next run of the sweep runs them again), ``message``,
         ``wall_time [s]``, ``steps``, ``time [s]``, ``attempts``, ``resumed_from_step``,
         ``worker``, ``folder``, ``results`` (`scalar_results` of the probes).
     """
     from elastoflow.io import remove_temporaries
 
     folder = Path(task.folder)
+    if task.sweep in _STOPPED:
+        return _stopped(task, folder)
     try:
         folder.mkdir(parents=True, exist_ok=True)
-        with _folder_lock(folder):
+        with _folder_lock(folder, task.sweep):
+            if task.sweep in _STOPPED:
+                return _stopped(task, folder)
             previous = read_result(folder)
             if previous is not None and previous.get("status") == "done":
                 return previous
@@ -173,25 +194,37 @@ def _lost(task: PointTask, folder: Path, error: OSError, row: dict[str, Any] | N
     return lost
 
 
+def _stopped(task: PointTask, folder: Path) -> dict[str, Any]:
+    """The row of a point that the stopped sweep never started."""
+    return {"point": task.index, "parameters": task.parameters, "status": "pending",
+            "message": "", "wall_time [s]": math.nan, "steps": 0, "time [s]": math.nan,
+            "attempts": 0, "resumed_from_step": 0, "worker": "", "folder": folder.name,
+            "results": {}}
+
+
 @contextlib.contextmanager
-def _folder_lock(folder: Path) -> Iterator[None]:
+def _folder_lock(folder: Path, sweep: str = "") -> Iterator[None]:
     """The output folder's lock (`elastoflow.io.lock_output_folder`, as ``elastoflow run``
-    takes it), waited for: a run of the same point still going (a sweep stopped with Ctrl-C
-    and started again while a remote cluster finishes its tasks, or an ``elastoflow run
+    takes it), waited for: a run of the same point still going (a sweep quit with a second
+    Ctrl-C and started again while a remote cluster finishes its tasks, or an ``elastoflow run
     --resume`` in the folder) is never run over. The kernel drops the lock of a killed
-    process."""
+    process. Not waited for once the sweep run ``sweep`` is stopped."""
     from elastoflow.io import OutputFolderBusy, lock_output_folder
 
-    while True:
+    lock = None
+    while lock is None:
         try:
             lock = lock_output_folder(folder)
-            break
         except OutputFolderBusy:
+            if sweep in _STOPPED:
+                # The caller sees the stop and leaves the folder alone.
+                break
             _time.sleep(1.0)
     try:
         yield
     finally:
-        lock.close()
+        if lock is not None:
+            lock.close()
 
 
 def _run_locked(task: PointTask, folder: Path) -> dict[str, Any]:
@@ -221,6 +254,10 @@ def _run_locked(task: PointTask, folder: Path) -> dict[str, Any]:
         row["message"] = f"{type(error).__name__}: {message}" if not message.startswith(
             "step") else message
     row["wall_time [s]"] = _time.perf_counter() - began
+    if row["status"] == "pending":
+        # Stopped: no result.json, so the next run of the sweep resumes it from the
+        # checkpoint just saved; running.json stays for its attempt count.
+        return row
     try:
         _write_json(folder / RESULT_FILE, row)
     except OSError as error:
@@ -264,9 +301,13 @@ def _run(task: PointTask, folder: Path, row: dict[str, Any]) -> None:
     snapshots = _Snapshots(task, folder, time_step(scene))
     checkpoint_every = scene.outputs.checkpoint.every
     failure: BaseException | None = None
+    stopped = False
     try:
         snapshots(simulation)
         while simulation.step_index < task.steps:
+            if task.sweep in _STOPPED:
+                stopped = True
+                break
             report = simulation.step()
             step = simulation.step_index
             if step % scene.outputs.probes_every == 0:
@@ -280,8 +321,13 @@ def _run(task: PointTask, folder: Path, row: dict[str, Any]) -> None:
     finally:
         # After a failed step, back to the last step whose outputs were all written, as `run`.
         recovered = failure is not None and session.recover()
-        session.close(final_checkpoint=failure is None or recovered, failed=failure is not None)
-        if recorder.rows:
+        if stopped and recorder.rows:
+            # Before the checkpoint, as at every checkpoint: a kill between the two then
+            # costs no probe rows on resume.
+            recorder.write_csv()
+        session.close(final_checkpoint=failure is None or recovered, failed=failure is not None,
+                      stopped=stopped)
+        if recorder.rows and not stopped:
             recorder.write_csv()
             if task.probe_plot:
                 recorder.plot()
@@ -290,6 +336,11 @@ def _run(task: PointTask, folder: Path, row: dict[str, Any]) -> None:
             close()
     row["steps"] = simulation.step_index
     row["time [s]"] = simulation.time
+    if stopped:
+        # Statistics of part of the record would pass for the point's: none until it is done.
+        row["status"] = "pending"
+        row["message"] = f"stopped at step {simulation.step_index}"
+        return
     if recorder.rows:
         row["results"] = scalar_results(recorder.columns, recorder.rows, task.results_after)
     if failure is not None:
