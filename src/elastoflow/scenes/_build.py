@@ -14,6 +14,7 @@ from elastoflow.scenes._errors import SceneError
 from elastoflow.scenes._schema import (
     BodySpec,
     CircleObstacleSpec,
+    CouplingSpec,
     InflowSpec,
     MeshFileShapeSpec,
     MovingWallSpec,
@@ -27,7 +28,7 @@ from elastoflow.scenes._schema import (
 
 if TYPE_CHECKING:
     from elastoflow.grid import Grid2D
-    from elastoflow.simulation import Simulation
+    from elastoflow.simulation import MonolithicCoupling, Simulation
 
 
 def characteristic_speed(scene: Scene) -> float:
@@ -431,7 +432,7 @@ def build_simulation(scene: Scene, *, steps: int | None = None,
             what is allowed.
     """
     from elastoflow.scenes._checks import check_built, check_memory
-    from elastoflow.simulation import MonolithicCoupling, Simulation
+    from elastoflow.simulation import Simulation
 
     problems = check_memory(scene)
     if scene.fluid.incremental_pressure and scene.bodies and scene.coupling.scheme == "monolithic":
@@ -477,12 +478,24 @@ def build_simulation(scene: Scene, *, steps: int | None = None,
             alpha=scene.coupling.alpha,
             force_relaxation=scene.coupling.force_relaxation,
             added_mass=scene.coupling.added_mass,
-            coupling=(MonolithicCoupling(scene.coupling.newmark_gamma)
+            coupling=(_monolithic(scene.coupling)
                       if scene.coupling.scheme == "monolithic" else "explicit"),
             boundary=scene.coupling.boundary,
         )
     except (ValueError, ArithmeticError) as error:
         raise SceneError([f"time or coupling: {error}"], scene.source) from None
+
+
+def _monolithic(spec: CouplingSpec) -> MonolithicCoupling:
+    """The monolithic scheme with the scene's choice of the bodies' implicit step."""
+    from elastoflow.simulation import MonolithicCoupling
+    from elastoflow.solid import EnergyMomentumFem, MidpointFem
+
+    if spec.integrator == "newmark":
+        return MonolithicCoupling(gamma=spec.newmark_gamma)
+    if spec.integrator == "midpoint":
+        return MonolithicCoupling(integrator=MidpointFem())
+    return MonolithicCoupling(integrator=EnergyMomentumFem(spec.numerical_damping))
 
 
 class SceneWarning(UserWarning):

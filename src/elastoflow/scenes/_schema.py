@@ -474,9 +474,17 @@ class CouplingSpec(_Spec):
     """Under-relaxation of the force on the bodies (1: none); stabilises light bodies."""
     added_mass: Annotated[float, Field(ge=0.0)] = 0.0
     """Coefficient of the added-mass stabilisation (0: off)."""
+    integrator: Literal["energy_momentum", "newmark", "midpoint"] = "energy_momentum"
+    """Monolithic scheme: the bodies' implicit step. "energy_momentum" (default) keeps
+    momentum, angular momentum and, up to its numerical damping, energy; "newmark" (with
+    newmark_gamma) keeps the angular momentum only to O(dt^2), which spins up discs in water;
+    "midpoint" keeps the momenta but not the energy in large rotations."""
+    numerical_damping: Annotated[float, Field(ge=0.0, le=1.0)] = 0.1
+    """Monolithic scheme, "energy_momentum": objective numerical damping c in units of dt (a
+    linear mode is damped as by Newmark's gamma = 1/2 + c; 0: none)."""
     newmark_gamma: Annotated[float, Field(ge=0.5, le=1.0)] = 0.55
-    """Monolithic scheme: Newmark's gamma of the bodies' implicit step (0.5: no numerical
-    damping; more damps the modes the step does not resolve)."""
+    """Monolithic scheme, "newmark": Newmark's gamma (0.5: no numerical damping; more damps
+    the modes the step does not resolve)."""
     boundary: Literal["cut_cell", "staircase"] = "cut_cell"
     """How the fluid sees bodies and obstacles: "cut_cell" (open fractions of faces and cut
     distances from the boundary map) or "staircase" (cells flagged by their centres, faces

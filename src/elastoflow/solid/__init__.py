@@ -3,7 +3,7 @@
 Linear triangles in 2D (METHOD §4). Model, state and what advances it are separate: a
 :class:`TriangleMesh` is the rest shape, an :class:`ElasticBody` the static model (mesh,
 material, constraints, masses), a :class:`BodyState` the changing positions and velocities,
-and an integrator (:class:`ExplicitFem`, :class:`MidpointFem`, :class:`NewmarkFem`,
+and an integrator (:class:`ExplicitFem`, :class:`EnergyMomentumFem`, :class:`MidpointFem`, :class:`NewmarkFem`,
 :func:`static_equilibrium`)
 steps one state into another::
 
@@ -25,6 +25,7 @@ from elastoflow.solid._body import (
 )
 from elastoflow.solid._integrators import (
     ExplicitFem,
+    EnergyMomentumFem,
     MidpointFem,
     NewmarkFem,
     static_equilibrium,
@@ -48,6 +49,7 @@ __all__ = [
     "ElasticBody",
     "ExplicitFem",
     "MaterialStVK",
+    "EnergyMomentumFem",
     "MidpointFem",
     "NewmarkFem",
     "SolidInversionError",

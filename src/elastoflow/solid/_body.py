@@ -252,18 +252,40 @@ class ElasticBody:
         """
         return self.response_at(state.positions, dt)
 
-    def forces_at(self, positions: np.ndarray, velocities: np.ndarray) -> np.ndarray:
-        """Internal (elastic, Voigt and drag) nodal forces [N/m] at a given state."""
+    def forces_at(self, positions: np.ndarray, velocities: np.ndarray,
+                  rate_strain: float = 0.0) -> np.ndarray:
+        """Internal (elastic, Voigt and drag) nodal forces [N/m] at a given state.
+
+        ``rate_strain`` w > 0 computes the elastic stress from ``E(F) + w Fdot^T Fdot``: at a
+        step's midpoint with ``w = dt^2 / 8`` that is the mean strain of the step's ends
+        (`EnergyMomentumFem`)."""
         forces = np.empty_like(positions)
         determinants = np.empty(self.mesh.triangle_count)
         m = self.material
         _kernels.internal_forces(
             np.ascontiguousarray(positions), np.ascontiguousarray(velocities),
             self.mesh.triangles, self.dm_inverse, self.rest_area, m.lame_lambda, m.lame_mu,
-            m.damping_lambda, m.damping_mu, forces, determinants,
+            m.damping_lambda, m.damping_mu, float(rate_strain), forces, determinants,
         )
         if self.velocity_damping:
             forces -= self.velocity_damping * self.mass[:, None] * velocities
+        return forces
+
+    def viscous_forces_at(self, positions: np.ndarray, velocities: np.ndarray,
+                          time_scale: float) -> np.ndarray:
+        """Nodal forces [N/m] of a Voigt damping with constants ``time_scale`` times the
+        material's Lame constants (objective: no force for rigid motion)."""
+        forces = np.empty_like(positions)
+        if time_scale == 0.0:
+            forces[:] = 0.0
+            return forces
+        determinants = np.empty(self.mesh.triangle_count)
+        m = self.material
+        _kernels.internal_forces(
+            np.ascontiguousarray(positions), np.ascontiguousarray(velocities),
+            self.mesh.triangles, self.dm_inverse, self.rest_area, 0.0, 0.0,
+            time_scale * m.lame_lambda, time_scale * m.lame_mu, 0.0, forces, determinants,
+        )
         return forces
 
     def determinants_at(self, positions: np.ndarray) -> np.ndarray:
@@ -304,8 +326,8 @@ class ElasticBody:
         m = self.material
         _kernels.internal_forces(
             state.positions, state.velocities, self.mesh.triangles, self.dm_inverse,
-            self.rest_area, m.lame_lambda, m.lame_mu, m.damping_lambda, m.damping_mu, forces,
-            determinants,
+            self.rest_area, m.lame_lambda, m.lame_mu, m.damping_lambda, m.damping_mu, 0.0,
+            forces, determinants,
         )
         return forces
 

@@ -253,6 +253,9 @@ class MidpointFem:
     """
 
     gamma = 0.5
+    # Weight of Fdot^T Fdot in the strain of the elastic stress, in units of dt^2 (0: the
+    # midpoint's own strain).
+    _rate_strain = 0.0
 
     def __init__(self, tolerance: float = 1e-10, max_iterations: int = 12) -> None:
         self.tolerance = float(tolerance)
@@ -262,6 +265,10 @@ class MidpointFem:
         """The answer of `advance` to a force held over the step, at the state's positions:
         mean velocity ``dt/2 A^-1 f`` (end velocity twice that)."""
         return body.response_at(state.positions, 0.5 * dt, 0.5 * dt, 0.5 * dt)
+
+    def _extra_forces(self, body: ElasticBody, middle: np.ndarray, rate: np.ndarray,
+                      dt: float) -> np.ndarray:
+        return np.zeros_like(middle)
 
     def advance(
         self, body: ElasticBody, state_in: BodyState, state_out: BodyState, dt: float,
@@ -275,16 +282,65 @@ class MidpointFem:
         v0 = state_in.velocities
         f_external = forces + mass * body.gravity
 
+        rate_strain = self._rate_strain * dt * dt
+
         def residual_at(x: np.ndarray) -> np.ndarray:
             middle = 0.5 * (x0 + x)
-            return (0.5 * dt * dt * (body.forces_at(middle, (x - x0) / dt) + f_external)
-                    - mass * (x - x0 - dt * v0))
+            internal = body.forces_at(middle, (x - x0) / dt, rate_strain)
+            internal += self._extra_forces(body, middle, (x - x0) / dt, dt)
+            return 0.5 * dt * dt * (internal + f_external) - mass * (x - x0 - dt * v0)
 
         def tangent_at(x: np.ndarray) -> StepResponse:
-            return body.response_at(0.5 * (x0 + x), 0.5 * dt, 0.5 * dt, 0.5 * dt)
+            return self.response(body, BodyState(0.5 * (x0 + x), v0), dt)
 
         return _implicit_step(body, state_in, state_out, dt, residual_at, response, tangent_at,
                               self.tolerance, self.max_iterations, step)
+
+
+class EnergyMomentumFem(MidpointFem):
+    """The implicit midpoint rule with Simo & Tarnow's (1992) energy-momentum stress.
+
+    As `MidpointFem`, with the elastic stress at the midpoint taken from the mean of the
+    step's end strains, ``S((E(F0) + E(F1)) / 2)``, instead of the midpoint's strain. For
+    St. Venant–Kirchhoff (energy quadratic in E) the step's elastic work is then exactly the
+    change of the strain energy, so a free body keeps its energy to the Newton tolerance also
+    in large rotations, where the plain midpoint rule can gain energy without bound (its
+    stress at the midpoint is not the mean of the ends); momentum and angular momentum are
+    kept as by the midpoint rule. The Voigt damping, evaluated at the midpoint with
+    ``Fdot = (F1 - F0) / dt``, has the strain rate ``(E(F1) - E(F0)) / dt`` exactly and so
+    only removes energy.
+
+    Args:
+        damping: Numerical damping c: a Voigt damping with the material's Lame constants
+            times ``c dt``, added to the material's own. Objective (no force for rigid
+            motion, so both momenta stay exact) and first order in dt, it damps a linear
+            mode as Newmark's rule with ``gamma = 1/2 + c`` does (the same spectral radius):
+            modes the step does not resolve (``omega dt`` from about 1 to 30: per step 0.96
+            at 1, 0.82 at 10 for c = 0.1), resolved ones at a damping ratio ``c omega dt /
+            2``. Neither rule damps ``omega dt -> infinity``. Its answer to a held force is
+            `response`, with the damping's share in the matrix.
+        tolerance: Stop when the Newton update is below ``tolerance`` times the body's size.
+        max_iterations: Newton iterations at most.
+    """
+
+    _rate_strain = 0.125
+
+    def __init__(self, damping: float = 0.0, tolerance: float = 1e-10,
+                 max_iterations: int = 12) -> None:
+        super().__init__(tolerance, max_iterations)
+        if not (0.0 <= damping < np.inf):
+            raise ValueError(f"damping = {damping!r}: must be a finite number >= 0")
+        self.damping = float(damping)
+
+    def response(self, body: ElasticBody, state: BodyState, dt: float) -> StepResponse:
+        # The numerical Voigt damping c dt (lambda, mu) adds c dt^2 / 2 to the stiffness's
+        # dt^2 / 4 in the step's matrix.
+        stiffness = dt * np.sqrt(0.25 + 0.5 * self.damping)
+        return body.response_at(state.positions, 0.5 * dt, stiffness, 0.5 * dt)
+
+    def _extra_forces(self, body: ElasticBody, middle: np.ndarray, rate: np.ndarray,
+                      dt: float) -> np.ndarray:
+        return body.viscous_forces_at(middle, rate, self.damping * dt)
 
 
 def _checked_forces(body: ElasticBody, external_forces: np.ndarray) -> np.ndarray:

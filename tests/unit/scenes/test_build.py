@@ -89,3 +89,28 @@ def test_mesh_file_and_polygon_shapes(tmp_path) -> None:
     np.testing.assert_allclose(sim.bodies[0].mesh.points.max(axis=0), [0.3, 0.3])
     assert sim.bodies[0].pivot_node == 2
     assert sim.bodies[1].mesh.area == pytest.approx(0.08)
+
+
+@pytest.mark.parametrize(
+    ("keys", "integrator", "parameter"),
+    [({}, "EnergyMomentumFem", ("damping", 0.1)),
+     ({"numerical_damping": 0.3}, "EnergyMomentumFem", ("damping", 0.3)),
+     ({"integrator": "newmark", "newmark_gamma": 0.6}, "NewmarkFem", ("gamma", 0.6)),
+     ({"integrator": "midpoint"}, "MidpointFem", ("gamma", 0.5))],
+)
+def test_the_monolithic_scheme_takes_the_scenes_integrator(keys, integrator, parameter) -> None:
+    scene = get_scene("bar_in_jet")
+    coupling = scene.coupling.model_copy(update=keys)
+    sim = build_simulation(scene.model_copy(update={"coupling": coupling}))
+    assert type(sim.scheme.fem).__name__ == integrator
+    assert getattr(sim.scheme.fem, parameter[0]) == parameter[1]
+
+
+def test_an_unknown_integrator_is_one_line_naming_the_key() -> None:
+    data = get_scene("bar_in_jet").model_dump(mode="json")
+    data["coupling"]["integrator"] = "verlet"
+    with pytest.raises(SceneError) as info:
+        parse_scene(data)
+    message = str(info.value)
+    assert "coupling.integrator" in message and "verlet" in message and "newmark" in message
+    assert "\n" not in message.strip()

@@ -218,3 +218,27 @@ def test_midpoint_rule_answers_a_held_force_like_average_acceleration() -> None:
     mean = (out.positions - state.positions) / dt
     expected = midpoint.response(body, state, dt).velocity_change(force)
     np.testing.assert_allclose(mean, expected, rtol=1e-5, atol=1e-5 * np.abs(expected).max())
+
+
+def test_energy_momentum_rule_keeps_energy_and_both_momenta() -> None:
+    """The spinning, shaken disc with large rotations (omega dt ~ 50 in its stiff modes): the
+    energy-momentum rule keeps the total energy and both momenta to the Newton tolerance over
+    200 steps (measured 2.2e-10 relative); the plain midpoint rule keeps the momenta but not
+    the energy (5.7e-3: its midpoint stress is not the mean of the ends)."""
+    from elastoflow.solid import EnergyMomentumFem, MidpointFem
+
+    dt = 0.005
+    drift = {}
+    for fem in (EnergyMomentumFem(tolerance=1e-13), MidpointFem(tolerance=1e-13)):
+        body, state = _spinning_vibrating_disc(30.0)
+        energy = body.total_energy(state)
+        momentum = body.mass @ state.velocities
+        spin = _angular_momentum(body, state)
+        for _ in range(200):
+            fem.advance(body, state, state, dt, np.zeros_like(state.positions),
+                        fem.response(body, state, dt))
+        np.testing.assert_allclose(body.mass @ state.velocities, momentum, atol=1e-10)
+        assert abs(_angular_momentum(body, state) - spin) < 1e-7 * abs(spin)
+        drift[type(fem).__name__] = abs(body.total_energy(state) - energy) / energy
+    assert drift["EnergyMomentumFem"] < 1e-8, drift
+    assert drift["MidpointFem"] > 100 * drift["EnergyMomentumFem"], drift
