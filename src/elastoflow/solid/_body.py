@@ -9,7 +9,12 @@ import numpy as np
 from elastoflow.solid import _kernels
 from elastoflow.solid._material import MaterialStVK
 from elastoflow.solid._mesh import TriangleMesh
-from elastoflow.solid._response import StepResponse, step_response
+from elastoflow.solid._response import (
+    BandedLayout,
+    StepResponse,
+    banded_layout,
+    step_response,
+)
 from elastoflow.solid._state import BodyState
 
 DEFAULT_SAFETY = 0.5
@@ -195,6 +200,10 @@ class ElasticBody:
             [[0], np.cumsum(np.bincount(triangles.ravel(), minlength=n))]
         ).astype(np.int64)
         self._stable_substep = stable_substep(mesh, material)
+        # The implicit steps' banded layout (mesh and held nodes only), built on first use:
+        # explicit runs never need it.
+        self._banded_layout: BandedLayout | None = None
+        self._banded_layout_built = False
 
     @property
     def point_count(self) -> int:
@@ -237,11 +246,15 @@ class ElasticBody:
         ``positions`` (``s = stiffness_step``, default ``dt``; ``scale`` default ``dt``;
         held nodes get 0): `elastoflow.solid._response.step_response`."""
         m = self.material
+        if not self._banded_layout_built:
+            self._banded_layout = banded_layout(self.mesh.triangles, self.fixed_mask,
+                                                self.mesh.points)
+            self._banded_layout_built = True
         return step_response(
             np.ascontiguousarray(positions), self.mesh.triangles, self.dm_inverse,
             self.rest_area, self.mass, self.fixed_mask, m.lame_lambda, m.lame_mu,
             m.damping_lambda, m.damping_mu, self.velocity_damping, float(dt),
-            stiffness_step, scale,
+            stiffness_step, scale, self._banded_layout,
         )
 
     def step_response(self, state: BodyState, dt: float) -> StepResponse:

@@ -196,6 +196,11 @@ def _banded_inverse_columns(columns_of_u: np.ndarray, rows_of_u: np.ndarray,
 # 1.5 ms); each limit then costs microseconds and is undone on leaving.
 _BLAS = ThreadpoolController()
 
+# Free degrees of freedom up to which a body's matrix is always factored dense: below this
+# the banded layout's bookkeeping does not pay off. Above it a narrow band wins (bar_in_jet's
+# bar, 288 free dofs, half-band 19: response and compliance on its 200 boundary dofs in
+# 3.2 ms banded against 6.6 ms dense).
+_DENSE_BELOW = 64
 # Free degrees of freedom up to which the matrix is factored dense (LAPACK Cholesky): for a
 # few hundred, SuperLU's solve with one right-hand side per boundary degree of freedom is
 # the slow part (51 ms for 288 against ~2 ms dense on bar_in_jet's bar).
@@ -308,14 +313,96 @@ class StepResponse:
         return result.reshape(-1, 2)
 
 
+@dataclass(frozen=True)
+class BandedLayout:
+    """Where each element-matrix entry of a body's step matrix goes in LAPACK's upper banded
+    storage of the free degrees of freedom in reverse Cuthill-McKee order. It depends only
+    on the mesh and the held nodes, so a body builds it once (`banded_layout`) and every
+    step assembles straight into the band, with no sparse-matrix work.
+
+    Attributes:
+        free: Free degrees of freedom (``2 node + component``), int64.
+        order: ``order[k]`` is the local free index at banded position k (the RCM order).
+        band: Half-bandwidth b.
+        target: Per triplet of `response_triplets`, the flat index into the (b + 1, n_free)
+            storage, or -1 for an entry on a held degree of freedom, int64.
+        weight: Per triplet, 1 on the diagonal and 1/2 off it: each off-diagonal pair (r, c),
+            (c, r) lands on one stored entry, which so holds the symmetric part.
+        diagonal: Flat storage index of each local free index's diagonal, int64.
+    """
+
+    free: np.ndarray
+    order: np.ndarray
+    band: int
+    target: np.ndarray
+    weight: np.ndarray
+    diagonal: np.ndarray
+
+
+def banded_layout(triangles: np.ndarray, fixed_mask: np.ndarray,
+                  points: np.ndarray) -> BandedLayout | None:
+    """The `BandedLayout` of a mesh with held nodes ``fixed_mask``; None when the matrix is
+    small enough for a dense factor (``_DENSE_BELOW`` free degrees of freedom or fewer) or
+    its band too wide to pay off (``_BANDED_WORK_LIMIT``)."""
+    n = points.shape[0]
+    m = triangles.shape[0]
+    free = np.flatnonzero(~np.repeat(fixed_mask, 2)).astype(np.int64)
+    if free.size <= _DENSE_BELOW:
+        return None
+    rows = np.empty(36 * m, dtype=np.int64)
+    cols = np.empty(36 * m, dtype=np.int64)
+    values = np.empty(36 * m)
+    # Only the pattern is wanted here; the values of the rest shape are discarded.
+    response_triplets(np.ascontiguousarray(points, dtype=np.float64), triangles,
+                      np.zeros((m, 2, 2)), np.zeros(m), 0.0, 0.0, 0.0, 0.0, 0.0, rows, cols,
+                      values)
+    local = np.full(2 * n, -1, np.int64)
+    local[free] = np.arange(free.size)
+    keep = (local[rows] >= 0) & (local[cols] >= 0)
+    pattern = sparse.csr_matrix(
+        (np.ones(int(keep.sum())), (local[rows[keep]], local[cols[keep]])),
+        shape=(free.size, free.size),
+    )
+    order = reverse_cuthill_mckee(pattern, symmetric_mode=True).astype(np.int64)
+    where = np.empty(free.size, np.int64)
+    where[order] = np.arange(free.size)
+    r = where[local[rows[keep]]]
+    c = where[local[cols[keep]]]
+    band = int(np.abs(r - c).max()) if r.size else 0
+    if free.size * band * band > _BANDED_WORK_LIMIT:
+        return None
+    high, low = np.maximum(r, c), np.minimum(r, c)
+    target = np.full(rows.shape[0], -1, np.int64)
+    target[keep] = (band + low - high) * free.size + high
+    weight = np.where(rows == cols, 1.0, 0.5)
+    diagonal = band * free.size + where
+    return BandedLayout(free, order, band, target, weight, diagonal.astype(np.int64))
+
+
+@njit(cache=True)
+def _assemble_band(values: np.ndarray, target: np.ndarray, weight: np.ndarray,
+                   diagonal: np.ndarray, lumped: np.ndarray, storage: np.ndarray) -> None:
+    """``storage`` (flat) = the band of the symmetric part of the triplets plus ``lumped`` on
+    the diagonal (``lumped`` per local free index)."""
+    storage[:] = 0.0
+    for k in range(values.shape[0]):
+        if target[k] >= 0:
+            storage[target[k]] += weight[k] * values[k]
+    for i in range(diagonal.shape[0]):
+        storage[diagonal[i]] += lumped[i]
+
+
 def step_response(
     positions: np.ndarray, triangles: np.ndarray, dm_inverse: np.ndarray,
     rest_area: np.ndarray, mass: np.ndarray, fixed_mask: np.ndarray, lame_lambda: float,
     lame_mu: float, damping_lambda: float, damping_mu: float, velocity_damping: float,
     dt: float, stiffness_step: float | None = None, scale: float | None = None,
+    layout: BandedLayout | None = None,
 ) -> StepResponse:
     """Assemble and factor ``M + dt D + s^2 K + dt alpha M`` on the free degrees of freedom
-    (``s = stiffness_step``, default ``dt``); its answer is ``scale A^-1 f`` (default ``dt``)."""
+    (``s = stiffness_step``, default ``dt``); its answer is ``scale A^-1 f`` (default ``dt``).
+    With the body's ``layout`` (`banded_layout`) it assembles straight into the banded
+    Cholesky's storage."""
     s = dt if stiffness_step is None else float(stiffness_step)
     n = positions.shape[0]
     m = triangles.shape[0]
@@ -326,6 +413,18 @@ def step_response(
         positions, triangles, dm_inverse, rest_area, dt * damping_lambda + s * s * lame_lambda,
         dt * damping_mu + s * s * lame_mu, lame_lambda, lame_mu, s * s, rows, cols, values,
     )
+    answer = dt if scale is None else float(scale)
+    if layout is not None:
+        lumped = np.repeat(mass * (1.0 + dt * velocity_damping), 2)[layout.free]
+        storage = np.empty((layout.band + 1, layout.free.size))
+        _assemble_band(values, layout.target, layout.weight, layout.diagonal, lumped,
+                       storage.reshape(-1))
+        try:
+            with _BLAS.limit(limits=1, user_api="blas"):
+                factor = linalg.cholesky_banded(storage, lower=False, check_finite=False)
+            return StepResponse(layout.free, answer, None, None, factor, layout.order)
+        except linalg.LinAlgError:
+            pass  # not positive definite to round-off: the general path below decides
     size = 2 * n
     matrix = sparse.coo_matrix((values, (rows, cols)), shape=(size, size)).tocsr()
     # Round-off makes the assembled tangent minutely unsymmetric; the factor wants it exact.
@@ -333,7 +432,6 @@ def step_response(
     lumped = np.repeat(mass * (1.0 + dt * velocity_damping), 2)
     matrix = matrix + sparse.diags(lumped)
     free = np.flatnonzero(~np.repeat(fixed_mask, 2)).astype(np.int64)
-    answer = dt if scale is None else float(scale)
     if free.size == 0:
         return StepResponse(free, answer, None)
     reduced = matrix[free][:, free].tocsc()

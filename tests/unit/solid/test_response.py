@@ -125,26 +125,36 @@ def test_newmark_keeps_the_energy_of_a_free_vibration(dt: float) -> None:
     assert abs(body.total_energy(body_state) - energy) < 5e-3 * energy
 
 
-@pytest.mark.parametrize("path", ["dense", "banded", "sparse_lu"])
+@pytest.mark.parametrize("path", ["dense", "banded_layout", "banded", "sparse_lu"])
 def test_every_factorization_gives_the_same_answer(path: str,
                                                    monkeypatch: pytest.MonkeyPatch) -> None:
-    """Dense inverse (small bodies), banded Cholesky in reverse Cuthill-McKee order (slender
-    ones) and SuperLU (the rest) agree to round-off on solve, velocity_change and compliance."""
+    """Dense inverse (small bodies), the banded Cholesky assembled through the body's banded
+    layout (the default above ``_DENSE_BELOW`` free dofs), the banded Cholesky of the general
+    path and SuperLU agree to round-off on solve, velocity_change and compliance."""
     from elastoflow.solid import _response
 
     mesh = mesh_rectangle(0.35, 0.02, counts=(35, 2), pattern="crossed")
     fixed = nodes_in_box(mesh, (-1.0, -1.0, 1e-9, 1.0))
-    body = ElasticBody(mesh, MATERIAL, fixed_nodes=fixed)
-    body_state = body.state()
-    body_state.positions[:] = mesh.points @ np.array([[1.01, 0.03], [0.0, 0.99]])
-    reference = body.step_response(body_state, 0.005)
+
+    def response_of(body_state_positions: np.ndarray) -> _response.StepResponse:
+        body = ElasticBody(mesh, MATERIAL, fixed_nodes=fixed)
+        body_state = body.state()
+        body_state.positions[:] = body_state_positions
+        return body.step_response(body_state, 0.005)
+
+    positions = mesh.points @ np.array([[1.01, 0.03], [0.0, 0.99]])
+    with monkeypatch.context() as patch:
+        patch.setattr(_response, "_DENSE_BELOW", 10**9)
+        reference = response_of(positions)
     assert reference._inverse is not None
-    if path != "dense":
+    if path != "banded_layout":
+        monkeypatch.setattr(_response, "_DENSE_BELOW", 10**9)
+    if path in ("banded", "sparse_lu"):
         monkeypatch.setattr(_response, "_DENSE_LIMIT", 0)
     if path == "sparse_lu":
         monkeypatch.setattr(_response, "_BANDED_WORK_LIMIT", 0.0)
-    response = body.step_response(body_state, 0.005)
-    assert (response._banded is not None) == (path == "banded")
+    response = response_of(positions)
+    assert (response._banded is not None) == path.startswith("banded")
     assert (response._factor is not None) == (path == "sparse_lu")
     rng = np.random.default_rng(3)
     force = rng.standard_normal(mesh.points.shape)
@@ -242,3 +252,28 @@ def test_energy_momentum_rule_keeps_energy_and_both_momenta() -> None:
         drift[type(fem).__name__] = abs(body.total_energy(state) - energy) / energy
     assert drift["EnergyMomentumFem"] < 1e-8, drift
     assert drift["MidpointFem"] > 100 * drift["EnergyMomentumFem"], drift
+
+
+def test_energy_momentum_step_that_inverts_is_taken_by_newmarks_rule(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """When the midpoint-force step ends inverted, the step is Newmark's (gamma = 1/2 + c)
+    from the same start: state_out is exactly what NewmarkFem gives."""
+    from elastoflow.solid import EnergyMomentumFem, MidpointFem, SolidInversionError
+
+    body, state = _spinning_vibrating_disc(30.0)
+    dt = 0.005
+    fem = EnergyMomentumFem(damping=0.1)
+    response = fem.response(body, state, dt)
+
+    def inverted(*args, **kwargs):
+        raise SolidInversionError("inverted", step=1, substep=0, element=0, determinant=-1.0,
+                                  positions=state.positions)
+
+    monkeypatch.setattr(MidpointFem, "advance", inverted)
+    out = body.state()
+    fem.advance(body, state, out, dt, np.zeros_like(state.positions), response, step=1)
+    expected = body.state()
+    NewmarkFem(0.6).advance(body, state, expected, dt, np.zeros_like(state.positions),
+                            response, step=1)
+    np.testing.assert_array_equal(out.positions, expected.positions)
+    np.testing.assert_array_equal(out.velocities, expected.velocities)
