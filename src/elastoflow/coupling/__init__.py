@@ -9,7 +9,9 @@ stress integral). Static or rigidly moving obstacles (``Obstacle``) go through t
 How the fluid sees the bodies is a swappable part (``BoundaryTreatment``): ``BoundaryCutCell``
 (open fractions and cut distances, the default) or ``BoundaryStaircase`` (cells by their
 centres, faces open or closed: ``interior_boundary_staircase``). ``classify_points_brute_force``
-tests every grid point against every element, the cost the map avoids.
+tests every grid point against every element, the cost the map avoids. Bodies thinner than a
+cell, down to an open polyline of zero thickness (``obstacle_polyline``), cut the pressure
+connections their mid-line crosses (``elastoflow.coupling._thin``), so no fluid passes them.
 """
 
 from elastoflow.coupling._brute_force import classify_points_brute_force
@@ -31,6 +33,7 @@ from elastoflow.coupling._obstacle import (
     concatenate_boundaries,
     obstacle_circle,
     obstacle_pipe,
+    obstacle_polyline,
     obstacle_rectangle,
     polygon_signed_area,
 )
@@ -72,6 +75,7 @@ __all__ = [
     "interior_boundary_staircase",
     "obstacle_circle",
     "obstacle_pipe",
+    "obstacle_polyline",
     "obstacle_rectangle",
     "polygon_signed_area",
 ]

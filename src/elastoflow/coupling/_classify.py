@@ -7,6 +7,7 @@ import numpy as np
 
 from elastoflow.coupling import _kernels
 from elastoflow.coupling._map import BoundaryMap
+from elastoflow.coupling._thin import thin_cuts
 from elastoflow.fluid import InteriorBoundary
 from elastoflow.grid import Grid2D
 
@@ -163,7 +164,9 @@ def interior_boundary_from_map(
     * solid flags and body velocities: as ``classify_points``;
     * open fractions: the solid length of the segment of length h through each face,
       across the flow direction (u faces: the y-map column ``I = 2i``; v faces: the x-map row
-      ``J = 2j``);
+      ``J = 2j``); then 0 on the faces whose pressure connection a body thinner than a cell
+      cuts (`elastoflow.coupling._thin`), which also get that body's velocity normal to them
+      in ``velocity_faces_x`` / ``_y`` (whether or not their point is solid);
     * cut fractions and velocities in the four directions: u point ``(i h, (j+1/2) h)`` reads
       ±x from the x-map row ``J = 2j+1`` and ±y from the y-map column ``I = 2i``; v point
       ``((i+1/2) h, j h)`` reads ±x from the row ``J = 2j`` and ±y from the column
@@ -264,6 +267,15 @@ def interior_boundary_from_map(
                               boxes)
     _kernels.reconcile_cuts_y(out.solid_faces_y, out.velocity_faces_y, theta_y, cut_velocity_y,
                               boxes)
+    cuts = thin_cuts(grid, bmap)
+    if cuts.count:
+        # After the reconciliation, which reads the classification's face velocities.
+        velocity = cuts.velocities(bmap)
+        is_u = cuts.axis == 0
+        out.open_fraction_x[cuts.i[is_u], cuts.j[is_u]] = 0.0
+        out.velocity_faces_x[cuts.i[is_u], cuts.j[is_u]] = velocity[is_u]
+        out.open_fraction_y[cuts.i[~is_u], cuts.j[~is_u]] = 0.0
+        out.velocity_faces_y[cuts.i[~is_u], cuts.j[~is_u]] = velocity[~is_u]
     regions = out.regions
     if regions is not None and regions.flags.writeable and regions.shape[0] >= boxes.shape[0]:
         # Keep ``out`` itself (its old regions would be stale): spare rows get empty boxes.

@@ -18,6 +18,11 @@ uniform pressure exerts no net force and no torque. A face's velocity is taken w
 is, not interpolated along the line between the span's far crossings: a thin flag lying along
 a row of faces would otherwise hand the pressure on its sides to its two ends.
 
+A face whose pressure connection a body thinner than a cell cuts (`elastoflow.coupling._thin`)
+has open fraction 0 although its segment may lie in fluid: its row is the whole face's flux at
+the body velocity of the cut (the mean of two or four crossings), the velocity the explicit
+projection gives it too.
+
 The force of the cell pressures on the nodes is ``h W^T (p_low - p_high)`` per unit depth: the
 exact discrete counterpart (virtual work) of the flux, so that ``div`` and the force are
 adjoint.
@@ -34,6 +39,7 @@ from numba import njit
 from scipy import sparse
 
 from elastoflow.coupling._map import BoundaryMap
+from elastoflow.coupling._thin import ThinCuts, thin_cuts
 from elastoflow.fluid import OPEN_MIN, InteriorBoundary
 from elastoflow.grid import Grid2D
 from elastoflow.linalg import LowRankTerm
@@ -306,6 +312,9 @@ def interface_flux(grid: Grid2D, bmap: BoundaryMap, interior: InteriorBoundary,
     rows = np.repeat(sample_faces, 3)
     cols = (2 * nodes + component[:, None]).ravel()
     values = (weights * fractions[:, None]).ravel()
+    cuts = thin_cuts(grid, bmap)
+    if cuts.count:
+        rows, cols, values = _with_thin_cuts(grid, bmap, cuts, active, rows, cols, values)
     faces, row_of = np.unique(rows, return_inverse=True)
     matrix = sparse.csr_matrix(
         (values, (row_of, cols)), shape=(faces.shape[0], 2 * bmap.point_count)
@@ -337,6 +346,40 @@ def interface_flux(grid: Grid2D, bmap: BoundaryMap, interior: InteriorBoundary,
     high = np.where(high_valid, high, -1).astype(np.int64)
     return InterfaceFlux(grid, matrix, faces.astype(np.int64), low, high,
                          np.where(is_u, 0, 1).astype(np.int8))
+
+
+def _with_thin_cuts(grid: Grid2D, bmap: BoundaryMap, cuts: ThinCuts, active: np.ndarray,
+                    rows: np.ndarray, cols: np.ndarray,
+                    values: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Replace the rows of the faces a thin body cuts by the whole face's flux at the body
+    velocity the projection gives them (`ThinCuts.velocities`: the crossings' velocities,
+    each split between its edge's two nodes by the edge parameter)."""
+    nx, ny = grid.nx, grid.ny
+    u_faces = (nx + 1) * ny
+    is_u = cuts.axis == 0
+    flat = np.where(is_u, cuts.i * ny + cuts.j, u_faces + cuts.i * (ny + 1) + cuts.j)
+    kept = ~np.isin(rows, flat)
+    rows, cols, values = rows[kept], cols[kept], values[kept]
+    # ``active`` is padded by one cell: u face (i, j) joins cells (i-1, j) and (i, j).
+    near = np.where(is_u, active[cuts.i, cuts.j + 1] | active[cuts.i + 1, cuts.j + 1],
+                    active[cuts.i + 1, cuts.j] | active[cuts.i + 1, cuts.j + 1])
+    extra_rows, extra_cols, extra_values = [rows], [cols], [values]
+    for source, edge_of, parameter_of in ((0, bmap.x_edge, bmap.x_parameter),
+                                          (1, bmap.y_edge, bmap.y_parameter)):
+        for k in range(4):
+            chosen = np.flatnonzero(near & (cuts.source == source) & (cuts.entries[:, k] >= 0))
+            if not chosen.size:
+                continue
+            entry = cuts.entries[chosen, k]
+            edge = bmap.edges[edge_of[entry]]
+            t = parameter_of[entry]
+            weight = cuts.weights[chosen, k]
+            component = cuts.axis[chosen].astype(np.int64)
+            extra_rows += [flat[chosen], flat[chosen]]
+            extra_cols += [2 * edge[:, 0] + component, 2 * edge[:, 1] + component]
+            extra_values += [weight * (1.0 - t), weight * t]
+    return (np.concatenate(extra_rows), np.concatenate(extra_cols),
+            np.concatenate(extra_values))
 
 
 class BodyResponse(Protocol):

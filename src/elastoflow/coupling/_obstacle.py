@@ -46,43 +46,65 @@ def _polygon_centroid(polygon: np.ndarray) -> np.ndarray:
 
 @dataclass(frozen=True, eq=False)
 class Obstacle:
-    """A closed polygon with zero or prescribed rigid velocity, in the same boundary map as the
-    elastic bodies (METHOD.md §5.3).
+    """A closed polygon, or an open polyline of zero thickness (a plate, a membrane), with zero
+    or prescribed rigid velocity, in the same boundary map as the elastic bodies (METHOD.md
+    §5.3).
 
     The rest polygon is reoriented to counter-clockwise (body on the left of each edge) when
-    given clockwise. With a motion, the points at time t are
-    ``pivot + offset + R(angle) (x0 - pivot)`` and their velocities
+    given clockwise. An open polyline (``closed=False``) enters the map as the loop that runs
+    along it and back (each segment once in each direction): it encloses no area, so no grid
+    point is inside it and no face segment is covered, and only its crossings with the lines
+    through cell centres and between velocity points show it, which is what the thin-body cuts
+    (`elastoflow.coupling._thin`) and the cut distances read. With a motion, the points at time
+    t are ``pivot + offset + R(angle) (x0 - pivot)`` and their velocities
     ``velocity + angular_velocity * perp(x - pivot - offset)``.
 
     Attributes:
-        polygon: Rest vertices [m], shape (k, 2), k >= 3, stored counter-clockwise.
+        polygon: Rest vertices [m], shape (k, 2): a closed polygon, k >= 3, stored
+            counter-clockwise; or, with ``closed=False``, the polyline's points in order,
+            k >= 2, no two consecutive ones equal.
         motion: None (fixed), a ``RigidMotion``, or any callable ``motion(t) -> (offset (2,),
             angle, velocity (2,), angular_velocity)``.
         pivot: Rotation centre of the rest polygon [m], shape (2,) after construction; when
-            None, the motion's ``center`` if it has one, else the polygon centroid.
+            None, the motion's ``center`` if it has one, else the polygon centroid (the mean
+            of the points for a polyline).
+        closed: True for a polygon, False for an open polyline.
     """
 
     polygon: np.ndarray
     motion: Callable[[float], MotionState] | None = None
     pivot: np.ndarray | tuple[float, float] | None = None
+    closed: bool = True
 
     def __post_init__(self) -> None:
         polygon = np.array(self.polygon, dtype=np.float64)
-        if polygon.ndim != 2 or polygon.shape[1] != 2 or polygon.shape[0] < 3:
-            raise ValueError(f"obstacle polygon shape {polygon.shape}: must be (k, 2), k >= 3")
+        least = 3 if self.closed else 2
+        if polygon.ndim != 2 or polygon.shape[1] != 2 or polygon.shape[0] < least:
+            raise ValueError(
+                f"obstacle polygon shape {polygon.shape}: must be (k, 2), k >= {least}")
         if not np.all(np.isfinite(polygon)):
             raise ValueError("obstacle polygon: contains non-finite values; all must be finite")
-        area = polygon_signed_area(polygon)
-        if area == 0.0:
-            raise ValueError("obstacle polygon area 0: must enclose a positive area")
-        if area < 0.0:
-            polygon = polygon[::-1].copy()
+        if self.closed:
+            area = polygon_signed_area(polygon)
+            if area == 0.0:
+                raise ValueError("obstacle polygon area 0: must enclose a positive area")
+            if area < 0.0:
+                polygon = polygon[::-1].copy()
+        else:
+            repeated = np.flatnonzero(np.all(polygon[1:] == polygon[:-1], axis=1))
+            if repeated.size:
+                raise ValueError(
+                    f"obstacle polyline points {int(repeated[0])} and {int(repeated[0]) + 1}: "
+                    "equal; consecutive points must differ")
         polygon.setflags(write=False)
         object.__setattr__(self, "polygon", polygon)
         pivot = self.pivot
         center = getattr(self.motion, "center", None)
         if pivot is None:
-            pivot = center if center is not None else _polygon_centroid(polygon)
+            if center is not None:
+                pivot = center
+            else:
+                pivot = _polygon_centroid(polygon) if self.closed else polygon.mean(axis=0)
         object.__setattr__(self, "pivot", np.array(pivot, dtype=np.float64).reshape(2))
 
     @property
@@ -92,8 +114,13 @@ class Obstacle:
 
     @property
     def edges(self) -> np.ndarray:
-        """Closed loop of edges (i, i+1 mod k), body on the left, int64, shape (k, 2)."""
+        """Closed loop of edges (i, i+1 mod k), body on the left, int64, shape (k, 2); for a
+        polyline its k - 1 segments forwards, then the same backwards, shape (2k - 2, 2)."""
         k = self.point_count
+        if not self.closed:
+            first = np.arange(k - 1, dtype=np.int64)
+            forward = np.stack([first, first + 1], axis=1)
+            return np.concatenate([forward, forward[::-1, ::-1]])
         first = np.arange(k, dtype=np.int64)
         return np.stack([first, (first + 1) % k], axis=1)
 
@@ -149,6 +176,15 @@ def obstacle_rectangle(
         raise ValueError(f"obstacle rectangle {lower!r}-{upper!r}: upper must exceed lower")
     polygon = np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]], dtype=np.float64)
     return Obstacle(polygon, motion=motion)
+
+
+def obstacle_polyline(
+    points: np.ndarray | Sequence[tuple[float, float]],
+    motion: Callable[[float], MotionState] | None = None,
+) -> Obstacle:
+    """An open polyline of zero thickness through ``points`` [m], shape (k, 2), k >= 2: a
+    plate or a membrane that blocks the flow through it (`Obstacle` with ``closed=False``)."""
+    return Obstacle(np.asarray(points, dtype=np.float64), motion=motion, closed=False)
 
 
 def obstacle_pipe(

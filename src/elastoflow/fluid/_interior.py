@@ -18,12 +18,14 @@ class InteriorBoundary:
         solid_cells: Cell centre inside a body, bool, shape (nx, ny).
         solid_faces_x: u point inside a body, bool, shape (nx+1, ny).
         solid_faces_y: v point inside a body, bool, shape (nx, ny+1).
-        velocity_faces_x: Body x-velocity [m/s] at u points inside bodies, 0 elsewhere,
-            shape (nx+1, ny).
-        velocity_faces_y: Body y-velocity [m/s] at v points inside bodies, 0 elsewhere,
-            shape (nx, ny+1).
+        velocity_faces_x: Body x-velocity [m/s] at u points inside bodies and on faces with
+            open fraction exactly 0, 0 elsewhere, shape (nx+1, ny).
+        velocity_faces_y: Body y-velocity [m/s] at v points inside bodies and on faces with
+            open fraction exactly 0, 0 elsewhere, shape (nx, ny+1).
         open_fraction_x: Fraction in [0, 1] of the x-face (the segment of length h through the
-            u point, along y) that lies in fluid, shape (nx+1, ny).
+            u point, along y) that lies in fluid, shape (nx+1, ny); 0 also where a body
+            thinner than a cell separates the face's two cells without covering the segment
+            (the pressure connection is cut; the face carries ``velocity_faces_x``).
         open_fraction_y: Same for y-faces (segment along x through the v point),
             shape (nx, ny+1).
         cut_theta_x: For a u point, fraction of the spacing h towards its neighbour in

@@ -647,7 +647,9 @@ def _make_face_solid_velocity(loop):
             for j in range(n):
                 if not near[i + 1, j + 1]:
                     out[i, j] = 0.0
-                elif solid[i, j]:
+                elif solid[i, j] or open_fraction[i, j] == 0.0:
+                    # A fluid point on a face closed all along: a thin body cuts the face's
+                    # connection and says its velocity there.
                     out[i, j] = body_velocity[i, j]
                 elif open_fraction[i, j] < 1.0:
                     t_low = theta[across_low, i, j]
@@ -672,7 +674,8 @@ def face_solid_velocity(solid, body_velocity, open_fraction, theta, cut_velocity
                         near, out):
     """Body velocity component at every face that is not fully open, 0 elsewhere.
 
-    Faces whose point is inside a body take the body velocity there; partly open faces with
+    Faces whose point is inside a body, or that are closed all along (open fraction exactly
+    0: a body thinner than a cell cuts them), take ``body_velocity``; partly open faces with
     their point in fluid take the velocity at the nearer crossing along the face (directions
     ``across_low`` and ``across_low + 1``, within half a spacing). A point whose block
     ``near[i + 1, j + 1]`` (`near_regions`) is False is fully open: 0, body arrays unread.
