@@ -500,7 +500,8 @@ def validate(
                                          "dfg-2d-2, boundary-study.")],
     case: Annotated[str | None, typer.Argument(help="The benchmark's case: CFD1-3, CSM1-3, "
                                                "FSI1-3 (turek-hron); the study's part, "
-                                               "default all (boundary-study: poisson).")
+                                               "default all (boundary-study: poisson, "
+                                               "leakage).")
                     ] = None,
     resolution: Annotated[int, typer.Option(help="Benchmark: about this many cells per "
                                             "cylinder diameter (turek-hron) or metre "
@@ -645,18 +646,33 @@ def _dfg_benchmark(case: str | None, resolution: int, duration: float | None,
 
 def _boundary_study(part: str | None, out: Path) -> None:
     """Run the boundary study's parts (all, or the one named), print and write each."""
-    from elastoflow.validation import STUDY_PARTS, run_poisson_study, write_poisson_report
+    from elastoflow.validation import (
+        STUDY_PARTS,
+        run_leakage_study,
+        run_poisson_study,
+        write_leakage_report,
+        write_poisson_report,
+    )
     from elastoflow.validation._boundary_study import poisson_table
+    from elastoflow.validation._leakage_study import leakage_table
 
     if part is not None and part not in STUDY_PARTS:
         _fail(f"{part!r}: the boundary study's parts are {', '.join(STUDY_PARTS)}")
     _output_folder(out, "--out")
-    study = run_poisson_study()
-    orders = ", ".join(f"{name} {study.order(name):.2f}" for name in study.treatments)
-    _report_benchmark(
-        f"boundary study, accuracy: -lap u = f on a disk, du/dn = 0 ({study.seconds:.1f} s)",
-        [*poisson_table(study), f"observed order: {orders}"],
-        lambda: write_poisson_report(study, out), out, False)
+    if part in (None, "poisson"):
+        study = run_poisson_study()
+        orders = ", ".join(f"{name} {study.order(name):.2f}" for name in study.treatments)
+        _report_benchmark(
+            f"boundary study, accuracy: -lap u = f on a disk, du/dn = 0 "
+            f"({study.seconds:.1f} s)",
+            [*poisson_table(study), f"observed order: {orders}"],
+            lambda: write_poisson_report(study, out), out, False)
+    if part in (None, "leakage"):
+        leakage = run_leakage_study()
+        _report_benchmark(
+            f"boundary study, leakage: flux through a moving plate / (V H), worst offset "
+            f"({leakage.seconds:.1f} s)",
+            leakage_table(leakage), lambda: write_leakage_report(leakage, out), out, False)
 
 
 def _report_benchmark(title: str, quantities: list[str], write: Callable[[], list[Path]],

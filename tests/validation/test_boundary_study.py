@@ -83,6 +83,8 @@ def test_command_prints_and_writes(tmp_path: Path) -> None:
     result = CliRunner().invoke(app, ["validate", "boundary-study", "--out", str(tmp_path)])
     assert result.exit_code == 0, result.output
     assert "observed order: cut_cell" in result.output
-    assert (tmp_path / "boundary_study.md").exists()
+    assert "boundary study, leakage" in result.output
+    page = (tmp_path / "boundary_study.md").read_text()
+    assert "<!-- poisson-disk:begin -->" in page and "<!-- leakage:begin -->" in page
     wrong = CliRunner().invoke(app, ["validate", "boundary-study", "speed-of-light"])
     assert wrong.exit_code == 2 and "poisson" in wrong.output

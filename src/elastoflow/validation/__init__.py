@@ -10,7 +10,9 @@ writes its report; ``elastoflow validate dfg-2d-2`` does both.
 The boundary study (issue 13: the boundary map against the staircase boundary) is not a
 published benchmark but is run the same way: ``run_poisson_study()`` solves the pressure
 equation on a disk with both treatments, `write_poisson_report` writes its part of
-``docs/validation/boundary_study.md``; ``elastoflow validate boundary-study`` does both.
+``docs/validation/boundary_study.md``; ``run_leakage_study()`` measures the flux through a moving
+plate from 2 h thick to 0 (`plate_leakage`), `write_leakage_report` writes its part;
+``elastoflow validate boundary-study`` does both parts.
 """
 
 from elastoflow.validation._boundary_study import (
@@ -22,6 +24,12 @@ from elastoflow.validation._boundary_study import (
     run_poisson_study,
     solve_poisson_disk,
     write_poisson_report,
+)
+from elastoflow.validation._leakage_study import (
+    LeakageStudy,
+    plate_leakage,
+    run_leakage_study,
+    write_leakage_report,
 )
 from elastoflow.validation._dfg import (
     DfgResult,
@@ -60,6 +68,7 @@ __all__ = [
     "BENCHMARKS",
     "CASES",
     "FLAP_CASE",
+    "LeakageStudy",
     "REFERENCE",
     "STUDY_PARTS",
     "Case",
@@ -82,14 +91,17 @@ __all__ = [
     "format_quantities",
     "get_case",
     "observed_order",
+    "plate_leakage",
     "quantities_json",
     "rigid_flag_polygon",
     "run_case",
     "run_dfg",
+    "run_leakage_study",
     "run_flap",
     "run_poisson_study",
     "solve_poisson_disk",
     "write_dfg_report",
+    "write_leakage_report",
     "write_poisson_report",
     "write_report",
 ]

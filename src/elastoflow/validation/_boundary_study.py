@@ -457,6 +457,8 @@ def write_poisson_report(study: PoissonStudy, folder: str | Path) -> list[Path]:
     return [csv_path, png_path, document]
 
 
-STUDY_PARTS: tuple[str, ...] = ("poisson",)
+STUDY_PARTS: tuple[str, ...] = ("poisson", "leakage")
+"""The study's parts, in the order `elastoflow validate boundary-study` runs them (the
+leakage part lives in `elastoflow.validation._leakage_study`)."""
 """The parts `elastoflow validate boundary-study` can run (later: DFG 2D-1, spurious
 velocities, leakage, force smoothness, cost, stability)."""
