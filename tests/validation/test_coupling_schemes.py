@@ -141,6 +141,35 @@ def test_disc_pushed_by_a_force_feels_the_added_mass(ratio: float) -> None:
 
 
 @pytest.mark.slow
+@pytest.mark.parametrize("ratio", [1.0, 0.1])
+def test_disc_shaken_by_an_oscillating_force_feels_the_added_mass(ratio: float) -> None:
+    """A force ``m_s G sin(omega t)`` on the disc alone (the fluid without gravity) over one
+    period of 40 steps: in potential flow the disc's velocity is ``m_s / (m_s + m_a) G (1 -
+    cos omega t) / omega`` with ``m_a = rho_f pi R^2``, so its peak (half a period) is that
+    fraction of the free body's ``2 G / omega``. Within 3 % (measured -1.0 % and -1.8 % for
+    ratios 1 and 0.1; back to rest after the period within 0.3 % of the peak); the
+    displacement stays below a twentieth of a cell, so the geometry hardly changes."""
+    simulation, body = _disc(ratio, fluid_gravity=False)
+    steps, strength = 40, 0.2
+    omega = 2.0 * np.pi / (steps * DT)
+    mass = body.mass
+    velocities = []
+    for k in range(steps):
+        # The force held over step k is its mean over the step (the rules hold it constant).
+        t0, t1 = k * DT, (k + 1) * DT
+        mean = strength * (np.cos(omega * t0) - np.cos(omega * t1)) / (omega * DT)
+        body.gravity = np.array([0.0, mean])
+        simulation.step()
+        velocities.append(float((mass @ simulation.state.bodies[0].velocities)[1] / mass.sum()))
+    added = FLUID_DENSITY * np.pi * RADIUS**2
+    solid_mass = float(mass.sum())
+    expected = solid_mass / (solid_mass + added) * 2.0 * strength / omega
+    peak = velocities[steps // 2 - 1]
+    assert abs(peak - expected) <= 0.03 * expected, (peak, expected)
+    assert abs(velocities[-1]) <= 0.05 * expected, velocities[-1]
+
+
+@pytest.mark.slow
 def test_neutrally_buoyant_body_in_a_vortex_gains_no_energy() -> None:
     """A soft neutrally buoyant disc carried by an inviscid vortex in a free-slip box: the
     total (fluid kinetic + body kinetic + elastic) energy never rises above its start, and the
