@@ -18,7 +18,14 @@ import numpy as np
 from elastoflow.simulation._checks import check_fluid_finite, cfl_number
 from elastoflow.simulation._report import SimulationBlowUp, StepReport
 from elastoflow.simulation._state import CoupledModel, CoupledState, StepBoundary
-from elastoflow.solid import ElasticBody, EnergyMomentumFem, ExplicitFem, MidpointFem, NewmarkFem
+from elastoflow.solid import (
+    BodyModel,
+    ElasticBody,
+    EnergyMomentumFem,
+    ExplicitFem,
+    MidpointFem,
+    NewmarkFem,
+)
 
 if TYPE_CHECKING:
     from elastoflow.coupling import BoundaryMap
@@ -101,7 +108,7 @@ class ExplicitCoupling:
         self.added_mass_coefficient = float(added_mass)
         self._added_mass: dict[int, np.ndarray] = {}
 
-    def added_mass(self, body: ElasticBody, fluid_density: float) -> np.ndarray:
+    def added_mass(self, body: BodyModel, fluid_density: float) -> np.ndarray:
         """The nodal added-mass estimate of ``body`` [kg/m], shape (n,) (cached)."""
         key = id(body)
         if key not in self._added_mass:
@@ -186,6 +193,12 @@ class ExplicitCoupling:
                                     - state_in.previous_velocities[index]) / dt
                     force = force + extra[:, None] * acceleration
                 state_out.previous_velocities[index][...] = body_in.velocities
+                if not isinstance(body, ElasticBody):
+                    # Rods have no explicit substeps: their bending modes would need
+                    # substeps of O(h^2) (the monolithic scheme's implicit step has none).
+                    raise TypeError(f"body {index} is a {type(body).__name__}: the explicit "
+                                    "scheme advances triangle bodies only; use "
+                                    "coupling='monolithic'")
                 try:
                     report = self.fem.advance(body, body_in, body_out, dt, force,
                                               step=next_step, added_mass=extra)
@@ -409,7 +422,7 @@ def _intermediate_velocity(model: CoupledModel, state: CoupledState,
     seconds["forces"] = clock() - t0
 
 
-def _added_mass_estimate(body: ElasticBody, fluid_density: float,
+def _added_mass_estimate(body: BodyModel, fluid_density: float,
                          coefficient: float) -> np.ndarray:
     """Nodal added-mass estimate ``c rho_f l_i R`` [kg/m], shape (n,); 0 off the boundary.
 

@@ -17,7 +17,7 @@ from elastoflow.simulation._schemes import (
     ForceModel,
 )
 from elastoflow.simulation._state import CoupledModel, CoupledState
-from elastoflow.solid import ElasticBody
+from elastoflow.solid import BodyModel
 
 
 class Simulation:
@@ -34,7 +34,8 @@ class Simulation:
         grid: The MAC grid.
         fluid_solver: A `elastoflow.fluid.FluidSolver` on ``grid``.
         state: Initial fluid state (zeros if None).
-        bodies: Elastic bodies' models (`elastoflow.solid.ElasticBody`); each starts from its
+        bodies: Elastic bodies' models (`elastoflow.solid.ElasticBody`, or a rod,
+            `elastoflow.solid.RodBody`, under the monolithic scheme); each starts from its
             ``state()``.
         obstacles: Static or prescribed-motion obstacles (`elastoflow.coupling.Obstacle`).
         dt: Fluid time step [s].
@@ -61,7 +62,7 @@ class Simulation:
         fluid_solver: FluidSolver,
         *,
         state: FluidState | None = None,
-        bodies: Sequence[ElasticBody] = (),
+        bodies: Sequence[BodyModel] = (),
         obstacles: Sequence[Obstacle] = (),
         dt: float,
         substeps: int | Literal["auto"] = "auto",
@@ -114,7 +115,7 @@ class Simulation:
         return self.model.fluid
 
     @property
-    def bodies(self) -> tuple[ElasticBody, ...]:
+    def bodies(self) -> tuple[BodyModel, ...]:
         return self.model.bodies
 
     @property

@@ -24,7 +24,7 @@ import numpy as np
 from elastoflow.coupling import BoundaryCutCell, BoundaryMap, BoundaryTreatment, Obstacle
 from elastoflow.fluid import FluidSolver, FluidState, InteriorBoundary
 from elastoflow.grid import Grid2D
-from elastoflow.solid import BodyState, ElasticBody
+from elastoflow.solid import BodyModel, BodyState
 
 NOT_SAVED = {"checkpoint": False}
 """Field metadata of derived data a checkpoint leaves out (rebuilt by the next step)."""
@@ -199,7 +199,7 @@ class CoupledModel:
         grid: The MAC grid.
         fluid: The fluid solver: properties, boundary conditions, jets and the phases that
             advance a `FluidState`.
-        bodies: The elastic bodies' models.
+        bodies: The elastic bodies' models (triangle bodies and rods).
         obstacles: Static or prescribed-motion obstacles.
         boundary: How the fluid sees bodies and obstacles: `BoundaryCutCell` (open fractions
             and cut distances from the map, the default) or `BoundaryStaircase` (cells by
@@ -209,7 +209,7 @@ class CoupledModel:
 
     grid: Grid2D
     fluid: FluidSolver
-    bodies: tuple[ElasticBody, ...] = ()
+    bodies: tuple[BodyModel, ...] = ()
     obstacles: tuple[Obstacle, ...] = ()
     boundary: BoundaryTreatment = BoundaryCutCell()
 

@@ -41,17 +41,22 @@ from elastoflow.solid._mesh import (
     read_mesh,
 )
 from elastoflow.solid._response import StepResponse
+from elastoflow.solid._rod import BodyModel, MaterialRod, PolylineMesh, RodBody
 from elastoflow.solid._state import BodyState
 
 __all__ = [
     "DEFAULT_SAFETY",
+    "BodyModel",
     "BodyState",
     "ElasticBody",
     "ExplicitFem",
+    "MaterialRod",
     "MaterialStVK",
     "EnergyMomentumFem",
     "MidpointFem",
     "NewmarkFem",
+    "PolylineMesh",
+    "RodBody",
     "SolidInversionError",
     "SolidStepReport",
     "StepResponse",

@@ -1,7 +1,8 @@
 """What advances an elastic body's state: the FEM time integrators and the static solve.
 
 Each reads a `BodyState`, writes the result into another (or the same) one, and leaves both
-untouched when it fails. The body (`ElasticBody`) is the static model they read.
+untouched when it fails. The body (`ElasticBody`, or for the implicit steps also a rod,
+`RodBody`) is the static model they read.
 
 * `ExplicitFem`: symplectic Euler substeps under a force held over the step (METHOD §4, the
   paper's scheme; the explicit coupling uses it).
@@ -27,6 +28,7 @@ from elastoflow.solid._body import (
     SolidStepReport,
 )
 from elastoflow.solid._response import StepResponse
+from elastoflow.solid._rod import BodyModel
 from elastoflow.solid._state import BodyState
 
 Substeps = int | Literal["auto"]
@@ -179,7 +181,7 @@ class NewmarkFem:
         self.tolerance = float(tolerance)
         self.max_iterations = int(max_iterations)
 
-    def response(self, body: ElasticBody, state: BodyState, dt: float) -> StepResponse:
+    def response(self, body: BodyModel, state: BodyState, dt: float) -> StepResponse:
         """The answer of `advance` to a force held over the step, at the state's positions:
         mean velocity ``dt/2 A^-1 f`` with ``A = M + gamma dt (D + alpha M) + beta dt^2 K``
         (end velocity twice that)."""
@@ -188,7 +190,7 @@ class NewmarkFem:
                                 0.5 * dt)
 
     def advance(
-        self, body: ElasticBody, state_in: BodyState, state_out: BodyState, dt: float,
+        self, body: BodyModel, state_in: BodyState, state_out: BodyState, dt: float,
         external_forces: np.ndarray, response: StepResponse, *, step: int | None = None,
     ) -> SolidStepReport:
         """Advance ``state_in`` by ``dt`` [s] into ``state_out`` (may be ``state_in``).
@@ -261,17 +263,17 @@ class MidpointFem:
         self.tolerance = float(tolerance)
         self.max_iterations = int(max_iterations)
 
-    def response(self, body: ElasticBody, state: BodyState, dt: float) -> StepResponse:
+    def response(self, body: BodyModel, state: BodyState, dt: float) -> StepResponse:
         """The answer of `advance` to a force held over the step, at the state's positions:
         mean velocity ``dt/2 A^-1 f`` (end velocity twice that)."""
         return body.response_at(state.positions, 0.5 * dt, 0.5 * dt, 0.5 * dt)
 
-    def _extra_forces(self, body: ElasticBody, middle: np.ndarray, rate: np.ndarray,
+    def _extra_forces(self, body: BodyModel, middle: np.ndarray, rate: np.ndarray,
                       dt: float) -> np.ndarray:
         return np.zeros_like(middle)
 
     def advance(
-        self, body: ElasticBody, state_in: BodyState, state_out: BodyState, dt: float,
+        self, body: BodyModel, state_in: BodyState, state_out: BodyState, dt: float,
         external_forces: np.ndarray, response: StepResponse, *, step: int | None = None,
     ) -> SolidStepReport:
         """Advance ``state_in`` by ``dt`` [s] into ``state_out`` (may be ``state_in``); as
@@ -332,18 +334,18 @@ class EnergyMomentumFem(MidpointFem):
             raise ValueError(f"damping = {damping!r}: must be a finite number >= 0")
         self.damping = float(damping)
 
-    def response(self, body: ElasticBody, state: BodyState, dt: float) -> StepResponse:
+    def response(self, body: BodyModel, state: BodyState, dt: float) -> StepResponse:
         # The numerical Voigt damping c dt (lambda, mu) adds c dt^2 / 2 to the stiffness's
         # dt^2 / 4 in the step's matrix.
         stiffness = dt * np.sqrt(0.25 + 0.5 * self.damping)
         return body.response_at(state.positions, 0.5 * dt, stiffness, 0.5 * dt)
 
-    def _extra_forces(self, body: ElasticBody, middle: np.ndarray, rate: np.ndarray,
+    def _extra_forces(self, body: BodyModel, middle: np.ndarray, rate: np.ndarray,
                       dt: float) -> np.ndarray:
         return body.viscous_forces_at(middle, rate, self.damping * dt)
 
     def advance(
-        self, body: ElasticBody, state_in: BodyState, state_out: BodyState, dt: float,
+        self, body: BodyModel, state_in: BodyState, state_out: BodyState, dt: float,
         external_forces: np.ndarray, response: StepResponse, *, step: int | None = None,
     ) -> SolidStepReport:
         """As `MidpointFem.advance`; a step whose end inverts an element is taken again by
@@ -364,7 +366,7 @@ class EnergyMomentumFem(MidpointFem):
                 body, state_in, state_out, dt, external_forces, response, step=step)
 
 
-def _checked_forces(body: ElasticBody, external_forces: np.ndarray) -> np.ndarray:
+def _checked_forces(body: BodyModel, external_forces: np.ndarray) -> np.ndarray:
     n = body.point_count
     forces = np.ascontiguousarray(external_forces, dtype=np.float64)
     if forces.shape != (n, 2) or not np.all(np.isfinite(forces)):
@@ -373,7 +375,7 @@ def _checked_forces(body: ElasticBody, external_forces: np.ndarray) -> np.ndarra
 
 
 def _implicit_step(
-    body: ElasticBody, state_in: BodyState, state_out: BodyState, dt: float,
+    body: BodyModel, state_in: BodyState, state_out: BodyState, dt: float,
     residual: Callable[[np.ndarray], np.ndarray], response: StepResponse,
     tangent_at: Callable[[np.ndarray], StepResponse], tolerance: float, max_iterations: int,
     step: int | None,
@@ -444,7 +446,7 @@ def _implicit_step(
     )
 
 
-def static_equilibrium(body: ElasticBody, state: BodyState,
+def static_equilibrium(body: BodyModel, state: BodyState,
                        external_forces: np.ndarray | None = None, *,
                        tolerance: float = 1e-10, max_iterations: int = 100) -> int:
     """Move ``state`` to rest under the body's elastic forces, gravity and ``external_forces``.
