@@ -28,6 +28,7 @@ from elastoflow.io._folder import OutputFolderBusy, folder_name, lock_output_fol
 from elastoflow.io._fields import FIELD_FORMATS, FieldWriter, saved_frames, snapshot_arrays
 from elastoflow.io._meshes import (
     boundary_edges_of,
+    extrude_polyline,
     extrude_surface,
     write_extruded_meshes,
     write_obj,
@@ -54,6 +55,7 @@ __all__ = [
     "boundary_edges_of",
     "checkpoint_path",
     "checkpoints_by_step",
+    "extrude_polyline",
     "extrude_surface",
     "find_resume_checkpoint",
     "folder_name",

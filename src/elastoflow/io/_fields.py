@@ -33,7 +33,8 @@ def snapshot_arrays(grid: Any, state: Any, bodies: Sequence[tuple[Any, Any]] = (
     ``velocity_y`` (nx, ny+1), ``pressure``, ``dye``, ``vorticity`` [1/s], ``solid`` (bool), all
     (nx, ny) unless stated; ``time`` [s], ``step``, ``h`` [m], ``origin`` (2,);
     ``body{k}_points`` (n, 2) [m], ``body{k}_triangles`` (m, 3), ``body{k}_velocities`` (n, 2);
-    ``obstacle{k}_points`` (p, 2) [m].
+    ``obstacle{k}_points`` (p, 2) [m]. A rod has no triangles (m = 0): its points are its
+    polyline in order (VTK: line cells).
 
     ``state`` is the fluid state, ``bodies`` a (model, `elastoflow.solid.BodyState`) pair
     per body.
@@ -261,8 +262,14 @@ class FieldWriter:
             points = data[f"body{k}_points"]
             zeros = np.zeros((len(points), 1))
             velocities = data[f"body{k}_velocities"]
-            body = meshio.Mesh(np.hstack((points, zeros)),
-                               [("triangle", data[f"body{k}_triangles"])],
+            triangles = data[f"body{k}_triangles"]
+            if len(triangles):
+                cells = [("triangle", triangles)]
+            else:
+                # A rod: its polyline as line cells, which ParaView draws (and tubes).
+                first = np.arange(len(points) - 1)
+                cells = [("line", np.column_stack((first, first + 1)))]
+            body = meshio.Mesh(np.hstack((points, zeros)), cells,
                                point_data={"velocity": np.hstack((velocities, zeros))})
             with atomic_path(self.folder / f"body{k}_{step:06d}.vtu") as temporary:
                 meshio.write(temporary, body, file_format="vtu")

@@ -1,4 +1,9 @@
-"""Body meshes extruded to 3D prisms (pseudo-3D, paper Fig. 7), as OBJ or PLY surfaces."""
+"""Body meshes extruded to 3D prisms (pseudo-3D, paper Fig. 7), as OBJ or PLY surfaces.
+
+A rod (a body without triangles) becomes a ribbon: its polyline swept along z, a sheet of
+zero thickness as the fluid sees it, in the same files and formats, so that Blender or
+ParaView shows reeds and triangle bodies alike.
+"""
 
 from __future__ import annotations
 
@@ -49,6 +54,31 @@ def extrude_surface(points: np.ndarray, triangles: np.ndarray,
     return vertices, np.concatenate((bottom, top, sides))
 
 
+def extrude_polyline(points: np.ndarray, thickness: float) -> tuple[np.ndarray, np.ndarray]:
+    """The ribbon ``polyline x [-thickness/2, thickness/2]``: two triangles per segment.
+
+    Args:
+        points: The polyline's nodes in order (n, 2) [m].
+        thickness: Extent along z [m].
+
+    Returns:
+        ``(vertices (2n, 3), faces (2(n - 1), 3))``: bottom nodes first, then top nodes; the
+        faces' normals point to the polyline's right (an open sheet has no outside).
+    """
+    points = np.asarray(points, dtype=np.float64)
+    n = points.shape[0]
+    half = 0.5 * thickness
+    vertices = np.empty((2 * n, 3))
+    vertices[:n, :2] = points
+    vertices[:n, 2] = -half
+    vertices[n:, :2] = points
+    vertices[n:, 2] = half
+    a = np.arange(n - 1, dtype=np.int64)
+    b = a + 1
+    faces = np.concatenate((np.column_stack((a, b, b + n)), np.column_stack((a, b + n, a + n))))
+    return vertices, faces
+
+
 def write_obj(path: str | Path, vertices: np.ndarray, faces: np.ndarray) -> None:
     """Wavefront OBJ (vertices and triangular faces), written atomically."""
     lines = ["# elastoflow extruded body mesh"]
@@ -75,11 +105,15 @@ MESH_WRITERS = {"obj": write_obj, "ply": write_ply}
 
 def write_extruded_meshes(folder: str | Path, frame: int, meshes: list[tuple[np.ndarray, np.ndarray]],
                           thickness: float, file_format: str = "obj") -> list[Path]:
-    """One file per body, ``folder/body{k}_{frame:06d}.{format}``; returns the paths."""
+    """One file per body, ``folder/body{k}_{frame:06d}.{format}``: a triangle body's
+    prism, a rod's ribbon (a body whose triangles are (0, 3)); returns the paths."""
     writer = MESH_WRITERS[file_format]
     paths = []
     for index, (points, triangles) in enumerate(meshes):
         path = Path(folder) / f"body{index}_{frame:06d}.{file_format}"
-        writer(path, *extrude_surface(points, triangles, thickness))
+        if len(triangles):
+            writer(path, *extrude_surface(points, triangles, thickness))
+        else:
+            writer(path, *extrude_polyline(points, thickness))
         paths.append(path)
     return paths

@@ -71,6 +71,33 @@ def _body_geometry(body: Any) -> tuple[np.ndarray, np.ndarray]:
     return np.asarray(points, dtype=np.float64), np.asarray(triangles, dtype=np.int64)
 
 
+ROD_CORE_RADIUS = 1
+"""Half-width [pixels] of a rod's body-coloured core; its dark rim adds one pixel each side,
+so a rod is 5 pixels wide at any scale: a line of zero thickness must still show in a video."""
+
+
+def _draw_polyline(image: np.ndarray, pixels: np.ndarray, radius: int,
+                   color: np.ndarray) -> None:
+    """The polyline through ``pixels`` (n, 2), ``2 radius + 1`` pixels wide: the one-pixel
+    segments drawn again at every offset within ``radius`` (a disc of offsets, so turns and
+    ends come out round)."""
+    starts, ends = pixels[:-1], pixels[1:]
+    for dx in range(-radius, radius + 1):
+        for dy in range(-radius, radius + 1):
+            if dx * dx + dy * dy <= radius * radius + radius:
+                offset = np.array([dx, dy], dtype=np.float64)
+                draw_segments(image, starts + offset, ends + offset, color)
+
+
+def _draw_rod(image: np.ndarray, pixels: np.ndarray) -> None:
+    """A body without triangles (a rod, `elastoflow.solid.RodBody`) as its polyline in the
+    body colour with a dark rim, as triangle bodies are filled and outlined."""
+    if pixels.shape[0] < 2:
+        return
+    _draw_polyline(image, pixels, ROD_CORE_RADIUS + 1, BODY_EDGE_COLOR)
+    _draw_polyline(image, pixels, ROD_CORE_RADIUS, BODY_FILL_COLOR)
+
+
 def _obstacle_outline(obstacle: Any, time: float) -> np.ndarray:
     if hasattr(obstacle, "points_at"):
         return np.asarray(obstacle.points_at(time), dtype=np.float64)
@@ -100,14 +127,16 @@ def render_frame(
     """Draw the fluid field with bodies and obstacles on top.
 
     The field is coloured cell by cell through a lookup table; body triangles are filled and
-    their edges drawn; obstacles are filled; the elapsed time is written in the top-left corner
+    their edges drawn; bodies without triangles (rods) are drawn as their polyline, 5 pixels
+    wide; obstacles are filled; the elapsed time is written in the top-left corner
     and a colour bar with its range sits on the right.
 
     Args:
         grid: The `Grid2D`.
         state: Fluid state (``velocity_x``, ``velocity_y``, ``pressure``, ``dye``).
         bodies: Elastic bodies (``positions`` and ``mesh.triangles``) or ``(points (n, 2),
-            triangles (m, 3))`` pairs [m].
+            triangles (m, 3))`` pairs [m]; a rod has no triangles (m = 0) and its points are
+            its polyline in order.
         obstacles: Obstacles (with ``points_at(time)``) or outlines (k, 2) [m].
         view: ``"speed"``, ``"vorticity"``, ``"pressure"`` or ``"dye"``.
         time: Elapsed time [s] to print; nothing printed when None.
@@ -166,6 +195,9 @@ def render_frame(
     for body in bodies:
         points, triangles = _body_geometry(body)
         pixels = to_pixels(points)
+        if triangles.shape[0] == 0:
+            _draw_rod(field, pixels)
+            continue
         fill_triangles(field, pixels, triangles, BODY_FILL_COLOR)
         draw_triangle_edges(field, pixels, triangles, BODY_EDGE_COLOR)
 

@@ -22,6 +22,7 @@ from elastoflow.scenes._schema import (
     PolygonShapeSpec,
     RectangleObstacleSpec,
     RectangleShapeSpec,
+    RodBodySpec,
     Scene,
     WindmillShapeSpec,
 )
@@ -313,8 +314,34 @@ def _read_mesh_file(shape: MeshFileShapeSpec, base_dir: str | None) -> Any:
                           f"{error}")]) from None
 
 
+def build_rod(scene: Scene, index: int) -> Any:
+    """Body ``index`` of the scene, a rod spec, as an `elastoflow.solid.RodBody` at rest.
+
+    Raises:
+        SceneError: A material or line the rod refuses (named by its key path).
+    """
+    from elastoflow import solid
+
+    spec = scene.bodies[index]
+    assert isinstance(spec, RodBodySpec)
+    m = spec.material
+    try:
+        material = solid.MaterialRod(
+            density=m.density, young_modulus=m.young_modulus, thickness=m.thickness,
+            bending_stiffness=m.bending_stiffness, damping_time=m.damping_time,
+        )
+    except ValueError as error:
+        raise SceneError([f"bodies.{index}.material: {error}"], scene.source) from None
+    try:
+        return solid.RodBody(spec.shape.nodes(), material, clamped=tuple(spec.clamped),
+                             gravity=scene.fluid.gravity)
+    except ValueError as error:
+        raise SceneError([f"bodies.{index}.shape: {error}"], scene.source) from None
+
+
 def build_bodies(scene: Scene) -> list[Any]:
-    """The scene's elastic bodies (`elastoflow.solid.ElasticBody`), in order, at rest.
+    """The scene's bodies in order, at rest: `elastoflow.solid.ElasticBody` for triangle
+    shapes, `elastoflow.solid.RodBody` for rods.
 
     Raises:
         SceneError: A shape that cannot be meshed or read, a constraint that selects no node or
@@ -324,6 +351,9 @@ def build_bodies(scene: Scene) -> list[Any]:
 
     bodies = []
     for index, spec in enumerate(scene.bodies):
+        if isinstance(spec, RodBodySpec):
+            bodies.append(build_rod(scene, index))
+            continue
         try:
             mesh = build_mesh(spec, scene.base_dir)
         except SceneError as error:

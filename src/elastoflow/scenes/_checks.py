@@ -30,6 +30,8 @@ from elastoflow.scenes._schema import (
     PolygonObstacleSpec,
     PolygonShapeSpec,
     RectangleShapeSpec,
+    RodBodySpec,
+    RodShapeSpec,
     Scene,
     WindmillShapeSpec,
 )
@@ -127,6 +129,28 @@ def check_numerics(scene: Scene) -> list[str]:
     return []
 
 
+def check_rods(scene: Scene) -> list[str]:
+    """Rods need the monolithic scheme and the cut-cell boundary: the explicit scheme's
+    substeps cannot advance a rod (its bending modes would need substeps of O(h^2)), and the
+    staircase boundary flags cells by their centres, which a line of zero thickness never
+    covers, so the fluid would flow through it."""
+    problems = []
+    for index, body in enumerate(scene.bodies):
+        if not isinstance(body, RodBodySpec):
+            continue
+        if scene.coupling.scheme == "explicit":
+            problems.append(
+                f"bodies.{index}.shape = rod: needs coupling.scheme = \"monolithic\" (the "
+                "explicit scheme advances triangle bodies only); leave coupling.scheme out or "
+                "set it \"monolithic\"")
+        elif scene.coupling.boundary == "staircase":
+            problems.append(
+                f"bodies.{index}.shape = rod: needs coupling.boundary = \"cut_cell\" (the "
+                "staircase boundary flags cells by their centres, which a rod never covers, so "
+                "the fluid would flow through it)")
+    return problems
+
+
 # --------------------------------------------------------------------------------------------
 # polygons and shapes written in the scene
 
@@ -162,6 +186,16 @@ def _polygon_problems(key: str, points: Sequence[tuple[float, float]]) -> list[s
     return []
 
 
+def _rod_problems(key: str, points: Sequence[tuple[float, float]]) -> list[str]:
+    line = np.asarray(points, dtype=np.float64)
+    repeated = np.flatnonzero(np.all(line[1:] == line[:-1], axis=1))
+    if repeated.size:
+        k = int(repeated[0])
+        return [(f"{key}.{k + 1} = [{line[k, 0]:g}, {line[k, 1]:g}]: repeats point {k}; "
+                 "consecutive points of a rod must differ")]
+    return []
+
+
 def _points_text(polygon: np.ndarray) -> str:
     text = "[" + ", ".join(f"[{x:g}, {y:g}]" for x, y in polygon.tolist()) + "]"
     return text if len(text) <= 60 else text[:57] + "..."
@@ -177,6 +211,8 @@ def check_outlines(scene: Scene) -> list[str]:
         shape = body.shape
         if isinstance(shape, PolygonShapeSpec):
             problems += _polygon_problems(f"bodies.{index}.shape.points", shape.points)
+        elif isinstance(shape, RodShapeSpec):
+            problems += _rod_problems(f"bodies.{index}.shape.points", shape.points)
         elif isinstance(shape, WindmillShapeSpec):
             half = 0.5 * shape.blade_width
             root = math.asin(half / shape.hub_radius) if half < shape.hub_radius else math.inf
@@ -249,7 +285,11 @@ def memory_estimate(scene: Scene) -> tuple[float, list[tuple[str, float]]]:
     ]
     for index, body in enumerate(scene.bodies):
         elements = _mesh_elements(body.shape)
-        if isinstance(body.shape, RectangleShapeSpec):
+        if isinstance(body.shape, RodShapeSpec):
+            # A rod's node costs about what a triangle does (its band and the map's edges).
+            elements = float(body.shape.segments or len(body.shape.points))
+            key = f"bodies.{index}.shape.segments = {body.shape.segments}"
+        elif isinstance(body.shape, RectangleShapeSpec):
             key = f"bodies.{index}.shape.divisions = {list(body.shape.divisions)}"
         else:
             key = f"bodies.{index}.shape.element_size = {getattr(body.shape, 'element_size', None)}"
@@ -412,6 +452,9 @@ def check_built(scene: Scene, grid: Any, meshes: Sequence[Any], obstacles: Seque
                             f"{how} outside the domain; it {inside_text}")
             continue
         starts, ends = outlines[index]
+        if mesh.triangle_count == 0:
+            # A rod: zero thickness by design, blocked by the thin-body cuts.
+            continue
         width = _inscribed_width(mesh, starts, ends)
         if width < MIN_CELLS_ACROSS * h:
             problems.append(

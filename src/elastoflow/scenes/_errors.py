@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import re
 import types
 import typing
 from collections.abc import Sequence
@@ -63,6 +64,9 @@ def _model_at(loc: tuple[Any, ...]) -> type[BaseModel] | None:
 
 
 def _tag(model: type[BaseModel]) -> str | None:
+    label = getattr(model, "union_tag", None)
+    if isinstance(label, str):
+        return label
     for name in ("type", "shape"):
         field = model.model_fields.get(name)
         if field is not None and isinstance(field.default, str):
@@ -185,8 +189,12 @@ def format_validation_error(error: ValidationError) -> list[str]:
         elif kind == "union_tag_invalid":
             ctx = item.get("ctx", {})
             discriminator = ctx.get("discriminator", "type").strip(chr(39))
+            expected = ctx.get("expected_tags")
+            if re.fullmatch(r"bodies\.\d+\.shape", path):
+                # A rod is a body model of its own (RodBodySpec), chosen by this same key.
+                expected = f"{expected}, 'rod'"
             problems.append((f"{path}.{discriminator}", _show(ctx.get("tag")),
-                             f"unknown kind (allowed: {ctx.get('expected_tags')})"))
+                             f"unknown kind (allowed: {expected})"))
         elif kind == "union_tag_not_found":
             ctx = item.get("ctx", {})
             problems.append((path, None, f"missing key {ctx.get('discriminator', 'type')}"))
@@ -262,9 +270,10 @@ def check_scene(scene: Scene) -> list[str]:
     """Cross-field problems pydantic cannot see: geometry outside the domain, bad references,
     polygons that are not simple, a closed domain whose inflows do not balance, numerical
     choices that contradict each other."""
-    from elastoflow.scenes._checks import check_flow, check_numerics, check_outlines
+    from elastoflow.scenes._checks import check_flow, check_numerics, check_outlines, check_rods
 
-    problems: list[str] = check_flow(scene) + check_outlines(scene) + check_numerics(scene)
+    problems: list[str] = (check_flow(scene) + check_outlines(scene) + check_numerics(scene)
+                           + check_rods(scene))
     domain = scene.domain.bounds
     if not all(math.isfinite(c) for c in domain):
         return problems + [(f"domain.origin = {_show(list(scene.domain.origin))}: with lx = "

@@ -10,16 +10,18 @@ densities in kg/m^3, moduli in Pa.
 from __future__ import annotations
 
 import math
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any, ClassVar, Literal
 
 from pydantic import (
     BaseModel,
     ConfigDict,
+    Discriminator,
     Field,
     NonNegativeFloat,
     PositiveFloat,
     PositiveInt,
     Strict,
+    Tag,
     field_validator,
     model_validator,
 )
@@ -422,12 +424,133 @@ class FixedSpec(_Spec):
 class BodySpec(_Spec):
     """An elastic body: its shape, material and constraints."""
 
+    union_tag: ClassVar[str] = "elastic"
+    """Its label among the body kinds (`RodBodySpec`), for error messages."""
+
     name: str | None = None
     shape: ShapeSpec
     material: MaterialSpec
     fixed: FixedSpec | None = None
     pivot: Point | None = None
     """The node nearest this point [m] is pinned; the body rotates freely about it."""
+
+
+MAX_ROD_SEGMENTS = 10_000
+"""Most segments of one rod. Its implicit step factors a band of width 12 per node; more
+segments than the grid has cells along the rod add cost and no accuracy the fluid can see."""
+
+
+class RodShapeSpec(_Spec):
+    """A rod's rest line: a polyline through ``points``, open (its ends are the rod's ends).
+
+    The fluid sees it with zero thickness (`elastoflow.solid.RodBody`): it blocks the flow at
+    any position on the grid, however thin its ``material.thickness``.
+    """
+
+    type: Literal["rod"] = "rod"
+    points: Annotated[list[Point], Field(min_length=2, max_length=MAX_POLYGON_POINTS),
+                      Strict(False)]
+    """Vertices [m] from the rod's start to its end, each once."""
+    segments: Annotated[int, Field(ge=1, le=MAX_ROD_SEGMENTS)] | None = None
+    """Segments of the rod: nodes at equal arc length along the polyline (its corners are
+    kept only where a node falls on them); None: the ``points`` are the nodes."""
+
+    def bounds(self) -> Box | None:
+        xs = [p[0] for p in self.points]
+        ys = [p[1] for p in self.points]
+        return (min(xs), min(ys), max(xs), max(ys))
+
+    def nodes(self) -> list[tuple[float, float]]:
+        """The rod's rest nodes [m], ``segments + 1`` of them (or the points)."""
+        if self.segments is None:
+            return list(self.points)
+        xs = [p[0] for p in self.points]
+        ys = [p[1] for p in self.points]
+        lengths = [math.hypot(xs[k + 1] - xs[k], ys[k + 1] - ys[k]) for k in range(len(xs) - 1)]
+        arc = [0.0]
+        for length in lengths:
+            arc.append(arc[-1] + length)
+        nodes = []
+        piece = 0
+        for index in range(self.segments + 1):
+            s = arc[-1] * index / self.segments
+            while piece < len(lengths) - 1 and arc[piece + 1] < s:
+                piece += 1
+            t = 0.0 if lengths[piece] == 0.0 else min(1.0, (s - arc[piece]) / lengths[piece])
+            nodes.append((xs[piece] + t * (xs[piece + 1] - xs[piece]),
+                          ys[piece] + t * (ys[piece + 1] - ys[piece])))
+        nodes[-1] = (xs[-1], ys[-1])
+        return nodes
+
+
+class RodMaterialSpec(_Spec):
+    """A rod's material and cross-section, per unit depth: the rod is a plate of
+    ``thickness`` seen edge on (`elastoflow.solid.MaterialRod`).
+
+    Mass per length ``density * thickness`` [kg/m^2]; stretching stiffness ``EA = E t``
+    [N/m]; bending stiffness ``EI = E t^3 / 12`` [N m] unless ``bending_stiffness`` is given.
+    """
+
+    density: PositiveFloat
+    """Density of the rod's material [kg/m^3]."""
+    young_modulus: PositiveFloat
+    """Young's modulus E [Pa] (a plate in plane strain: E / (1 - nu^2))."""
+    thickness: PositiveFloat
+    """Thickness t [m]: sets the mass and stiffnesses only (the fluid sees a line)."""
+    bending_stiffness: NonNegativeFloat | None = None
+    """Flexural rigidity EI per unit depth [N m] instead of ``E t^3 / 12``; 0: a string."""
+    damping_time: NonNegativeFloat = 0.0
+    """Kelvin-Voigt relaxation time [s]: viscous forces are the elastic ones of the strain
+    rate times this (stretching and bending)."""
+
+
+RodEnd = Literal["start", "end"]
+
+
+class RodBodySpec(_Spec):
+    """An elastic rod (``shape.type = "rod"``): a polyline with stretching and bending
+    stiffness, its ends free or clamped. Advanced by the monolithic scheme only."""
+
+    union_tag: ClassVar[str] = "rod"
+    """Its label among the body kinds (`BodySpec`), for error messages."""
+    fixed: ClassVar[None] = None
+    """A rod is held by ``clamped``; None here, so that code reading any body's ``fixed`` or
+    ``pivot`` passes rods by."""
+    pivot: ClassVar[None] = None
+
+    name: str | None = None
+    shape: RodShapeSpec
+    material: RodMaterialSpec
+    clamped: Annotated[list[RodEnd], Field(max_length=2), Strict(False)] = Field(
+        default_factory=list)
+    """Ends held in place and in direction (their rest tangent): ``"start"`` (the first
+    point), ``"end"`` (the last); free when left out."""
+
+    @field_validator("clamped")
+    @classmethod
+    def _each_once(cls, value: list[RodEnd]) -> list[RodEnd]:
+        if len(set(value)) != len(value):
+            raise ValueError("lists an end twice; give each of \"start\", \"end\" once")
+        return value
+
+
+def _body_kind(value: Any) -> str:
+    """Which body model reads a ``[[bodies]]`` table: a rod shape makes it a rod."""
+    if isinstance(value, RodBodySpec):
+        return "rod"
+    if isinstance(value, dict):
+        shape = value.get("shape")
+        if isinstance(shape, RodShapeSpec) or (isinstance(shape, dict)
+                                               and shape.get("type") == "rod"):
+            return "rod"
+    return "elastic"
+
+
+AnyBodySpec = Annotated[
+    Annotated[BodySpec, Tag("elastic")] | Annotated[RodBodySpec, Tag("rod")],
+    Discriminator(_body_kind),
+]
+"""A ``[[bodies]]`` table: a triangle body, or a rod when its shape's type is "rod"."""
 
 
 # --------------------------------------------------------------------------------------------
@@ -617,7 +740,7 @@ class Scene(_Spec):
     boundaries: BoundariesSpec = Field(default_factory=BoundariesSpec)
     jets: Annotated[list[JetSpec], Strict(False)] = Field(default_factory=list)
     obstacles: Annotated[list[ObstacleSpec], Strict(False)] = Field(default_factory=list)
-    bodies: Annotated[list[BodySpec], Strict(False)] = Field(default_factory=list)
+    bodies: Annotated[list[AnyBodySpec], Strict(False)] = Field(default_factory=list)
     time: TimeSpec
     coupling: CouplingSpec = Field(default_factory=CouplingSpec)
     outputs: OutputsSpec = Field(default_factory=OutputsSpec)

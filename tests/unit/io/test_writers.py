@@ -15,6 +15,7 @@ from elastoflow.io import (
     FieldWriter,
     ProbeRecorder,
     atomic_path,
+    extrude_polyline,
     extrude_surface,
     latest_checkpoint,
     load_checkpoint,
@@ -141,6 +142,28 @@ def test_extruded_mesh_files_read_back(tmp_path, file_format: str) -> None:
     mesh = meshio.read(path)
     assert mesh.points.shape == (10, 3)
     assert sum(len(block.data) for block in mesh.cells) == 2 * 4 + 2 * 4
+
+
+def test_rod_is_a_ribbon_in_mesh_files_and_lines_in_vtk(tmp_path) -> None:
+    line = np.array([[0.1, 0.0], [0.1, 0.2], [0.2, 0.3]])
+    vertices, faces = extrude_polyline(line, 0.1)
+    a, b, c = vertices[faces[:, 0]], vertices[faces[:, 1]], vertices[faces[:, 2]]
+    area = 0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1).sum()
+    assert area == pytest.approx((0.2 + np.hypot(0.1, 0.1)) * 0.1, rel=1e-12)
+    empty = np.zeros((0, 3), np.int64)
+    (path,) = write_extruded_meshes(tmp_path, 3, [(line, empty)], 0.1, "obj")
+    assert sum(len(block.data) for block in meshio.read(path).cells) == 4
+
+    grid = Grid2D(4, 4, 0.25)
+    rod = SimpleNamespace(mesh=SimpleNamespace(triangles=empty))
+    state = SimpleNamespace(positions=line, velocities=np.zeros_like(line))
+    fluid = _fake_simulation(grid).state.fluid
+    writer = FieldWriter(tmp_path / "fields", grid, formats=("vtk",))
+    writer.write(snapshot_arrays(grid, fluid, [(rod, state)], step=0))
+    writer.close()
+    body = meshio.read(tmp_path / "fields" / "body0_000000.vtu")
+    assert body.cells[0].type == "line"
+    np.testing.assert_array_equal(body.cells[0].data, [[0, 1], [1, 2]])
 
 
 def test_probes_csv_and_plot(tmp_path) -> None:

@@ -253,3 +253,19 @@ def test_render_frame_into_a_reused_array_equals_a_fresh_frame() -> None:
     np.testing.assert_array_equal(render_frame(grid, state, [body], view="speed", time=0.2,
                                                out=other), fresh)
     assert not other.any()
+
+
+def test_rod_is_drawn_as_a_polyline_a_few_pixels_wide() -> None:
+    grid = Grid2D(16, 16, 1.0 / 16)
+    scale = 4
+    line = np.array([[0.5, 0.1], [0.5, 0.5], [0.7, 0.8]])
+    image = render_frame(grid, _state(grid), [(line, np.zeros((0, 3), np.int64))],
+                         scale=scale, colorbar=False)
+    row, col = _pixel(grid, scale, 0.5, 0.3)
+    # Body-coloured core with a dark rim across the line; the field beside it untouched.
+    across = image[row, col - 4:col + 5]
+    core = np.all(across == BODY_FILL_COLOR, axis=1)
+    assert 2 <= core.sum() <= 4
+    assert not np.any(np.all(image[row, col - 8:col - 5] == BODY_FILL_COLOR, axis=1))
+    row, col = _pixel(grid, scale, 0.6, 0.65)
+    assert np.any(np.all(image[row - 2:row + 3, col - 2:col + 3] == BODY_FILL_COLOR, axis=2))
