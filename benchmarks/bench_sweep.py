@@ -197,7 +197,7 @@ def _case(name: str, plan: Any, root: Path, repeat: int) -> list[dict[str, Any]]
         rows.append({
             "case": name, "engine": labels[engine], "workers": workers, "points": n,
             "seconds": seconds, "s_per_point": seconds / n, "start_s": started[engine],
-            "speedup_vs_1_worker": one / seconds if engine != "loop" else None,
+            "speedup_vs_1_worker": one / seconds if engine in (1, 2) else None,
             "speedup_vs_loop": loop / seconds,
             "overhead_per_point_ms": 1000 * (seconds * workers - loop) / n,
             # Where the time went in the best round: CPU of the command's process (client,
