@@ -344,27 +344,6 @@ class EnergyMomentumFem(MidpointFem):
                       dt: float) -> np.ndarray:
         return body.viscous_forces_at(middle, rate, self.damping * dt)
 
-    def advance(
-        self, body: BodyModel, state_in: BodyState, state_out: BodyState, dt: float,
-        external_forces: np.ndarray, response: StepResponse, *, step: int | None = None,
-    ) -> SolidStepReport:
-        """As `MidpointFem.advance`; a step whose end inverts an element is taken again by
-        Newmark's rule with ``gamma = 1/2 + damping`` (forces at the end of the step, the
-        same matrix family), which sees the end configuration it must not invert.
-
-        Why: a rule that evaluates the forces at the midpoint can step over the inversion
-        of a strongly compressed element (St. Venant–Kirchhoff softens in compression):
-        bar_in_jet's soft bar, bent by 0.4 m, inverted an element at step 706 of 770, where
-        Newmark's rule keeps it whole. One such step changes the angular momentum by
-        Newmark's O(dt^2) of the internal forces, once.
-        """
-        try:
-            return super().advance(body, state_in, state_out, dt, external_forces, response,
-                                   step=step)
-        except SolidInversionError:
-            return NewmarkFem(0.5 + self.damping, self.tolerance, self.max_iterations).advance(
-                body, state_in, state_out, dt, external_forces, response, step=step)
-
 
 def _checked_forces(body: BodyModel, external_forces: np.ndarray) -> np.ndarray:
     n = body.point_count
