@@ -501,7 +501,7 @@ def validate(
     case: Annotated[str | None, typer.Argument(help="The benchmark's case: CFD1-3, CSM1-3, "
                                                "FSI1-3 (turek-hron); the study's part, "
                                                "default all (boundary-study: poisson, "
-                                               "leakage).")
+                                               "leakage, spurious).")
                     ] = None,
     resolution: Annotated[int, typer.Option(help="Benchmark: about this many cells per "
                                             "cylinder diameter (turek-hron) or metre "
@@ -657,7 +657,12 @@ def _boundary_study(part: str | None, out: Path) -> None:
         write_leakage_report,
         write_poisson_report,
     )
-    from elastoflow.validation._boundary_study import poisson_table
+    from elastoflow.validation._boundary_study import (
+        poisson_table,
+        run_spurious_study,
+        spurious_table,
+        write_spurious_report,
+    )
     from elastoflow.validation._leakage_study import leakage_table
 
     if part is not None and part not in STUDY_PARTS:
@@ -677,6 +682,12 @@ def _boundary_study(part: str | None, out: Path) -> None:
             f"boundary study, leakage: flux through a moving plate / (V H), worst offset "
             f"({leakage.seconds:.1f} s)",
             leakage_table(leakage), lambda: write_leakage_report(leakage, out), out, False)
+    if part in (None, "spurious"):
+        spurious = run_spurious_study()
+        _report_benchmark(
+            f"boundary study, spurious velocities: a fixed body in water at rest "
+            f"({spurious.seconds:.1f} s)",
+            spurious_table(spurious), lambda: write_spurious_report(spurious, out), out, False)
 
 
 def _report_benchmark(title: str, quantities: list[str], write: Callable[[], list[Path]],

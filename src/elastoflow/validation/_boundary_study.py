@@ -44,8 +44,14 @@ import time as _time
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from elastoflow.coupling import Obstacle
+    from elastoflow.fluid import FluidSolver
+    from elastoflow.grid import Grid2D
 
 DOCUMENT = "boundary_study.md"
 """The study's page, under the report folder (``docs/validation``)."""
@@ -457,8 +463,275 @@ def write_poisson_report(study: PoissonStudy, folder: str | Path) -> list[Path]:
     return [csv_path, png_path, document]
 
 
-STUDY_PARTS: tuple[str, ...] = ("poisson", "leakage")
+STUDY_PARTS: tuple[str, ...] = ("poisson", "leakage", "spurious")
 """The study's parts, in the order `elastoflow validate boundary-study` runs them (the
 leakage part lives in `elastoflow.validation._leakage_study`)."""
+
+_WRAP = textwrap.TextWrapper(width=96, break_on_hyphens=False, break_long_words=False)
+
+
+def _write_part(folder: str | Path, stem: str, block: str, csv_text: str,
+                plot: object, section: object) -> list[Path]:
+    """Write ``<folder>/boundary_study/<stem>.csv`` and ``.png`` and the block ``block`` of
+    the page; ``plot(path)`` draws the figure, ``section(figure, table_csv)`` gives the
+    block's text."""
+    from elastoflow.io import write_text_atomic
+
+    folder = Path(folder)
+    figures = folder / FIGURES
+    figures.mkdir(parents=True, exist_ok=True)
+    csv_path, png_path = figures / f"{stem}.csv", figures / f"{stem}.png"
+    write_text_atomic(csv_path, csv_text)
+    getattr(plot, "__call__")(png_path)
+    document = folder / DOCUMENT
+    write_section(document, block, getattr(section, "__call__")(
+        f"{FIGURES}/{stem}.png", f"{FIGURES}/{stem}.csv"))
+    return [csv_path, png_path, document]
+
+
+def _closed_box(cells: int, density: float, viscosity: float,
+                gravity: tuple[float, float] = (0.0, 0.0)) -> tuple[Grid2D, FluidSolver]:
+    """The unit square, no-slip walls all round, MGPCG at rtol 1e-10: grid and solver."""
+    from elastoflow import fluid, linalg
+    from elastoflow.grid import Grid2D
+
+    grid = Grid2D(nx=cells, ny=cells, h=1.0 / cells)
+    walls = fluid.DomainBoundaries(fluid.WallNoSlip(), fluid.WallNoSlip(), fluid.WallNoSlip(),
+                                   fluid.WallNoSlip())
+    solver = fluid.FluidSolver(grid, density=density, viscosity=viscosity, boundaries=walls,
+                               gravity=gravity,
+                               pressure_solver=linalg.PoissonSolverMGPCG(rtol=1e-10))
+    return grid, solver
+
+
+def _save(figure: object, path: Path) -> None:
+    import matplotlib.pyplot as plt
+
+    from elastoflow.io import atomic_path
+
+    getattr(figure, "tight_layout")()
+    with atomic_path(path) as temporary:
+        getattr(figure, "savefig")(temporary, dpi=110, format="png")
+    plt.close(figure)  # type: ignore[arg-type]
+
+
+def _pyplot() -> object:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+# -- spurious velocities: a fixed body in fluid at rest under gravity -------------------------
+
+SPURIOUS_CELLS: tuple[int, ...] = (32, 64)
+SPURIOUS_STEPS = 200
+SPURIOUS_DT = 0.01
+SPURIOUS_SHAPES: tuple[str, ...] = ("disc", "square")
+GRAVITY = 9.81
+WATER = 1000.0
+
+
+def _fixed_shape(shape: str) -> Obstacle:
+    """A disc of radius 0.2 m off the grid's symmetry, or a square of side 0.36 m tilted 30
+    degrees (corners, and edges at an angle to the grid)."""
+    from elastoflow import coupling
+
+    centre = (0.5123, 0.4871)
+    if shape == "disc":
+        return coupling.obstacle_circle(centre, 0.2, segments=256)
+    corners = 0.18 * np.array([[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]])
+    turn = np.radians(30.0)
+    rotation = np.array([[np.cos(turn), -np.sin(turn)], [np.sin(turn), np.cos(turn)]])
+    return coupling.Obstacle(np.asarray(centre) + corners @ rotation.T)
+
+
+@dataclass(frozen=True)
+class SpuriousRun:
+    """A fixed body in water at rest under gravity.
+
+    Attributes:
+        treatment: "cut_cell" or "staircase".
+        shape: "disc" or "square".
+        cells: Cells across the unit square.
+        history: max |u| over all faces after each step [m/s], shape (steps,).
+        buoyancy: Upward traction force over the buoyancy rho g A of the polygon, less 1.
+        seconds: Wall time of the steps [s].
+    """
+
+    treatment: str
+    shape: str
+    cells: int
+    history: np.ndarray
+    buoyancy: float
+    seconds: float
+
+    @property
+    def final(self) -> float:
+        return float(self.history[-1])
+
+    @property
+    def peak(self) -> float:
+        return float(self.history.max())
+
+
+def spurious_velocity(cells: int, treatment: str, shape: str = "disc", *,
+                      steps: int = SPURIOUS_STEPS, dt: float = SPURIOUS_DT) -> SpuriousRun:
+    """Step water at rest (1000 kg/m^3, nu = 1e-6 m^2/s, g = 9.81 m/s^2 down) around a fixed
+    body in the closed unit square and record the largest velocity each step."""
+    from elastoflow.coupling import polygon_signed_area
+    from elastoflow.simulation import Simulation
+
+    grid, solver = _closed_box(cells, WATER, 1e-6, (0.0, -GRAVITY))
+    body = _fixed_shape(shape)
+    simulation = Simulation(grid, solver, obstacles=[body], dt=dt, boundary=treatment)
+    history = np.empty(steps)
+    start = _time.perf_counter()
+    for k in range(steps):
+        simulation.step()
+        fluid = simulation.state.fluid
+        history[k] = max(np.abs(fluid.velocity_x).max(), np.abs(fluid.velocity_y).max())
+    seconds = _time.perf_counter() - start
+    lift = float(simulation.traction_forces()[0][:, 1].sum())
+    area = abs(polygon_signed_area(body.points_at(0.0)))
+    return SpuriousRun(treatment, shape, cells, history, lift / (WATER * GRAVITY * area) - 1.0,
+                       seconds)
+
+
+@dataclass(frozen=True)
+class SpuriousStudy:
+    """Every run of the spurious-velocity part and its wall time [s]."""
+
+    runs: tuple[SpuriousRun, ...]
+    seconds: float = 0.0
+
+    def run(self, treatment: str, shape: str, cells: int) -> SpuriousRun:
+        return next(r for r in self.runs if r.treatment == treatment and r.shape == shape
+                    and r.cells == cells)
+
+    @property
+    def treatments(self) -> tuple[str, ...]:
+        return tuple(dict.fromkeys(r.treatment for r in self.runs))
+
+    @property
+    def shapes(self) -> tuple[str, ...]:
+        return tuple(dict.fromkeys(r.shape for r in self.runs))
+
+    @property
+    def cells(self) -> tuple[int, ...]:
+        return tuple(dict.fromkeys(r.cells for r in self.runs))
+
+
+def run_spurious_study(cells: Sequence[int] = SPURIOUS_CELLS,
+                       treatments: Sequence[str] = TREATMENTS,
+                       shapes: Sequence[str] = SPURIOUS_SHAPES,
+                       steps: int = SPURIOUS_STEPS) -> SpuriousStudy:
+    """`spurious_velocity` for every treatment, shape and resolution."""
+    start = _time.perf_counter()
+    runs = tuple(spurious_velocity(n, treatment, shape, steps=steps)
+                 for treatment in treatments for shape in shapes for n in cells)
+    return SpuriousStudy(runs, seconds=_time.perf_counter() - start)
+
+
+def spurious_table(study: SpuriousStudy) -> list[str]:
+    """Markdown table: max |u| after the last step, the largest over the run, and the
+    buoyancy's error, per shape, resolution and treatment."""
+    header = "| body | cells |"
+    rule = "|---|---:|"
+    for treatment in study.treatments:
+        header += (f" {_LABEL[treatment]}: max \\|u\\| last step [m/s] | largest [m/s] |"
+                   " buoyancy error |")
+        rule += "---:|---:|---:|"
+    lines = [header, rule]
+    for shape in study.shapes:
+        for n in study.cells:
+            row = f"| {shape} | {n} |"
+            for treatment in study.treatments:
+                r = study.run(treatment, shape, n)
+                row += f" {r.final:.1e} | {r.peak:.1e} | {r.buoyancy:+.1e} |"
+            lines.append(row)
+    return lines
+
+
+def spurious_csv(study: SpuriousStudy) -> str:
+    text = io.StringIO()
+    writer = csv.writer(text, lineterminator="\n")
+    writer.writerow(["treatment", "body", "cells", "step", "max |u| [m/s]"])
+    for r in study.runs:
+        for k, value in enumerate(r.history):
+            writer.writerow([r.treatment, r.shape, r.cells, k + 1, f"{value:.3e}"])
+    return text.getvalue()
+
+
+def plot_spurious(study: SpuriousStudy, path: Path) -> None:
+    """max |u| against the step, per treatment, shape and resolution (log scale)."""
+    plt = _pyplot()
+    figure, axis = getattr(plt, "subplots")(figsize=(5.5, 4.0))
+    styles = {n: style for n, style in zip(study.cells, ("--", "-", ":"))}
+    for r in study.runs:
+        axis.semilogy(np.arange(1, len(r.history) + 1), np.maximum(r.history, 1e-20),
+                      ls=styles.get(r.cells, "-"), lw=1.0,
+                      color="C0" if r.treatment == "cut_cell" else "C3",
+                      alpha=1.0 if r.shape == "disc" else 0.5,
+                      label=f"{_LABEL[r.treatment]}, {r.shape}, {r.cells}^2")
+    axis.set_xlabel(f"step (dt = {SPURIOUS_DT:g} s)")
+    axis.set_ylabel("max |u| [m/s]")
+    axis.set_title("Water at rest around a fixed body, g = 9.81 m/s^2", fontsize=9)
+    axis.grid(alpha=0.3, which="both")
+    axis.legend(fontsize=6, ncol=2)
+    _save(figure, path)
+
+
+def spurious_section(study: SpuriousStudy, figure: str, table_csv: str) -> str:
+    """The Markdown block of the spurious-velocity part."""
+    largest = {t: max(r.peak for r in study.runs if r.treatment == t)
+               for t in study.treatments}
+    buoyancy = max(abs(r.buoyancy) for r in study.runs)
+    steps = len(study.runs[0].history)
+    paragraphs = [
+        "Water (1000 kg/m^3, nu = 1e-6 m^2/s) at rest in the closed unit square (no-slip "
+        "walls) under gravity 9.81 m/s^2, around a fixed obstacle: a disc of radius 0.2 m (a "
+        "256-gon) off the grid's symmetry, and a square of side 0.36 m tilted 30 degrees "
+        f"(`elastoflow.validation._boundary_study.spurious_velocity`). {steps} steps of "
+        f"{SPURIOUS_DT:g} s; the hydrostatic pressure must balance gravity exactly, or the "
+        "fluid starts to move. The buoyancy error is the traction's upward force over `rho g "
+        "A` of the polygon, less 1.",
+        f"Neither treatment makes spurious velocities: the largest |u| over every step is "
+        f"{largest['cut_cell']:.1e} m/s with cut cells and {largest['staircase']:.1e} m/s "
+        "with the staircase, round-off of the pressure solve (rtol 1e-10), and it does not "
+        "grow. The reason is structural, not a property of either boundary: gravity is "
+        "uniform, so its share of the intermediate velocity is the discrete gradient of a "
+        "linear pressure on every open face whatever the face weights, and the projection "
+        "removes it exactly with either operator (open fractions or 0/1); at rest advection "
+        "and viscosity have nothing to act on. The surface tension and density-jump problems "
+        "where the spurious currents of the literature come from have no counterpart here. "
+        "The traction integral reads the hydrostatic pressure back to the wall at constant "
+        f"`p - rho g.x` and gives the buoyancy to {buoyancy:.0e} of itself with both "
+        "treatments "
+        "(the forces integrate along the polygon in both). The comparison the issue "
+        "expected, cut cells quieter than the staircase, does not arise for a fixed body; a "
+        "held elastic body, which the pressure deforms, is not measured here.",
+        f"Data: [{Path(table_csv).name}]({table_csv}) (max |u| after every step). Test: "
+        "`tests/validation/test_boundary_study.py` (both below 1e-8 m/s, buoyancy within "
+        f"1e-9). The whole part took {study.seconds:.1f} s.",
+    ]
+    lines = [
+        "## Spurious velocities: a fixed body in water at rest", "",
+        _WRAP.fill(paragraphs[0]), "",
+        *spurious_table(study), "",
+        _WRAP.fill(paragraphs[1]), "",
+        f"![max |u| against step]({figure})", "",
+        _WRAP.fill(paragraphs[2]),
+    ]
+    return "\n".join(lines) + "\n"
+
+
+def write_spurious_report(study: SpuriousStudy, folder: str | Path) -> list[Path]:
+    """Write ``spurious.csv``, ``spurious.png`` and the block ``spurious`` of the page."""
+    return _write_part(folder, "spurious", "spurious", spurious_csv(study),
+                       lambda path: plot_spurious(study, path),
+                       lambda figure, table: spurious_section(study, figure, table))
 """The parts `elastoflow validate boundary-study` can run (later: DFG 2D-1, spurious
 velocities, leakage, force smoothness, cost, stability)."""
