@@ -501,7 +501,7 @@ def validate(
     case: Annotated[str | None, typer.Argument(help="The benchmark's case: CFD1-3, CSM1-3, "
                                                "FSI1-3 (turek-hron); the study's part, "
                                                "default all (boundary-study: poisson, "
-                                               "leakage, spurious).")
+                                               "leakage, spurious, force_jump).")
                     ] = None,
     resolution: Annotated[int, typer.Option(help="Benchmark: about this many cells per "
                                             "cylinder diameter (turek-hron) or metre "
@@ -658,9 +658,12 @@ def _boundary_study(part: str | None, out: Path) -> None:
         write_poisson_report,
     )
     from elastoflow.validation._boundary_study import (
+        force_jump_table,
         poisson_table,
+        run_force_jump_study,
         run_spurious_study,
         spurious_table,
+        write_force_jump_report,
         write_spurious_report,
     )
     from elastoflow.validation._leakage_study import leakage_table
@@ -688,6 +691,12 @@ def _boundary_study(part: str | None, out: Path) -> None:
             f"boundary study, spurious velocities: a fixed body in water at rest "
             f"({spurious.seconds:.1f} s)",
             spurious_table(spurious), lambda: write_spurious_report(spurious, out), out, False)
+    if part in (None, "force_jump"):
+        jumps = run_force_jump_study()
+        _report_benchmark(
+            f"boundary study, force smoothness: a disc moving slowly across the grid "
+            f"({jumps.seconds:.1f} s)",
+            force_jump_table(jumps), lambda: write_force_jump_report(jumps, out), out, False)
 
 
 def _report_benchmark(title: str, quantities: list[str], write: Callable[[], list[Path]],

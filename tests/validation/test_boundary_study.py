@@ -20,7 +20,9 @@ from elastoflow.validation import (
     write_poisson_report,
 )
 from elastoflow.validation._boundary_study import (
+    run_force_jump_study,
     run_spurious_study,
+    write_force_jump_report,
     write_section,
     write_spurious_report,
 )
@@ -84,15 +86,20 @@ def test_report_rewrites_only_its_block(study, tmp_path: Path) -> None:
 
 
 def test_command_prints_and_writes(tmp_path: Path) -> None:
-    result = CliRunner().invoke(app, ["validate", "boundary-study", "--out", str(tmp_path)])
-    assert result.exit_code == 0, result.output
-    assert "observed order: cut_cell" in result.output
-    assert "boundary study, leakage" in result.output
+    """Each part by name (all of them together take minutes: force_jump and dfg)."""
+    output = ""
+    for part in ("poisson", "leakage", "spurious"):
+        result = CliRunner().invoke(app, ["validate", "boundary-study", part,
+                                          "--out", str(tmp_path)])
+        assert result.exit_code == 0, result.output
+        output += result.output
+    assert "observed order: cut_cell" in output
+    assert "boundary study, leakage" in output and "boundary study, spurious" in output
     page = (tmp_path / "boundary_study.md").read_text()
     assert "<!-- poisson-disk:begin -->" in page and "<!-- leakage:begin -->" in page
     assert "<!-- spurious:begin -->" in page
     wrong = CliRunner().invoke(app, ["validate", "boundary-study", "speed-of-light"])
-    assert wrong.exit_code == 2 and "poisson" in wrong.output
+    assert wrong.exit_code == 2 and "poisson" in wrong.output and "force_jump" in wrong.output
 
 
 def test_a_fixed_body_in_water_at_rest_stays_at_rest(tmp_path: Path) -> None:
@@ -107,3 +114,19 @@ def test_a_fixed_body_in_water_at_rest_stays_at_rest(tmp_path: Path) -> None:
     paths = write_spurious_report(study, tmp_path)
     assert {p.name for p in paths} == {"spurious.csv", "spurious.png", "boundary_study.md"}
     assert "<!-- spurious:begin -->" in (tmp_path / "boundary_study.md").read_text()
+
+
+def test_the_staircase_force_jumps_when_cells_flip(tmp_path: Path) -> None:
+    """A disc crossing the grid slowly: the staircase's drag has a saw-tooth (measured at
+    24^2: largest 2nd difference 63 times the cut cells', largest jump 8 times), the cut
+    cells' follows the open fractions."""
+    study = run_force_jump_study(cells=(24,), measured_cells=2)
+    cut, stair = study.run("cut_cell", 24), study.run("staircase", 24)
+    assert stair.kink > 10.0 * cut.kink, (stair.kink, cut.kink)
+    assert stair.jump > 3.0 * cut.jump, (stair.jump, cut.jump)
+    assert cut.jump < 5e-3
+    # The same body, the same flow: the two drags agree to a few per cent.
+    assert abs(stair.mean / cut.mean - 1.0) < 0.1
+    paths = write_force_jump_report(study, tmp_path)
+    assert {p.name for p in paths} == {"force_jump.csv", "force_jump.png", "boundary_study.md"}
+    assert "<!-- force-jump:begin -->" in (tmp_path / "boundary_study.md").read_text()
