@@ -501,7 +501,7 @@ def validate(
     case: Annotated[str | None, typer.Argument(help="The benchmark's case: CFD1-3, CSM1-3, "
                                                "FSI1-3 (turek-hron); the study's part, "
                                                "default all (boundary-study: poisson, "
-                                               "leakage, spurious, force_jump).")
+                                               "leakage, spurious, force_jump, dfg).")
                     ] = None,
     resolution: Annotated[int, typer.Option(help="Benchmark: about this many cells per "
                                             "cylinder diameter (turek-hron) or metre "
@@ -658,11 +658,14 @@ def _boundary_study(part: str | None, out: Path) -> None:
         write_poisson_report,
     )
     from elastoflow.validation._boundary_study import (
+        dfg_table,
         force_jump_table,
         poisson_table,
+        run_dfg_study,
         run_force_jump_study,
         run_spurious_study,
         spurious_table,
+        write_dfg_study_report,
         write_force_jump_report,
         write_spurious_report,
     )
@@ -697,6 +700,11 @@ def _boundary_study(part: str | None, out: Path) -> None:
             f"boundary study, force smoothness: a disc moving slowly across the grid "
             f"({jumps.seconds:.1f} s)",
             force_jump_table(jumps), lambda: write_force_jump_report(jumps, out), out, False)
+    if part in (None, "dfg"):
+        dfg = run_dfg_study()
+        _report_benchmark(
+            f"boundary study, DFG 2D-1: c_D and c_L against resolution ({dfg.seconds:.1f} s)",
+            dfg_table(dfg), lambda: write_dfg_study_report(dfg, out), out, False)
 
 
 def _report_benchmark(title: str, quantities: list[str], write: Callable[[], list[Path]],
