@@ -925,9 +925,14 @@ def force_jump_section(study: ForceJumpStudy, figure: str, table_csv: str) -> st
         "drag follows the open fractions smoothly; its step-to-step changes are the trend "
         "(the disc moves away from the left wall). Not settled here: the mean drag itself "
         f"roughly doubles with each halving of h with both treatments ({means} N/m with cut "
-        "cells), and nearly all of it is the traction's viscous part (the pressure part is a "
-        "few N/m at 64^2): the viscous traction on a moving obstacle in this Stokes regime "
-        "does not converge, which the jumps, relative to the mean, partly hide.",
+        "cells), nearly all of it the traction's viscous part (the pressure part is a few "
+        "N/m at 64^2). The flow itself carries it: at the first fluid faces above and below "
+        "the disc u is about -0.4 V against the wall's +V (a slip layer one cell wide, its "
+        "dissipation growing as 1/h too), while the same disc carried by a uniform stream "
+        "at V feels no force (1e-15 N/m). The likeliest cause, not verified here, is the "
+        "projection after the viscosity step undoing no-slip next to the wall at a "
+        "diffusion number nu dt / h^2 of about 300. The jumps, relative to the mean, are "
+        "diluted by it, not caused by it.",
         f"Data: [{Path(table_csv).name}]({table_csv}) (the drag at every step). Test: "
         "`tests/validation/test_boundary_study.py` (at 24^2, the staircase's largest 2nd "
         f"difference at least 10 times the cut cells'). The whole part took {study.seconds:.1f} s.",
@@ -1146,7 +1151,8 @@ def dfg_section(study: DfgStudy, figure: str, table_csv: str) -> str:
         "from one refinement to the next; whether the cut-cell drag levels off at the "
         "reference or passes it needs finer grids). The lift, 0.2 % of the drag and set by "
         "the channel's asymmetry, separates them more: the cut-cell c_L keeps its sign "
-        f"({min(cut_lifts):+.4f} to {max(cut_lifts):+.4f} from {study.cells[-len(cut_lifts)]} cells "
+        f"({min(cut_lifts):+.4f} to {max(cut_lifts):+.4f} from "
+        f"{study.cells[-len(cut_lifts)]} cells "
         f"across on, reference {DFG_REFERENCE['c_L']:.4f}), the staircase's changes "
         f"sign {sign_changes} times over the {len(study.cells)} resolutions "
         f"({stair.lift:+.4f} at {fine}). The forces integrate along the same polygon in both "
