@@ -12,18 +12,30 @@ published benchmark but is run the same way: ``run_poisson_study()`` solves the 
 equation on a disk with both treatments, `write_poisson_report` writes its part of
 ``docs/validation/boundary_study.md``; ``run_leakage_study()`` measures the flux through a moving
 plate from 2 h thick to 0 (`plate_leakage`), `write_leakage_report` writes its part;
-``elastoflow validate boundary-study`` does both parts.
+``run_spurious_study()`` (velocities around a fixed body in water at rest),
+``run_force_jump_study()`` (the force on a disc moving slowly across the grid) and
+``run_dfg_study()`` (DFG 2D-1 drag and lift against resolution) likewise, each with its
+writer; ``elastoflow validate boundary-study [PART]`` runs every part (`STUDY_PARTS`) or one.
 """
 
 from elastoflow.validation._boundary_study import (
     STUDY_PARTS,
+    DfgStudy,
+    ForceJumpStudy,
     PoissonDisk,
     PoissonSolve,
     PoissonStudy,
+    SpuriousStudy,
     observed_order,
+    run_dfg_study,
+    run_force_jump_study,
     run_poisson_study,
+    run_spurious_study,
     solve_poisson_disk,
+    write_dfg_study_report,
+    write_force_jump_report,
     write_poisson_report,
+    write_spurious_report,
 )
 from elastoflow.validation._leakage_study import (
     LeakageStudy,
@@ -74,11 +86,14 @@ __all__ = [
     "Case",
     "DfgResult",
     "DfgSetup",
+    "DfgStudy",
+    "ForceJumpStudy",
     "PoissonDisk",
     "PoissonSolve",
     "PoissonStudy",
     "Result",
     "Setup",
+    "SpuriousStudy",
     "case_simulation",
     "cells_across",
     "cells_high",
@@ -96,12 +111,18 @@ __all__ = [
     "rigid_flag_polygon",
     "run_case",
     "run_dfg",
-    "run_leakage_study",
+    "run_dfg_study",
     "run_flap",
+    "run_force_jump_study",
+    "run_leakage_study",
     "run_poisson_study",
+    "run_spurious_study",
     "solve_poisson_disk",
     "write_dfg_report",
+    "write_dfg_study_report",
+    "write_force_jump_report",
     "write_leakage_report",
     "write_poisson_report",
+    "write_spurious_report",
     "write_report",
 ]
