@@ -394,7 +394,9 @@ def _inner_points(polygon_or_mesh: Any) -> np.ndarray:
 
 def _edges_on_grid_lines(starts: np.ndarray, ends: np.ndarray, grid: Any) -> np.ndarray:
     """Indices of axis-parallel edges that lie on a grid line (cell faces or centres) to within
-    1e-6 of a cell: the half-grid lines the boundary map crosses."""
+    1e-6 of a cell: the half-grid lines the boundary map crosses. Edges on the domain's own
+    sides are left out: the faces there are the walls, closed whatever the body does (a reed
+    clamped to the floor)."""
     h = grid.h
     origin = np.asarray(grid.origin, dtype=np.float64)
     found = []
@@ -403,6 +405,8 @@ def _edges_on_grid_lines(starts: np.ndarray, ends: np.ndarray, grid: Any) -> np.
         flat = np.abs(ends[:, axis] - starts[:, axis]) <= 1e-6 * h
         position = 2.0 * (0.5 * (starts[:, axis] + ends[:, axis]) - origin[axis]) / h
         on = flat & (np.abs(position - np.round(position)) <= 2e-6)
+        side = 2 * (grid.nx if axis == 0 else grid.ny)
+        on &= (np.round(position) != 0) & (np.round(position) != side)
         found.append(np.flatnonzero(on))
     return np.unique(np.concatenate(found))
 

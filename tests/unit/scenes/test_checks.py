@@ -410,3 +410,16 @@ def test_body_edges_on_grid_lines_are_warned_about() -> None:
     warnings = []
     build_simulation(get_scene("flag"), steps=1, warnings=warnings)
     assert not any("grid lines" in line for line in warnings)
+
+
+def test_clamped_edges_on_the_domain_walls_are_not_warned_about() -> None:
+    """The reeds of examples/reeds_in_a_channel.toml stand on the floor: their bottom edges lie
+    on y = 0, a wall whose faces are closed whatever the reeds do, so no grid-line warning."""
+    from pathlib import Path
+
+    from elastoflow.scenes import load_scene
+
+    example = Path(__file__).resolve().parents[3] / "examples" / "reeds_in_a_channel.toml"
+    warnings: list[str] = []
+    build_simulation(load_scene(example), steps=1, warnings=warnings)
+    assert not any("grid lines" in line for line in warnings), warnings
