@@ -41,7 +41,7 @@ import math
 import re
 import textwrap
 import time as _time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -378,6 +378,18 @@ which rewrites only the marked block of each part it runs (all, or the one named
 """
 
 
+
+
+def compose_section(title: str, paragraphs: Sequence[str], table: Sequence[str], figure: str,
+                    caption: str) -> str:
+    """A part's block of the page, laid out alike for every part: its title, the set-up
+    paragraph, the table, what it shows, the figure, then where the data and the test are."""
+    first, middle, last = paragraphs
+    lines = [f"## {title}", "", _WRAP.fill(first), "", *table, "", _WRAP.fill(middle), "",
+             f"![{caption}]({figure})", "", _WRAP.fill(last)]
+    return "\n".join(lines) + "\n"
+
+
 def poisson_section(study: PoissonStudy, figure: str, table_csv: str) -> str:
     """The Markdown block of the accuracy part."""
     cut, stair = study.order("cut_cell"), study.order("staircase")
@@ -417,16 +429,8 @@ def poisson_section(study: PoissonStudy, figure: str, table_csv: str) -> str:
         "it compatible, seconds). Test: `tests/validation/test_boundary_study.py` "
         "(cut cell >= 1.8, staircase <= 1.2).",
     ]
-    wrap = textwrap.TextWrapper(width=96, break_on_hyphens=False, break_long_words=False)
-    lines = [
-        "## Accuracy: the pressure equation on a disk", "",
-        wrap.fill(paragraphs[0]), "",
-        *poisson_table(study), "",
-        wrap.fill(paragraphs[1]), "",
-        f"![error against h]({figure})", "",
-        wrap.fill(paragraphs[2]),
-    ]
-    return "\n".join(lines) + "\n"
+    return compose_section("Accuracy: the pressure equation on a disk", paragraphs, poisson_table(study), figure,
+                           "error against h")
 
 
 def write_section(document: Path, name: str, text: str) -> None:
@@ -470,8 +474,8 @@ leakage part lives in `elastoflow.validation._leakage_study`)."""
 _WRAP = textwrap.TextWrapper(width=96, break_on_hyphens=False, break_long_words=False)
 
 
-def _write_part(folder: str | Path, stem: str, block: str, csv_text: str,
-                plot: object, section: object) -> list[Path]:
+def write_part(folder: str | Path, stem: str, block: str, csv_text: str,
+               plot: Callable[[Path], object], section: Callable[[str, str], str]) -> list[Path]:
     """Write ``<folder>/boundary_study/<stem>.csv`` and ``.png`` and the block ``block`` of
     the page; ``plot(path)`` draws the figure, ``section(figure, table_csv)`` gives the
     block's text."""
@@ -482,10 +486,9 @@ def _write_part(folder: str | Path, stem: str, block: str, csv_text: str,
     figures.mkdir(parents=True, exist_ok=True)
     csv_path, png_path = figures / f"{stem}.csv", figures / f"{stem}.png"
     write_text_atomic(csv_path, csv_text)
-    getattr(plot, "__call__")(png_path)
+    plot(png_path)
     document = folder / DOCUMENT
-    write_section(document, block, getattr(section, "__call__")(
-        f"{FIGURES}/{stem}.png", f"{FIGURES}/{stem}.csv"))
+    write_section(document, block, section(f"{FIGURES}/{stem}.png", f"{FIGURES}/{stem}.csv"))
     return [csv_path, png_path, document]
 
 
@@ -717,20 +720,13 @@ def spurious_section(study: SpuriousStudy, figure: str, table_csv: str) -> str:
         "`tests/validation/test_boundary_study.py` (both below 1e-8 m/s, buoyancy within "
         f"1e-9). The whole part took {study.seconds:.1f} s.",
     ]
-    lines = [
-        "## Spurious velocities: a fixed body in water at rest", "",
-        _WRAP.fill(paragraphs[0]), "",
-        *spurious_table(study), "",
-        _WRAP.fill(paragraphs[1]), "",
-        f"![max |u| against step]({figure})", "",
-        _WRAP.fill(paragraphs[2]),
-    ]
-    return "\n".join(lines) + "\n"
+    return compose_section("Spurious velocities: a fixed body in water at rest", paragraphs, spurious_table(study), figure,
+                           "max |u| against step")
 
 
 def write_spurious_report(study: SpuriousStudy, folder: str | Path) -> list[Path]:
     """Write ``spurious.csv``, ``spurious.png`` and the block ``spurious`` of the page."""
-    return _write_part(folder, "spurious", "spurious", spurious_csv(study),
+    return write_part(folder, "spurious", "spurious", spurious_csv(study),
                        lambda path: plot_spurious(study, path),
                        lambda figure, table: spurious_section(study, figure, table))
 """The parts `elastoflow validate boundary-study` can run (later: DFG 2D-1, spurious
@@ -937,21 +933,14 @@ def force_jump_section(study: ForceJumpStudy, figure: str, table_csv: str) -> st
         "`tests/validation/test_boundary_study.py` (at 24^2, the staircase's largest 2nd "
         f"difference at least 10 times the cut cells'). The whole part took {study.seconds:.1f} s.",
     ]
-    lines = [
-        "## Force smoothness: a disc moving slowly across the grid", "",
-        _WRAP.fill(paragraphs[0]), "",
-        *force_jump_table(study), "",
-        _WRAP.fill(paragraphs[1]), "",
-        f"![drag over its mean against cells crossed]({figure})", "",
-        _WRAP.fill(paragraphs[2]),
-    ]
-    return "\n".join(lines) + "\n"
+    return compose_section("Force smoothness: a disc moving slowly across the grid", paragraphs, force_jump_table(study), figure,
+                           "drag over its mean against cells crossed")
 
 
 def write_force_jump_report(study: ForceJumpStudy, folder: str | Path) -> list[Path]:
     """Write ``force_jump.csv``, ``force_jump.png`` and the block ``force-jump`` of the
     page."""
-    return _write_part(folder, "force_jump", "force-jump", force_jump_csv(study),
+    return write_part(folder, "force_jump", "force-jump", force_jump_csv(study),
                        lambda path: plot_force_jump(study, path),
                        lambda figure, table: force_jump_section(study, figure, table))
 
@@ -1162,19 +1151,12 @@ def dfg_section(study: DfgStudy, figure: str, table_csv: str) -> str:
         "to 3 s: the cut-cell drag error shrinks and is below the staircase's). The whole "
         f"part took {study.seconds:.1f} s.",
     ]
-    lines = [
-        "## DFG 2D-1: drag and lift against resolution", "",
-        _WRAP.fill(paragraphs[0]), "",
-        *dfg_table(study), "",
-        _WRAP.fill(paragraphs[1]), "",
-        f"![c_D and c_L against D / h]({figure})", "",
-        _WRAP.fill(paragraphs[2]),
-    ]
-    return "\n".join(lines) + "\n"
+    return compose_section("DFG 2D-1: drag and lift against resolution", paragraphs, dfg_table(study), figure,
+                           "c_D and c_L against D / h")
 
 
 def write_dfg_study_report(study: DfgStudy, folder: str | Path) -> list[Path]:
     """Write ``dfg_2d1.csv``, ``dfg_2d1.png`` and the block ``dfg-2d1`` of the page."""
-    return _write_part(folder, "dfg_2d1", "dfg-2d1", dfg_csv(study),
+    return write_part(folder, "dfg_2d1", "dfg-2d1", dfg_csv(study),
                        lambda path: plot_dfg(study, path),
                        lambda figure, table: dfg_section(study, figure, table))

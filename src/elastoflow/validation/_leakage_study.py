@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import csv
 import io
-import textwrap
 import time as _time
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -24,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-from elastoflow.validation._boundary_study import DOCUMENT, FIGURES, write_section
+from elastoflow.validation._boundary_study import compose_section, write_part
 
 THICKNESSES: tuple[float, ...] = (2.0, 1.5, 1.2, 1.0, 0.8, 0.5, 0.25, 0.0)
 """Plate thicknesses [cells]."""
@@ -218,31 +217,13 @@ def leakage_section(study: LeakageStudy, figure: str, table_csv: str) -> str:
         "`tests/validation/test_coupling_leakage.py` (h/4 and 0 thick, 5 offsets, upright and "
         f"tilted: below 1e-3). The whole part took {study.seconds:.1f} s.",
     ]
-    wrap = textwrap.TextWrapper(width=96, break_on_hyphens=False, break_long_words=False)
-    lines = [
-        "## Leakage: a moving plate from 2 h thick to 0", "",
-        wrap.fill(paragraphs[0]), "",
-        *leakage_table(study), "",
-        wrap.fill(paragraphs[1]), "",
-        f"![leak against thickness]({figure})", "",
-        wrap.fill(paragraphs[2]),
-    ]
-    return "\n".join(lines) + "\n"
+    return compose_section("Leakage: a moving plate from 2 h thick to 0", paragraphs,
+                           leakage_table(study), figure, "leak against thickness")
 
 
 def write_leakage_report(study: LeakageStudy, folder: str | Path) -> list[Path]:
     """Write the leakage part: ``<folder>/boundary_study/leakage.csv`` and ``.png``, and its
     block of ``<folder>/boundary_study.md``. Returns the paths written."""
-    from elastoflow.io import write_text_atomic
-
-    folder = Path(folder)
-    figures = folder / FIGURES
-    figures.mkdir(parents=True, exist_ok=True)
-    csv_path = figures / "leakage.csv"
-    png_path = figures / "leakage.png"
-    write_text_atomic(csv_path, leakage_csv(study))
-    plot_leakage(study, png_path)
-    document = folder / DOCUMENT
-    write_section(document, "leakage", leakage_section(
-        study, f"{FIGURES}/leakage.png", f"{FIGURES}/leakage.csv"))
-    return [csv_path, png_path, document]
+    return write_part(folder, "leakage", "leakage", leakage_csv(study),
+                      lambda path: plot_leakage(study, path),
+                      lambda figure, table: leakage_section(study, figure, table))
