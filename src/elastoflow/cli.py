@@ -6,6 +6,7 @@ Exit codes: 0 success, 2 bad input (one line per problem, no traceback), 1 the r
 
 from __future__ import annotations
 
+import functools
 import signal
 import sys
 import time as _time
@@ -674,37 +675,31 @@ def _boundary_study(part: str | None, out: Path) -> None:
     if part is not None and part not in STUDY_PARTS:
         _fail(f"{part!r}: the boundary study's parts are {', '.join(STUDY_PARTS)}")
     _output_folder(out, "--out")
-    if part in (None, "poisson"):
-        study = run_poisson_study()
+    def poisson_lines(study: Any) -> list[str]:
         orders = ", ".join(f"{name} {study.order(name):.2f}" for name in study.treatments)
-        _report_benchmark(
-            f"boundary study, accuracy: -lap u = f on a disk, du/dn = 0 "
-            f"({study.seconds:.1f} s)",
-            [*poisson_table(study), f"observed order: {orders}"],
-            lambda: write_poisson_report(study, out), out, False)
-    if part in (None, "leakage"):
-        leakage = run_leakage_study()
-        _report_benchmark(
-            f"boundary study, leakage: flux through a moving plate / (V H), worst offset "
-            f"({leakage.seconds:.1f} s)",
-            leakage_table(leakage), lambda: write_leakage_report(leakage, out), out, False)
-    if part in (None, "spurious"):
-        spurious = run_spurious_study()
-        _report_benchmark(
-            f"boundary study, spurious velocities: a fixed body in water at rest "
-            f"({spurious.seconds:.1f} s)",
-            spurious_table(spurious), lambda: write_spurious_report(spurious, out), out, False)
-    if part in (None, "force_jump"):
-        jumps = run_force_jump_study()
-        _report_benchmark(
-            f"boundary study, force smoothness: a disc moving slowly across the grid "
-            f"({jumps.seconds:.1f} s)",
-            force_jump_table(jumps), lambda: write_force_jump_report(jumps, out), out, False)
-    if part in (None, "dfg"):
-        dfg = run_dfg_study()
-        _report_benchmark(
-            f"boundary study, DFG 2D-1: c_D and c_L against resolution ({dfg.seconds:.1f} s)",
-            dfg_table(dfg), lambda: write_dfg_study_report(dfg, out), out, False)
+        return [*poisson_table(study), f"observed order: {orders}"]
+
+    # Each part: what it measures, how to run it, its printed lines, its writer.
+    parts: dict[str, tuple[str, Callable[[], Any], Callable[[Any], list[str]],
+                           Callable[[Any, Path], list[Path]]]] = {
+        "poisson": ("accuracy: -lap u = f on a disk, du/dn = 0", run_poisson_study,
+                    poisson_lines, write_poisson_report),
+        "leakage": ("leakage: flux through a moving plate / (V H), worst offset",
+                    run_leakage_study, leakage_table, write_leakage_report),
+        "spurious": ("spurious velocities: a fixed body in water at rest", run_spurious_study,
+                     spurious_table, write_spurious_report),
+        "force_jump": ("force smoothness: a disc moving slowly across the grid",
+                       run_force_jump_study, force_jump_table, write_force_jump_report),
+        "dfg": ("DFG 2D-1: c_D and c_L against resolution", run_dfg_study, dfg_table,
+                write_dfg_study_report),
+    }
+    for name in STUDY_PARTS:
+        if part not in (None, name):
+            continue
+        title, run, lines, write = parts[name]
+        result = run()
+        _report_benchmark(f"boundary study, {title} ({result.seconds:.1f} s)", lines(result),
+                          functools.partial(write, result, out), out, False)
 
 
 def _report_benchmark(title: str, quantities: list[str], write: Callable[[], list[Path]],
