@@ -142,6 +142,16 @@ def _touched_boxes(grid: Grid2D, bmap: BoundaryMap) -> np.ndarray:
         grid.origin[1], grid.h, grid.nx, grid.ny)
 
 
+def _check_reused(out: InteriorBoundary, grid: Grid2D) -> None:
+    """Refuse an ``out`` to reuse whose arrays do not fit ``grid`` (shapes, dtypes)."""
+    out.check(grid)
+    for name in ("solid_cells", "solid_faces_x", "solid_faces_y"):
+        _check_out(name, getattr(out, name), getattr(out, name).shape, np.bool_)
+    for name in ("velocity_faces_x", "velocity_faces_y", "open_fraction_x", "open_fraction_y",
+                 "cut_theta_x", "cut_theta_y", "cut_velocity_x", "cut_velocity_y"):
+        _check_out(name, getattr(out, name), getattr(out, name).shape, np.float64)
+
+
 def _reset(out: InteriorBoundary, boxes: np.ndarray) -> None:
     """Put the empty state (fluid, open, no cut) back into the index boxes of every array."""
     if boxes.shape[0] == 0:
@@ -213,13 +223,7 @@ def interior_boundary_from_map(
     if out is None:
         out = InteriorBoundary.empty(grid)
     else:
-        out.check(grid)
-        for name in ("solid_cells", "solid_faces_x", "solid_faces_y"):
-            _check_out(name, getattr(out, name), getattr(out, name).shape, np.bool_)
-        for name in ("velocity_faces_x", "velocity_faces_y", "open_fraction_x",
-                     "open_fraction_y", "cut_theta_x", "cut_theta_y", "cut_velocity_x",
-                     "cut_velocity_y"):
-            _check_out(name, getattr(out, name), getattr(out, name).shape, np.float64)
+        _check_reused(out, grid)
         if out.regions is None:
             _reset(out, np.array([[0, nx + 1, 0, ny + 1]], dtype=np.int64))
         else:

@@ -33,7 +33,7 @@ from numba import njit
 from scipy import sparse
 
 from elastoflow.coupling import _kernels
-from elastoflow.coupling._classify import _check_grid, _check_out, _reset, _touched_boxes
+from elastoflow.coupling._classify import _check_grid, _check_reused, _reset, _touched_boxes
 from elastoflow.coupling._map import BoundaryMap
 from elastoflow.fluid import OPEN_MIN, InteriorBoundary
 from elastoflow.grid import Grid2D
@@ -147,13 +147,7 @@ def interior_boundary_staircase(
     if out is None:
         out = StaircaseInteriorBoundary.empty(grid)
     else:
-        out.check(grid)
-        for name in ("solid_cells", "solid_faces_x", "solid_faces_y"):
-            _check_out(name, getattr(out, name), getattr(out, name).shape, np.bool_)
-        for name in ("velocity_faces_x", "velocity_faces_y", "open_fraction_x",
-                     "open_fraction_y", "cut_theta_x", "cut_theta_y", "cut_velocity_x",
-                     "cut_velocity_y"):
-            _check_out(name, getattr(out, name), getattr(out, name).shape, np.float64)
+        _check_reused(out, grid)
         _reset(out, np.array([[0, nx + 1, 0, ny + 1]], dtype=np.int64)
                if out.regions is None else out.regions)
     # Read at solid cells only, where the fill has written them.
