@@ -1,7 +1,7 @@
 """Unsteady accuracy (issue 11): DFG 2D-2, the advection schemes' order, the drag's
 convergence, and what each advection scheme costs on the paper's scenes.
 
-``python -m benchmarks unsteady [--parts=order,dfg,drag,pieces,speed] [--resolutions=10,20,30]
+``python -m benchmarks unsteady [--parts=order,dfg,drag,pieces,speed,time] [--resolutions=10,20,30]
 [--advection=maccormack,semi_lagrangian] [--duration=10] [--name=NAME] [--quick]``
 
 Parts:
@@ -20,6 +20,11 @@ Parts:
 * ``pieces``: the same, N = 10 over 8 s, with one near-wall piece at a time taken back to
   the plain grid: advection or viscosity without the cut distances, the projection with
   open fractions rounded to 0/1 (how much the drag depends on each).
+* ``time``: the time discretization, MacCormack at N = 10 (``--time-resolution``) at CFL 1,
+  0.5 and 0.25: the paper's first-order step beside the back-trace with the velocity
+  extrapolated to mid-step, alone, with Crank-Nicolson viscosity and with incremental
+  pressure; then the extrapolated trace at N = 20 (``--time-fine``, 0 skips it), CFL 0.5.
+  Not in the default parts.
 * ``speed``: the paper's scenes (``bar_in_jet``, ``windmill``) stepped with each advection
   scheme: ms per step and the advection phase.
 
@@ -125,6 +130,7 @@ def _dfg_row(result: Any, part: str, label: str = "") -> dict[str, Any]:
         "dt [s]": s.dt, "cells": "x".join(map(str, s.cells)), "steps": s.steps,
         "t_end [s]": float(result.time[-1]), "wall [s]": round(result.seconds, 1),
         "incremental": s.incremental_pressure, "variant": label,
+        "advecting velocity": s.advecting_velocity, "viscosity scheme": s.viscosity_scheme,
     }
     for key, value in result.quantities.items():
         row[key] = value
@@ -144,16 +150,18 @@ def _dfg_row(result: Any, part: str, label: str = "") -> dict[str, Any]:
     return row
 
 
-def _reevaluate(resolution: int, advection: str, label: str = "") -> Any:
+def _reevaluate(resolution: int, advection: str, label: str = "", **options: Any) -> Any:
     """A `DfgResult` rebuilt from the CSV and JSON of an earlier run (after a change to the
     evaluation or the plots)."""
     import json
 
     from elastoflow.validation import dfg_setup
-    from elastoflow.validation._dfg import evaluate
+    from elastoflow.validation._dfg import evaluate, report_stem
 
     folder = SERIES / label.replace(" ", "_") if label else SERIES
-    stem = folder / f"dfg2d2_{advection}_n{resolution}"
+    stem = folder / report_stem(
+        advection, resolution, options.get("advecting_velocity", "current"),
+        options.get("viscosity_scheme", "backward_euler"))
     saved = json.loads(stem.with_suffix(".json").read_text())
     with stem.with_suffix(".csv").open() as file:
         keys = file.readline().strip().split(",")[1:]
@@ -161,7 +169,9 @@ def _reevaluate(resolution: int, advection: str, label: str = "") -> Any:
     setup = dfg_setup(resolution, duration=saved["duration"], dt=saved["dt"],
                       advection=advection,
                       incremental_pressure=saved["incremental_pressure"],
-                      limiter=saved.get("maccormack_limiter", True))
+                      limiter=saved.get("maccormack_limiter", True),
+                      advecting_velocity=saved.get("advecting_velocity", "current"),
+                      viscosity_scheme=saved.get("viscosity_scheme", "backward_euler"))
     series = {key: data[:, k + 1] for k, key in enumerate(keys)}
     return evaluate(setup, data[:, 0], series, saved["wall_seconds"])
 
@@ -176,7 +186,7 @@ def _run_dfg(resolution: int, advection: str, duration: float, copy: bool,
 
     began = time.perf_counter()
     if REEVALUATE:
-        result = _reevaluate(resolution, advection, label)
+        result = _reevaluate(resolution, advection, label, **options)
     else:
         result = run_dfg(resolution, duration=duration, advection=advection, **options)
     print(f"{describe(result)} ({time.perf_counter() - began:.0f} s) {label}", flush=True)
@@ -329,6 +339,36 @@ def drag_part(resolution: int, duration: float, quick: bool) -> list[dict[str, A
     return rows
 
 
+TIME_VARIANTS: tuple[tuple[str, dict[str, Any]], ...] = (
+    ("first order", {}),
+    ("extrapolated", {"advecting_velocity": "extrapolated"}),
+    ("extrapolated + CN", {"advecting_velocity": "extrapolated",
+                           "viscosity_scheme": "crank_nicolson"}),
+    ("extrapolated + incremental", {"advecting_velocity": "extrapolated",
+                                    "incremental_pressure": True}),
+)
+
+
+def time_part(resolution: int, fine: int, duration: float, quick: bool) -> list[dict[str, Any]]:
+    """How the quantities depend on dt with each time discretization (MacCormack)."""
+    n = 8 if quick else resolution
+    rows = []
+    for cfl in (1.0, 0.5, 0.25):
+        for label, options in TIME_VARIANTS:
+            name = f"time {label} cfl{cfl:g}".replace(" + ", "_")
+            result = _run_dfg(n, "maccormack", duration, copy=False, label=name, cfl=cfl,
+                              **options)
+            rows.append({**_dfg_row(result, "time", label), "cfl": cfl})
+    if fine and not quick:
+        for label, options in TIME_VARIANTS[:2]:
+            name = f"time {label} cfl0.5".replace(" + ", "_")
+            result = _run_dfg(fine, "maccormack", duration, copy=False, label=name, **options)
+            rows.append({**_dfg_row(result, "time", label), "cfl": 0.5})
+    print(markdown_table(rows, ["variant", "N", "cfl", "wall [s]", *QUANTITIES,
+                                "drag mean", "note"]), flush=True)
+    return rows
+
+
 def pieces_part(resolution: int, duration: float) -> list[dict[str, Any]]:
     """How much the drag depends on each near-wall piece: one fluid phase at a time gets
     the cylinder without its cut distances (advection, viscosity: the solid point's own
@@ -453,6 +493,9 @@ def main(argv: list[str] | None = None) -> list[dict[str, Any]]:
     if "pieces" in parts:
         rows += pieces_part(8 if quick else int(_option(argv, "drag-resolution", "10")),
                             float(_option(argv, "pieces-duration", "2" if quick else "8")))
+    if "time" in parts:
+        rows += time_part(int(_option(argv, "time-resolution", "10")),
+                          int(_option(argv, "time-fine", "20")), duration, quick)
     if "speed" in parts:
         rows += speed_part(20 if quick else 100, quick)
     write_results(_option(argv, "name", "unsteady"), rows)

@@ -520,6 +520,14 @@ def validate(
                                             "quantities as JSON.")] = False,
     advection: Annotated[str, typer.Option(help="dfg-2d-2: the fluid's advection scheme, "
                                            "maccormack or semi_lagrangian.")] = "maccormack",
+    advecting_velocity: Annotated[str, typer.Option(
+        help="dfg-2d-2: the back-trace's velocity, current or extrapolated (to mid-step, "
+             "second order in time).")] = "current",
+    viscosity_scheme: Annotated[str, typer.Option(
+        help="dfg-2d-2: the viscosity's time discretization, backward_euler or "
+             "crank_nicolson.")] = "backward_euler",
+    incremental_pressure: Annotated[bool, typer.Option(
+        "--incremental-pressure", help="dfg-2d-2: solve for the pressure increment.")] = False,
 ) -> None:
     """Check a scene, or run a published benchmark.
 
@@ -539,7 +547,8 @@ def validate(
     from elastoflow.validation import BENCHMARKS
 
     if scene == "dfg-2d-2":
-        _dfg_benchmark(case, resolution, duration, dt, advection, out, json_file)
+        _dfg_benchmark(case, resolution, duration, dt, advection, out, json_file,
+                       advecting_velocity, viscosity_scheme, incremental_pressure)
         return
     if scene == "boundary-study":
         _boundary_study(case, out)
@@ -623,7 +632,10 @@ def _benchmark(name: str, case: str | None, resolution: int, duration: float | N
 
 
 def _dfg_benchmark(case: str | None, resolution: int, duration: float | None,
-                   dt: float | None, advection: str, out: Path, json_file: bool) -> None:
+                   dt: float | None, advection: str, out: Path, json_file: bool,
+                   advecting_velocity: str = "current",
+                   viscosity_scheme: str = "backward_euler",
+                   incremental_pressure: bool = False) -> None:
     """DFG 2D-2: run it, print its quantities against the published bounds, write the report.
     Exit 1 when the run blew up or was not periodic yet."""
     from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
@@ -634,7 +646,10 @@ def _dfg_benchmark(case: str | None, resolution: int, duration: float | None,
     if case is not None:
         _fail(f"{case!r}: DFG 2D-2 has one case (leave it out)")
     try:
-        setup = dfg_setup(resolution, duration=duration, dt=dt, advection=advection)
+        setup = dfg_setup(resolution, duration=duration, dt=dt, advection=advection,
+                          incremental_pressure=incremental_pressure,
+                          advecting_velocity=advecting_velocity,
+                          viscosity_scheme=viscosity_scheme)
     except ValueError as error:
         _fail(str(error))
     _output_folder(out, "--out")
@@ -643,6 +658,9 @@ def _dfg_benchmark(case: str | None, resolution: int, duration: float | None,
     with Progress(*columns, transient=True, disable=not sys.stderr.isatty()) as progress:
         task = progress.add_task("run", total=setup.steps)
         result = run_dfg(resolution, duration=setup.duration, dt=setup.dt, advection=advection,
+                         incremental_pressure=incremental_pressure,
+                         advecting_velocity=advecting_velocity,
+                         viscosity_scheme=viscosity_scheme,
                          progress=lambda done, total: progress.update(task, completed=done))
     _report_benchmark(describe(result), format_quantities(result),
                       lambda: write_dfg_report(result, out, json_file=json_file), out,

@@ -513,6 +513,29 @@ def copy_into(source, target):
     return _copy_into_serial(source, target)
 
 
+def _make_extrapolate_and_keep(loop):
+    def kernel(current, previous, ratio, out):
+        m, n = current.shape
+        for i in loop(m):
+            for j in range(n):
+                now = current[i, j]
+                out[i, j] = now + ratio * (now - previous[i, j])
+                previous[i, j] = now
+    return kernel
+
+
+_extrapolate_and_keep_serial, _extrapolate_and_keep_parallel = serial_and_parallel(
+    _make_extrapolate_and_keep)
+
+
+@njit(cache=True)
+def extrapolate_and_keep(current, previous, ratio, out):
+    """``out = current + ratio (current - previous)``, then ``previous[...] = current``."""
+    if current.size > PARALLEL_MINIMUM:
+        return _extrapolate_and_keep_parallel(current, previous, ratio, out)
+    return _extrapolate_and_keep_serial(current, previous, ratio, out)
+
+
 @njit(cache=True, inline="always")
 def _viscosity_row(f, c, axis, fixed_low, fixed_high, tangential_modes, tangential_values,
                    has_interior, solid, theta, cut_velocity, near, assemble_operator,

@@ -20,9 +20,17 @@ from elastoflow.fluid._boundaries import (
 from elastoflow.fluid._interior import InteriorBoundary
 from elastoflow.fluid._state import FluidState
 from elastoflow.grid import Grid2D
-from elastoflow.linalg import LowRankTerm, Operator5Point, PoissonSolverMGPCG, SolveReport
+from elastoflow.linalg import (
+    LowRankTerm,
+    Operator5Point,
+    PoissonSolverMGPCG,
+    SolveReport,
+    apply_operator,
+)
 
 _ADVECTION_SCHEMES = ("semi_lagrangian", "maccormack")
+_ADVECTING_VELOCITIES = ("current", "extrapolated")
+_VISCOSITY_SCHEMES = ("backward_euler", "crank_nicolson")
 
 
 class CoupledBodies(Protocol):
@@ -122,6 +130,16 @@ class FluidSolver:
             leaves it unclamped: for studies of what the limiter costs in accuracy (on DFG
             2D-2 nothing measurable, docs/method_notes.md item 10); the unlimited scheme can
             oscillate at steep fronts.
+        advecting_velocity: The velocity the back-trace follows. "current" (the paper's):
+            u^n, which makes the departure point's error O(dt^2) per step, first order in
+            time. "extrapolated": u^{n+1/2} ~ u^n + dt_n / (2 dt_{n-1}) (u^n - u^{n-1})
+            (the two-time-level extrapolation of semi-Lagrangian weather codes, Staniforth &
+            Cote 1991), second order; the field transported is still u^n. The state keeps
+            the start-of-step velocity for this (`FluidState.previous_velocity_x`); the first
+            step, and a restart from a checkpoint without it, trace with u^n.
+        viscosity_scheme: "backward_euler" (the paper's): ``(I - nu dt L) u = u*``, first
+            order. "crank_nicolson": ``(I - nu dt L / 2) u = (I + nu dt L / 2) u*`` with the
+            same cut-distance and wall stencils in both halves, second order.
     """
 
     def __init__(
@@ -139,6 +157,8 @@ class FluidSolver:
         advection: str = "semi_lagrangian",
         incremental_pressure: bool = False,
         maccormack_limiter: bool = True,
+        advecting_velocity: str = "current",
+        viscosity_scheme: str = "backward_euler",
     ) -> None:
         if not isinstance(grid, Grid2D):
             raise ValueError(f"FluidSolver grid = {grid!r}: must be an elastoflow.grid.Grid2D")
@@ -202,6 +222,18 @@ class FluidSolver:
                 f"FluidSolver incremental_pressure = {incremental_pressure!r}: must be True or False"
             )
         self.incremental_pressure = incremental_pressure
+        if advecting_velocity not in _ADVECTING_VELOCITIES:
+            raise ValueError(
+                f"FluidSolver advecting_velocity = {advecting_velocity!r}: must be one of "
+                f"{_ADVECTING_VELOCITIES}"
+            )
+        self.advecting_velocity = advecting_velocity
+        if viscosity_scheme not in _VISCOSITY_SCHEMES:
+            raise ValueError(
+                f"FluidSolver viscosity_scheme = {viscosity_scheme!r}: must be one of "
+                f"{_VISCOSITY_SCHEMES}"
+            )
+        self.viscosity_scheme = viscosity_scheme
         self._setup_sides()
         self._setup_jets()
         self._allocate()
@@ -282,6 +314,11 @@ class FluidSolver:
             self._departures = tuple(np.zeros(shape) for shape in (fx, fx, fy, fy, c, c))
         else:
             self._departures = (np.zeros((1, 1)),) * 6
+        # The extrapolated advecting velocity, and A u* of the explicit Crank-Nicolson half.
+        if self.advecting_velocity == "extrapolated":
+            self._advecting = (np.zeros(fx), np.zeros(fy))
+        if self.viscosity_scheme == "crank_nicolson":
+            self._explicit_half = (np.zeros(fx), np.zeros(fy))
         self._rhs_pressure = np.zeros(c)
         self._solid_u = np.zeros(fx)
         self._solid_v = np.zeros(fy)
@@ -370,12 +407,12 @@ class FluidSolver:
     def _advect_once(
         self, state: FluidState, sources: tuple[np.ndarray, np.ndarray, np.ndarray],
         outs: tuple[np.ndarray, np.ndarray, np.ndarray], dt: float,
-        interior: InteriorBoundary | None, mode: int = 0,
-        forwards: tuple[np.ndarray, ...] | None = None,
+        interior: InteriorBoundary | None, velocity: tuple[np.ndarray, np.ndarray],
+        mode: int = 0, forwards: tuple[np.ndarray, ...] | None = None,
         backwards: tuple[np.ndarray, ...] | None = None,
     ) -> None:
         h = self.grid.h
-        u, v = state.velocity_x, state.velocity_y
+        u, v = velocity
         has, solid_x, theta_x, cut_x, body_x = self._interior_arrays(interior, 0)
         _, solid_y, theta_y, cut_y, body_y = self._interior_arrays(interior, 1)
         forwards = forwards if forwards is not None else sources
@@ -415,19 +452,45 @@ class FluidSolver:
         self._check_step_input(state, dt, interior)
         fields = (state.velocity_x, state.velocity_y, state.dye)
         forward = (self._buffer_u, self._buffer_v, self._buffer_dye)
+        velocity = self._advecting_velocity(state, dt)
         if self.advection == "maccormack":
-            self._advect_once(state, fields, forward, dt, interior, mode=1)
+            self._advect_once(state, fields, forward, dt, interior, velocity, mode=1)
             backward = self._backward
-            self._advect_once(state, forward, backward, -dt, interior)
+            self._advect_once(state, forward, backward, -dt, interior, velocity)
             # The correction reads backward[i, j] before writing it, so it can work in place.
-            self._advect_once(state, fields, backward, dt, interior,
+            self._advect_once(state, fields, backward, dt, interior, velocity,
                               2 if self.maccormack_limiter else 3, forward, backward)
             result = backward
         else:
-            self._advect_once(state, fields, forward, dt, interior)
+            self._advect_once(state, fields, forward, dt, interior, velocity)
             result = forward
         for source, target in zip(result, fields):
             kernels.copy_into(source, target)
+
+    def _advecting_velocity(
+        self, state: FluidState, dt: float
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The velocity of the back-trace; with "extrapolated" also keeps u^n in the state.
+
+        The extrapolation runs over every face: faces inside bodies hold the body velocity
+        at both levels (extrapolated body motion), and the kernels do not read them anyway
+        (samples across a body boundary use the cut velocities). Side faces extrapolate the
+        inflow ramp to mid-step, as they should.
+        """
+        current = (state.velocity_x, state.velocity_y)
+        if self.advecting_velocity == "current":
+            return current
+        previous_x, previous_y = state.previous_velocity_x, state.previous_velocity_y
+        previous_dt = state.previous_dt
+        state.previous_dt = float(dt)
+        if previous_x is None or previous_y is None or previous_dt is None:
+            state.previous_velocity_x = state.velocity_x.copy()
+            state.previous_velocity_y = state.velocity_y.copy()
+            return current
+        ratio = 0.5 * dt / previous_dt
+        kernels.extrapolate_and_keep(current[0], previous_x, ratio, self._advecting[0])
+        kernels.extrapolate_and_keep(current[1], previous_y, ratio, self._advecting[1])
+        return self._advecting
 
     def _viscosity_operator(
         self, f: np.ndarray, axis: int, dt: float, interior: InteriorBoundary | None
@@ -464,6 +527,10 @@ class FluidSolver:
         Walls and inflow sides hold their normal velocity; tangential wall conditions enter
         through ghosts; a body boundary between two velocity points turns
         ``(phi_N - phi_P)/h^2`` into ``(phi_b - phi_P)/(theta h^2)`` (METHOD.md §6).
+        With ``viscosity_scheme="crank_nicolson"``: ``(I - nu dt lap / 2) u =
+        (I + nu dt lap / 2) u*``, the explicit half from the same stencils: if ``A u = r``
+        is the system assembled for dt / 2 (``r`` = u* plus the boundary terms), the
+        right-hand side is ``2 r - A u*``.
 
         With ``incremental_pressure`` the previous pressure gradient is subtracted first.
 
@@ -476,8 +543,16 @@ class FluidSolver:
         if self.viscosity == 0.0:
             return 0
         iterations = 0
+        crank_nicolson = self.viscosity_scheme == "crank_nicolson"
         for axis, f in ((0, state.velocity_x), (1, state.velocity_y)):
-            operator, rhs = self._viscosity_operator(f, axis, dt, interior)
+            if crank_nicolson:
+                operator, rhs = self._viscosity_operator(f, axis, 0.5 * dt, interior)
+                explicit = self._explicit_half[axis]
+                apply_operator(operator, f, out=explicit)
+                np.multiply(rhs, 2.0, out=rhs)
+                np.subtract(rhs, explicit, out=rhs)
+            else:
+                operator, rhs = self._viscosity_operator(f, axis, dt, interior)
             if self._viscosity_out and _writable_into(f):
                 _, report = self.viscosity_solver.solve(operator, rhs, x0=f, out=f)
             else:

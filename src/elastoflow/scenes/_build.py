@@ -199,6 +199,8 @@ def build_fluid_solver(scene: Scene, grid: Grid2D) -> Any:
         viscosity_solver=solvers[scene.fluid.viscosity_solver](rtol=scene.fluid.viscosity_rtol),
         advection=scene.fluid.advection,
         incremental_pressure=scene.fluid.incremental_pressure,
+        advecting_velocity=scene.fluid.advecting_velocity,
+        viscosity_scheme=scene.fluid.viscosity_scheme,
     )
 
 

@@ -162,6 +162,13 @@ class FluidSpec(_Spec):
     incremental_pressure: bool = False
     """Solve for the pressure increment (removes the plain splitting's O(dt) error at walls
     in steady flow; docs/method_notes.md item 6)."""
+    advecting_velocity: Literal["current", "extrapolated"] = "current"
+    """Velocity the advection's back-trace follows: the step's starting velocity (the
+    paper's, first order in time) or the one extrapolated to mid-step from the last two
+    steps (second order; docs/validation/unsteady.md, time discretization)."""
+    viscosity_scheme: Literal["backward_euler", "crank_nicolson"] = "backward_euler"
+    """Time discretization of the implicit viscosity: backward Euler (the paper's, first
+    order) or Crank-Nicolson (second order)."""
     initial_velocity: InitialVelocitySpec | None = None
     """Velocity at t = 0 [m/s] (at rest when left out): ``[ux, uy]``, or a table
     ``{ x = ..., y = ... }`` whose components are numbers or expressions in x and y."""

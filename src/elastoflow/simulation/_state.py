@@ -67,7 +67,7 @@ class CoupledState:
     def copy(self) -> CoupledState:
         """An independent copy (the boundary geometry is shared, it is never changed)."""
         return CoupledState(
-            fluid=FluidState(**{name: array.copy() for name, array in _arrays(self.fluid)}),
+            fluid=self.fluid.copy(),
             bodies=[body.copy() for body in self.bodies],
             time=self.time,
             step_index=self.step_index,
@@ -79,8 +79,7 @@ class CoupledState:
     def assign(self, other: CoupledState) -> None:
         """Copy ``other``'s saved values into this state's arrays; the derived boundary
         geometry stays (a scheme replaces it, and reuses its arrays)."""
-        for (_, target), (_, source) in zip(_arrays(self.fluid), _arrays(other.fluid)):
-            target[...] = source
+        self.fluid.assign(other.fluid)
         for body, source_body in zip(self.bodies, other.bodies):
             body.assign(source_body)
         for target, source in zip(self.body_forces, other.body_forces):
@@ -102,6 +101,7 @@ class CoupledState:
                 different number of bodies) or an array of another shape.
         """
         data = _upgrade_legacy_keys(data)
+        _match_optional(self, "", data)
         leaves = list(_leaves(self))
         expected = {path for path, _, _ in leaves}
         if set(data) != expected:
@@ -121,9 +121,26 @@ class CoupledState:
         self.boundary = None
 
 
-def _arrays(fluid: FluidState) -> Iterator[tuple[str, np.ndarray]]:
-    for item in dataclasses.fields(fluid):
-        yield item.name, getattr(fluid, item.name)
+def _match_optional(value: Any, path: str, data: dict[str, np.ndarray]) -> None:
+    """Give each optional field (metadata ``checkpoint="optional"``) under ``value`` the
+    checkpoint's value, or None where the checkpoint has none (an older one, or a run that
+    did not keep it)."""
+    for item in dataclasses.fields(value):
+        name = f"{path}{item.name}"
+        child = getattr(value, item.name)
+        if item.metadata.get("checkpoint") == "optional":
+            if name not in data:
+                setattr(value, item.name, None)
+            elif np.ndim(data[name]) == 0:
+                setattr(value, item.name, float(data[name]))
+            else:
+                setattr(value, item.name, np.array(data[name], dtype=np.float64))
+        elif dataclasses.is_dataclass(child):
+            _match_optional(child, f"{name}.", data)
+        elif isinstance(child, list):
+            for index, entry in enumerate(child):
+                if dataclasses.is_dataclass(entry):
+                    _match_optional(entry, f"{name}.{index}.", data)
 
 
 Leaf = tuple[str, Any, Callable[[np.ndarray], None]]
@@ -137,6 +154,8 @@ def _leaves(value: Any, path: str = "") -> Iterator[Leaf]:
             continue
         name = f"{path}{item.name}"
         child = getattr(value, item.name)
+        if child is None and item.metadata.get("checkpoint") == "optional":
+            continue
         if dataclasses.is_dataclass(child):
             yield from _leaves(child, f"{name}.")
         elif isinstance(child, list):

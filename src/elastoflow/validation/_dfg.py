@@ -61,6 +61,8 @@ BOUNDS: dict[str, tuple[float, float]] = {
 }
 LABELS = {"strouhal": "St", "drag_max": "c_D max", "lift_max": "c_L max", "delta_p": "Δp [Pa]"}
 ADVECTION_SCHEMES = ("maccormack", "semi_lagrangian")
+ADVECTING_VELOCITIES = ("current", "extrapolated")
+VISCOSITY_SCHEMES = ("backward_euler", "crank_nicolson")
 
 Progress = Callable[[int, int], None]
 
@@ -93,6 +95,9 @@ class DfgSetup:
         incremental_pressure: The fluid's pressure-correction form (`FluidSolver`).
         kick: Peak transverse velocity [m/s] of the start-up perturbation.
         limiter: MacCormack's clamp (`FluidSolver` maccormack_limiter).
+        advecting_velocity: The back-trace's velocity (`FluidSolver`): "current" or
+            "extrapolated" (to mid-step, second order in time).
+        viscosity_scheme: "backward_euler" or "crank_nicolson" (`FluidSolver`).
     """
 
     resolution: int
@@ -103,6 +108,8 @@ class DfgSetup:
     incremental_pressure: bool = False
     kick: float = 0.3
     limiter: bool = True
+    advecting_velocity: str = "current"
+    viscosity_scheme: str = "backward_euler"
 
     @property
     def steps(self) -> int:
@@ -116,7 +123,8 @@ class DfgSetup:
 def dfg_setup(resolution: int = 20, *, duration: float | None = None, dt: float | None = None,
               advection: str = "maccormack", cfl: float = 0.5,
               incremental_pressure: bool = False, kick: float = 0.3,
-              limiter: bool = True) -> DfgSetup:
+              limiter: bool = True, advecting_velocity: str = "current",
+              viscosity_scheme: str = "backward_euler") -> DfgSetup:
     """Resolution N -> h = 0.41 / ceil(4.1 N); dt from ``cfl`` on the inflow peak (0.5:
     dt = h / 3 s/m); 10 s of simulated time by default.
 
@@ -132,6 +140,12 @@ def dfg_setup(resolution: int = 20, *, duration: float | None = None, dt: float 
         duration = 10.0
     if not (isinstance(duration, (int, float)) and math.isfinite(duration) and duration > 0.0):
         raise ValueError(f"duration = {duration!r}: must be a finite number > 0 [s]")
+    if advecting_velocity not in ADVECTING_VELOCITIES:
+        raise ValueError(f"advecting_velocity = {advecting_velocity!r}: must be one of "
+                         f"{', '.join(ADVECTING_VELOCITIES)}")
+    if viscosity_scheme not in VISCOSITY_SCHEMES:
+        raise ValueError(f"viscosity_scheme = {viscosity_scheme!r}: must be one of "
+                         f"{', '.join(VISCOSITY_SCHEMES)}")
     if not (isinstance(cfl, (int, float)) and math.isfinite(cfl) and cfl > 0.0):
         raise ValueError(f"cfl = {cfl!r}: must be a finite number > 0")
     if dt is None:
@@ -139,7 +153,8 @@ def dfg_setup(resolution: int = 20, *, duration: float | None = None, dt: float 
     if not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0.0):
         raise ValueError(f"dt = {dt!r}: must be a finite positive time step [s]")
     return DfgSetup(resolution, h, float(dt), float(duration), advection,
-                    incremental_pressure, float(kick), limiter)
+                    incremental_pressure, float(kick), limiter, advecting_velocity,
+                    viscosity_scheme)
 
 
 @dataclass
@@ -191,6 +206,7 @@ def dfg_solver(setup: DfgSetup) -> tuple[Grid2D, FluidSolver, Any, InteriorBound
         grid, density=DENSITY, viscosity=VISCOSITY, boundaries=boundaries,
         pressure_solver=linalg.PoissonSolverMGPCG(rtol=1e-6), advection=setup.advection,
         incremental_pressure=setup.incremental_pressure, maccormack_limiter=setup.limiter,
+        advecting_velocity=setup.advecting_velocity, viscosity_scheme=setup.viscosity_scheme,
     )
     # Edges no longer than h / 4 (the 2D-1 study's choice), at least 64.
     segments = max(64, math.ceil(4.0 * 2.0 * math.pi * RADIUS / setup.h))
@@ -342,6 +358,7 @@ class SurfacePressureDrag:
 def run_dfg(resolution: int = 20, *, duration: float | None = None, dt: float | None = None,
             advection: str = "maccormack", cfl: float = 0.5,
             incremental_pressure: bool = False, kick: float = 0.3, limiter: bool = True,
+            advecting_velocity: str = "current", viscosity_scheme: str = "backward_euler",
             progress: Progress | None = None) -> DfgResult:
     """Run DFG 2D-2 and evaluate its quantities over the last period.
 
@@ -354,12 +371,15 @@ def run_dfg(resolution: int = 20, *, duration: float | None = None, dt: float | 
         incremental_pressure: The fluid's pressure-correction form.
         kick: Peak transverse velocity [m/s] of the start-up perturbation (0: none).
         limiter: MacCormack's clamp (False only for studies).
+        advecting_velocity: "current" or "extrapolated" (`FluidSolver`).
+        viscosity_scheme: "backward_euler" or "crank_nicolson" (`FluidSolver`).
         progress: Called with (steps done, steps in all) as the run goes.
     """
     from elastoflow.coupling import force_traction
 
     setup = dfg_setup(resolution, duration=duration, dt=dt, advection=advection, cfl=cfl,
-                      incremental_pressure=incremental_pressure, kick=kick, limiter=limiter)
+                      incremental_pressure=incremental_pressure, kick=kick, limiter=limiter,
+                      advecting_velocity=advecting_velocity, viscosity_scheme=viscosity_scheme)
     grid, solver, bmap, interior = dfg_solver(setup)
     state = initial_state(grid, interior, setup.kick)
     balance = ControlVolumeDrag(grid)
@@ -438,6 +458,8 @@ def describe(result: DfgResult) -> str:
     end = float(result.time[-1]) if len(result.time) else 0.0
     form = ", incremental pressure" if s.incremental_pressure else ""
     form += "" if s.limiter or s.advection != "maccormack" else ", unlimited"
+    form += ", extrapolated trace" if s.advecting_velocity == "extrapolated" else ""
+    form += ", Crank-Nicolson viscosity" if s.viscosity_scheme == "crank_nicolson" else ""
     return (f"DFG 2D-2, resolution {s.resolution}: {nx}x{ny} cells (h = {s.h:.5g} m), "
             f"{s.advection} advection{form}, dt = {s.dt:.4g} s, t = 0-{end:.4g} s "
             f"({s.steps} steps), {result.seconds:.1f} s wall")
@@ -476,6 +498,8 @@ def quantities_json(result: DfgResult) -> dict[str, Any]:
         "advection": s.advection,
         "incremental_pressure": s.incremental_pressure,
         "maccormack_limiter": s.limiter,
+        "advecting_velocity": s.advecting_velocity,
+        "viscosity_scheme": s.viscosity_scheme,
         "duration": float(result.time[-1]) if len(result.time) else 0.0,
         "steps": s.steps,
         "wall_seconds": result.seconds,
@@ -487,13 +511,23 @@ def quantities_json(result: DfgResult) -> dict[str, Any]:
     }
 
 
+def report_stem(advection: str, resolution: int, advecting_velocity: str = "current",
+                viscosity_scheme: str = "backward_euler") -> str:
+    """``dfg2d2_<advection>[_extrapolated][_crank_nicolson]_n<N>``: the first-order time
+    step keeps the name it always had."""
+    time_scheme = ("_extrapolated" if advecting_velocity == "extrapolated" else "") + (
+        "_crank_nicolson" if viscosity_scheme == "crank_nicolson" else "")
+    return f"dfg2d2_{advection}{time_scheme}_n{resolution}"
+
+
 def write_dfg_report(result: DfgResult, folder: str | Path, *, json_file: bool = True
                      ) -> list[Path]:
     """Write ``dfg2d2_<advection>_n<N>.csv`` (time series), ``.png`` (plots) and, with
     ``json_file``, ``.json`` into ``folder``; each file appears whole or not at all."""
     from elastoflow.validation._report import write_series_report
 
-    stem = f"dfg2d2_{result.setup.advection}_n{result.setup.resolution}"
+    s = result.setup
+    stem = report_stem(s.advection, s.resolution, s.advecting_velocity, s.viscosity_scheme)
     return write_series_report(folder, stem, result.time, result.series, list(result.series),
                                lambda path: _plot(result, path),
                                quantities_json(result) if json_file else None)
