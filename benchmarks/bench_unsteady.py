@@ -22,8 +22,10 @@ Parts:
   open fractions rounded to 0/1 (how much the drag depends on each).
 * ``time``: the time discretization, MacCormack at N = 10 (``--time-resolution``) at CFL 1,
   0.5 and 0.25: the paper's first-order step beside the back-trace with the velocity
-  extrapolated to mid-step, alone, with Crank-Nicolson viscosity and with incremental
-  pressure; then the extrapolated trace at N = 20 (``--time-fine``, 0 skips it), CFL 0.5.
+  extrapolated to mid-step, alone, with Crank-Nicolson viscosity, with incremental
+  pressure, with both, and with the BDF2 step; then the first-order step and the variants
+  named by ``--time-fine-variants`` (default: BDF2) at N = 20 (``--time-fine``, 0 skips
+  it), CFL 0.5.
   Not in the default parts.
 * ``speed``: the paper's scenes (``bar_in_jet``, ``windmill``) stepped with each advection
   scheme: ms per step and the advection phase.
@@ -346,10 +348,15 @@ TIME_VARIANTS: tuple[tuple[str, dict[str, Any]], ...] = (
                            "viscosity_scheme": "crank_nicolson"}),
     ("extrapolated + incremental", {"advecting_velocity": "extrapolated",
                                     "incremental_pressure": True}),
+    ("extrapolated + CN + incremental", {"advecting_velocity": "extrapolated",
+                                         "viscosity_scheme": "crank_nicolson",
+                                         "incremental_pressure": True}),
+    ("extrapolated + BDF2", {"advecting_velocity": "extrapolated", "viscosity_scheme": "bdf2"}),
 )
 
 
-def time_part(resolution: int, fine: int, duration: float, quick: bool) -> list[dict[str, Any]]:
+def time_part(resolution: int, fine: int, duration: float, quick: bool,
+              fine_variants: tuple[str, ...] = ("extrapolated + BDF2",)) -> list[dict[str, Any]]:
     """How the quantities depend on dt with each time discretization (MacCormack)."""
     n = 8 if quick else resolution
     rows = []
@@ -360,7 +367,9 @@ def time_part(resolution: int, fine: int, duration: float, quick: bool) -> list[
                               **options)
             rows.append({**_dfg_row(result, "time", label), "cfl": cfl})
     if fine and not quick:
-        for label, options in TIME_VARIANTS[:2]:
+        for label, options in TIME_VARIANTS:
+            if label != "first order" and label not in fine_variants:
+                continue
             name = f"time {label} cfl0.5".replace(" + ", "_")
             result = _run_dfg(fine, "maccormack", duration, copy=False, label=name, **options)
             rows.append({**_dfg_row(result, "time", label), "cfl": 0.5})
@@ -495,7 +504,9 @@ def main(argv: list[str] | None = None) -> list[dict[str, Any]]:
                             float(_option(argv, "pieces-duration", "2" if quick else "8")))
     if "time" in parts:
         rows += time_part(int(_option(argv, "time-resolution", "10")),
-                          int(_option(argv, "time-fine", "20")), duration, quick)
+                          int(_option(argv, "time-fine", "20")), duration, quick,
+                          tuple(_option(argv, "time-fine-variants",
+                                        "extrapolated + BDF2").split(",")))
     if "speed" in parts:
         rows += speed_part(20 if quick else 100, quick)
     write_results(_option(argv, "name", "unsteady"), rows)

@@ -62,7 +62,7 @@ BOUNDS: dict[str, tuple[float, float]] = {
 LABELS = {"strouhal": "St", "drag_max": "c_D max", "lift_max": "c_L max", "delta_p": "Δp [Pa]"}
 ADVECTION_SCHEMES = ("maccormack", "semi_lagrangian")
 ADVECTING_VELOCITIES = ("current", "extrapolated")
-VISCOSITY_SCHEMES = ("backward_euler", "crank_nicolson")
+VISCOSITY_SCHEMES = ("backward_euler", "crank_nicolson", "bdf2")
 
 Progress = Callable[[int, int], None]
 
