@@ -502,7 +502,8 @@ def validate(
     case: Annotated[str | None, typer.Argument(help="The benchmark's case: CFD1-3, CSM1-3, "
                                                "FSI1-3 (turek-hron); the study's part, "
                                                "default all (boundary-study: poisson, "
-                                               "leakage, spurious, force_jump, dfg).")
+                                               "leakage, spurious, force_jump, dfg, "
+                                               "speed, stability).")
                     ] = None,
     resolution: Annotated[int, typer.Option(help="Benchmark: about this many cells per "
                                             "cylinder diameter (turek-hron) or metre "
@@ -688,6 +689,14 @@ def _boundary_study(part: str | None, out: Path) -> None:
         write_force_jump_report,
         write_spurious_report,
     )
+    from elastoflow.validation._boundary_speed import (
+        run_speed_study,
+        run_stability_study,
+        speed_lines,
+        stability_lines,
+        write_speed_report,
+        write_stability_report,
+    )
     from elastoflow.validation._leakage_study import leakage_table
 
     if part is not None and part not in STUDY_PARTS:
@@ -710,6 +719,10 @@ def _boundary_study(part: str | None, out: Path) -> None:
                        run_force_jump_study, force_jump_table, write_force_jump_report),
         "dfg": ("DFG 2D-1: c_D and c_L against resolution", run_dfg_study, dfg_table,
                 write_dfg_study_report),
+        "speed": ("speed: map, interiors and brute force against edges and grid; whole steps",
+                  run_speed_study, speed_lines, write_speed_report),
+        "stability": ("stability: the bar in a jet's largest dt and lowest density ratio",
+                      run_stability_study, stability_lines, write_stability_report),
     }
     for name in STUDY_PARTS:
         if part not in (None, name):

@@ -15,7 +15,11 @@ plate from 2 h thick to 0 (`plate_leakage`), `write_leakage_report` writes its p
 ``run_spurious_study()`` (velocities around a fixed body in water at rest),
 ``run_force_jump_study()`` (the force on a disc moving slowly across the grid) and
 ``run_dfg_study()`` (DFG 2D-1 drag and lift against resolution) likewise, each with its
-writer; ``elastoflow validate boundary-study [PART]`` runs every part (`STUDY_PARTS`) or one.
+writer; ``run_speed_study()`` (the map, the interiors and the brute-force classification
+against the body's edges and the grid, and the built-in scenes' whole step) and
+``run_stability_study()`` (the bar in a jet's largest stable dt and lowest stable density
+ratio) with theirs; ``elastoflow validate boundary-study [PART]`` runs every part
+(`STUDY_PARTS`) or one.
 """
 
 from elastoflow.validation._boundary_study import (
@@ -36,6 +40,14 @@ from elastoflow.validation._boundary_study import (
     write_force_jump_report,
     write_poisson_report,
     write_spurious_report,
+)
+from elastoflow.validation._boundary_speed import (
+    SpeedStudy,
+    StabilityStudy,
+    run_speed_study,
+    run_stability_study,
+    write_speed_report,
+    write_stability_report,
 )
 from elastoflow.validation._leakage_study import (
     LeakageStudy,
@@ -93,7 +105,9 @@ __all__ = [
     "PoissonStudy",
     "Result",
     "Setup",
+    "SpeedStudy",
     "SpuriousStudy",
+    "StabilityStudy",
     "case_simulation",
     "cells_across",
     "cells_high",
@@ -116,13 +130,17 @@ __all__ = [
     "run_force_jump_study",
     "run_leakage_study",
     "run_poisson_study",
+    "run_speed_study",
     "run_spurious_study",
+    "run_stability_study",
     "solve_poisson_disk",
     "write_dfg_report",
     "write_dfg_study_report",
     "write_force_jump_report",
     "write_leakage_report",
     "write_poisson_report",
+    "write_speed_report",
     "write_spurious_report",
+    "write_stability_report",
     "write_report",
 ]
