@@ -42,7 +42,7 @@ from elastoflow.coupling._map import BoundaryMap
 from elastoflow.coupling._thin import ThinCuts, thin_cuts
 from elastoflow.fluid import OPEN_MIN, InteriorBoundary
 from elastoflow.grid import Grid2D
-from elastoflow.linalg import LowRankTerm
+from elastoflow.linalg import BandedInverse, LowRankTerm
 
 
 @njit(cache=True)
@@ -391,6 +391,12 @@ class BodyResponse(Protocol):
     def compliance(self, dofs: np.ndarray) -> np.ndarray:
         ...
 
+    def compliance_factor(self, dofs: np.ndarray
+                          ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+        """The compliance as a banded factor (`elastoflow.solid.StepResponse`), or None to
+        have `compliance` form it."""
+        ...
+
 
 class PressureCoupledBodies:
     """The bodies' side of the strongly coupled projection (`elastoflow.fluid.CoupledBodies`).
@@ -509,23 +515,47 @@ class PressureCoupledBodies:
 
     def coupling_term(self, active: np.ndarray) -> LowRankTerm:
         """``rho h^2 / dt (DW) Phi (DW)^T`` with ``Phi`` the bodies' compliance on the
-        degrees of freedom that ``W`` touches (block diagonal over bodies)."""
+        degrees of freedom that ``W`` touches (block diagonal over bodies): a dense block for
+        the bodies whose response is a dense inverse, and the banded factors of the others
+        (never formed: applied by sweeps inside the solve)."""
         cells = self._cells(active)
         by_dof = cells.T.tocsr()
         touched = np.flatnonzero(np.diff(by_dof.indptr) > 0)
         last = 2 * self.offsets[-1]
         touched = touched[touched < last]
-        matrix = np.zeros((touched.shape[0], touched.shape[0]))
+        dense_slots = np.full(touched.shape[0], -1, np.int64)
+        band_slots = np.full(touched.shape[0], -1, np.int64)
+        dense_parts: list[tuple[np.ndarray, np.ndarray]] = []
+        factors: list[tuple[np.ndarray, np.ndarray]] = []
+        dense_size = band_size = 0
         for index, response in enumerate(self.responses):
             lo, hi = 2 * self.offsets[index], 2 * self.offsets[index + 1]
             mine = np.flatnonzero((touched >= lo) & (touched < hi))
-            if mine.size:
-                matrix[np.ix_(mine, mine)] = response.compliance(touched[mine] - lo)
+            if not mine.size:
+                continue
+            factor = response.compliance_factor(touched[mine] - lo)
+            if factor is None:
+                dense_slots[mine] = dense_size + np.arange(mine.size)
+                dense_parts.append((mine, response.compliance(touched[mine] - lo)))
+                dense_size += mine.size
+            else:
+                columns, rows, positions = factor
+                held = positions < 0
+                band_slots[mine] = np.where(held, -1, positions + band_size)
+                factors.append((columns, rows))
+                band_size += columns.shape[0]
+        matrix = np.zeros((dense_size, dense_size))
+        start = 0
+        for _, block in dense_parts:
+            size = block.shape[0]
+            matrix[start:start + size, start:start + size] = block
+            start += size
         restricted = by_dof[touched]
         return LowRankTerm(
             offsets=restricted.indptr.astype(np.int64), points=restricted.indices.astype(np.int64),
             weights=restricted.data.astype(np.float64), matrix=matrix,
-            scale=self.density * self.face_length**2 / self.dt,
+            scale=self.density * self.face_length**2 / self.dt, dense_slots=dense_slots,
+            banded=_stacked_factors(factors, band_slots) if factors else None,
         )
 
     def respond(self, pressure: np.ndarray, active: np.ndarray, closed_u: np.ndarray,
@@ -542,3 +572,21 @@ class PressureCoupledBodies:
         is_u = flux.axis == 0
         closed_u.reshape(-1)[flux.faces[is_u]] = face_flux[is_u]
         closed_v.reshape(-1)[flux.faces[~is_u] - u_faces] = face_flux[~is_u]
+
+
+def _stacked_factors(factors: list[tuple[np.ndarray, np.ndarray]],
+                     slots: np.ndarray) -> BandedInverse:
+    """One block-diagonal banded factor from the bodies' own, each widened to the largest
+    half-band with zeros (the blocks stay uncoupled: no entry links two bodies)."""
+    band = max(columns.shape[1] for columns, _ in factors) - 1
+    size = sum(columns.shape[0] for columns, _ in factors)
+    stacked_columns = np.zeros((size, band + 1))
+    stacked_rows = np.zeros((size, band + 1))
+    start = 0
+    for columns, rows in factors:
+        n, width = columns.shape
+        # columns[i, t] = U[i - b + t, i]: the body's own band sits at the right end.
+        stacked_columns[start:start + n, band + 1 - width:] = columns
+        stacked_rows[start:start + n, :width] = rows
+        start += n
+    return BandedInverse(stacked_columns, stacked_rows, slots)

@@ -30,15 +30,18 @@ the operator is unchanged, so an operator's arrays must not be modified after co
 """
 
 
+from elastoflow.linalg._banded import banded_sweep_layouts
 from elastoflow.linalg._jacobi import PoissonSolverJacobi
-from elastoflow.linalg._mgpcg import LowRankTerm, PoissonSolverMGPCG
+from elastoflow.linalg._mgpcg import BandedInverse, LowRankTerm, PoissonSolverMGPCG
 from elastoflow.linalg._operator import Operator5Point, SolveReport, apply_operator
 
 __all__ = [
+    "BandedInverse",
     "LowRankTerm",
-        "Operator5Point",
+    "Operator5Point",
     "PoissonSolverJacobi",
     "PoissonSolverMGPCG",
     "SolveReport",
     "apply_operator",
+    "banded_sweep_layouts",
 ]

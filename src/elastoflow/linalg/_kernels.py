@@ -7,6 +7,7 @@ import numpy as np
 from numba import njit, prange, uint64
 
 from elastoflow._numba import serial_and_parallel
+from elastoflow.linalg._banded import banded_solve_in_place
 
 
 @njit(cache=True, inline="always")
@@ -1133,26 +1134,50 @@ def load_operator_kernel(diagonal, weights_x, weights_y, diagonal_flat, weights_
 
 
 @njit(cache=True)
-def _low_rank_image(v, offsets, cells, weights, matrix, y, w):
-    """``w = matrix (B^T v)`` for ``B^T`` in CSR (row d: entries offsets[d]:offsets[d+1])."""
+def _low_rank_image(v, cells, term):
+    """``term.w = M (B^T v)`` for ``B^T`` in CSR (row d: entries offsets[d]:offsets[d+1]) and
+    ``M`` the dense block on the columns with a dense slot plus the banded inverse on the
+    columns with a band slot (see `LowRankTerm.kernel_term`)."""
+    (offsets, weights, _, dense_slot, matrix, band_slot, columns, rows, y, w, dense_y,
+     dense_w, work) = term
     k = offsets.shape[0] - 1
     for d in range(k):
         total = 0.0
         for e in range(offsets[d], offsets[d + 1]):
             total += weights[e] * v[cells[e]]
         y[d] = total
-    for d in range(k):
-        total = 0.0
-        for e in range(k):
-            total += matrix[d, e] * y[e]
-        w[d] = total
+        w[d] = 0.0
+    size = matrix.shape[0]
+    if size:
+        for d in range(k):
+            if dense_slot[d] >= 0:
+                dense_y[dense_slot[d]] = y[d]
+        for a in range(size):
+            total = 0.0
+            for b in range(size):
+                total += matrix[a, b] * dense_y[b]
+            dense_w[a] = total
+        for d in range(k):
+            if dense_slot[d] >= 0:
+                w[d] += dense_w[dense_slot[d]]
+    if columns.shape[0]:
+        work[:] = 0.0
+        for d in range(k):
+            if band_slot[d] >= 0:
+                work[band_slot[d]] = y[d]
+        banded_solve_in_place(columns, rows, work)
+        for d in range(k):
+            if band_slot[d] >= 0:
+                w[d] += work[band_slot[d]]
 
 
 @njit(cache=True)
-def _add_low_rank(v, out, other, offsets, cells, weights, matrix, scale, sign, y, w):
-    """``out += sign scale B matrix B^T v`` on the touched points; returns
-    ``other . (scale B matrix B^T v)``."""
-    _low_rank_image(v, offsets, cells, weights, matrix, y, w)
+def _add_low_rank(v, out, other, cells, term, sign):
+    """``out += sign scale B M B^T v`` on the touched points; returns
+    ``other . (scale B M B^T v)``."""
+    _low_rank_image(v, cells, term)
+    offsets, weights, scale = term[0], term[1], term[2]
+    w = term[9]
     product = 0.0
     k = offsets.shape[0] - 1
     for d in range(k):
@@ -1165,12 +1190,18 @@ def _add_low_rank(v, out, other, offsets, cells, weights, matrix, scale, sign, y
 
 
 @njit(cache=True)
+def low_rank_apply_kernel(v, cells, term, out):
+    """``out += scale B M B^T v`` (flat arrays)."""
+    _add_low_rank(v, out, v, cells, term, 1.0)
+
+
+@njit(cache=True)
 def pcg_low_rank_kernel(rows, cols, offsets, diagonal, weights_x, weights_y, total, inverse,
                         level_x, level_b, coarse_factor, b, x, r, p, q, z, threshold,
-                        max_iterations, sweeps, term_offsets, term_cells, term_weights,
-                        term_matrix, term_scale, y, w, operator_total):
-    """`pcg_kernel` for ``A + C``, ``C = scale B M B^T`` (``B^T`` in CSR over padded points,
-    ``M`` dense symmetric positive semi-definite): the multigrid levels hold ``A + diag(C)``
+                        max_iterations, sweeps, term_cells, term, operator_total):
+    """`pcg_kernel` for ``A + C``, ``C = scale B M B^T`` (``B^T`` in CSR over the padded points
+    ``term_cells``, ``M`` symmetric positive semi-definite, `term` as `LowRankTerm.kernel_term`
+    bundles it): the multigrid levels hold ``A + diag(C)``
     as the preconditioner, ``operator_total`` (padded) is ``A``'s own diagonal plus weights.
     Returns ``(iterations, |b - (A + C) x|^2)``."""
     m = rows[0]
@@ -1180,8 +1211,7 @@ def pcg_low_rank_kernel(rows, cols, offsets, diagonal, weights_x, weights_y, tot
     wx = weights_x[:size]
     wy = weights_y[:size]
     _residual_norm(x, b, d_total, wx, wy, r, m, n)
-    _add_low_rank(x, r, x, term_offsets, term_cells, term_weights, term_matrix, term_scale,
-                  -1.0, y, w)
+    _add_low_rank(x, r, x, term_cells, term, -1.0)
     # Summed afresh: an update of |r|^2 by differences cancels catastrophically near the end.
     squared = _dot(r, r, m, n)
     iterations = 0
@@ -1195,8 +1225,7 @@ def pcg_low_rank_kernel(rows, cols, offsets, diagonal, weights_x, weights_y, tot
         pq = 1.0
         while iterations < max_iterations:
             pq = _search_direction(z, p, q, d_total, wx, wy, beta, m, n)
-            extra = _add_low_rank(z, q, p, term_offsets, term_cells, term_weights,
-                                     term_matrix, term_scale, 1.0, y, w)
+            extra = _add_low_rank(z, q, p, term_cells, term, 1.0)
             pq += extra
             if pq <= 0.0:
                 break
@@ -1212,8 +1241,7 @@ def pcg_low_rank_kernel(rows, cols, offsets, diagonal, weights_x, weights_y, tot
             rz = rz_next
         # Confirm on the true residual; restart from it when the recursion drifted.
         _residual_norm(x, b, d_total, wx, wy, r, m, n)
-        _add_low_rank(x, r, x, term_offsets, term_cells, term_weights, term_matrix, term_scale,
-                      -1.0, y, w)
+        _add_low_rank(x, r, x, term_cells, term, -1.0)
         squared = _dot(r, r, m, n)
         if pq <= 0.0 or squared <= threshold:
             break
@@ -1221,10 +1249,9 @@ def pcg_low_rank_kernel(rows, cols, offsets, diagonal, weights_x, weights_y, tot
 
 
 @njit(cache=True)
-def low_rank_diagonal_kernel(offsets, points, weights, matrix, scale, size, out):
-    """``out[c] += scale sum_{d,e} B_cd M_de B_ce`` for ``B^T`` in CSR (rows d), ``out`` of
-    ``size`` points: the entries of each point are gathered first, so the cost is the sum over
-    points of (entries at the point)^2, not points x k^2."""
+def _entries_by_point(points, offsets, weights, size):
+    """``B``'s entries grouped by point: (start of each point's entries, their column,
+    their weight)."""
     k = offsets.shape[0] - 1
     count = np.zeros(size + 1, np.int64)
     for d in range(k):
@@ -1241,9 +1268,58 @@ def low_rank_diagonal_kernel(offsets, points, weights, matrix, scale, size, out)
             rows[fill[c]] = d
             values[fill[c]] = weights[e]
             fill[c] += 1
+    return count, rows, values
+
+
+@njit(cache=True)
+def low_rank_band_gap(points, term, size):
+    """The largest distance in the banded factor between two banded columns of ``B`` that
+    meet at one point: how wide the inverse's band must be for the diagonal to be exact."""
+    offsets, weights, band_slot = term[0], term[1], term[5]
+    count, rows, _ = _entries_by_point(points, offsets, weights, size)
+    widest = 0
+    for c in range(size):
+        for a in range(count[c], count[c + 1]):
+            sa = band_slot[rows[a]]
+            if sa < 0:
+                continue
+            for b in range(count[c], count[c + 1]):
+                sb = band_slot[rows[b]]
+                if sb >= 0 and abs(sa - sb) > widest:
+                    widest = abs(sa - sb)
+    return widest
+
+
+@njit(cache=True)
+def low_rank_diagonal_kernel(points, term, selected, size, out):
+    """``out[c] += scale sum_{d,e} B_cd M_de B_ce`` for ``B^T`` in CSR (rows d) over ``points``,
+    ``out`` of ``size`` points: the entries of each point are gathered first, so the cost is
+    the sum over points of (entries at the point)^2, not points x k^2. ``M`` is read from the
+    dense block and, for the banded part, from ``selected`` (the inverse's entries up to its
+    width, `banded_selected_inverse`); a pair of banded columns further apart than that
+    counts as 0, and a point's total is kept >= 0. Returns the number of such pairs (0:
+    exact)."""
+    offsets, weights, scale, dense_slot, matrix, band_slot = term[:6]
+    width = selected.shape[1] - 1
+    count, rows, values = _entries_by_point(points, offsets, weights, size)
+    outside = 0
     for c in range(size):
         total = 0.0
         for a in range(count[c], count[c + 1]):
+            da = rows[a]
             for b in range(count[c], count[c + 1]):
-                total += values[a] * matrix[rows[a], rows[b]] * values[b]
-        out[c] += scale * total
+                db = rows[b]
+                entry = 0.0
+                if dense_slot[da] >= 0 and dense_slot[db] >= 0:
+                    entry = matrix[dense_slot[da], dense_slot[db]]
+                elif band_slot[da] >= 0 and band_slot[db] >= 0:
+                    low = min(band_slot[da], band_slot[db])
+                    gap = abs(band_slot[da] - band_slot[db])
+                    if gap <= width:
+                        entry = selected[low, gap]
+                    else:
+                        outside += 1
+                total += values[a] * entry * values[b]
+        if total > 0.0:
+            out[c] += scale * total
+    return outside

@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
+from elastoflow.linalg._banded import banded_selected_inverse
 from elastoflow.linalg._kernels import (
     COARSEN_PARALLEL_MINIMUM,
     chebyshev_kernel,
@@ -14,6 +15,8 @@ from elastoflow.linalg._kernels import (
     coarsen_serial,
     dense_matrix_kernel,
     load_operator_kernel,
+    low_rank_apply_kernel,
+    low_rank_band_gap,
     low_rank_diagonal_kernel,
     pad_masked_kernel,
     pad_values_kernel,
@@ -37,16 +40,46 @@ _SMOOTHER_ONLY_DOMINANCE = 0.25
 
 
 @dataclass(frozen=True)
+class BandedInverse:
+    """``(U^T U)^-1`` of an upper triangular banded ``U``, for some of a `LowRankTerm`'s
+    columns: applied by two sweeps (`banded_solve_in_place`), never formed.
+
+    Attributes:
+        columns: ``U`` along its columns, ``columns[i, t] = U[i - b + t, i]``, (N, b + 1).
+        rows: ``U`` along its rows, ``rows[i, t] = U[i, i + t]``, (N, b + 1).
+        slots: For each of the term's k columns, its position in ``U`` or -1, int64, (k,).
+    """
+
+    columns: NDArray[np.float64]
+    rows: NDArray[np.float64]
+    slots: NDArray[np.int64]
+
+
+_NO_INDEX = np.zeros(0, np.int64)
+_NO_MATRIX = np.zeros((0, 0))
+_NO_BAND = np.zeros((0, 1))
+# How many times its own band the inverse's band may be widened for an exact diagonal (see
+# `LowRankTerm.diagonal_with_count`): Turek-Hron's flag at 20 cells per diameter needs 38
+# against a band of 25.
+_WIDEST_BAND = 4
+
+
+@dataclass(frozen=True)
 class LowRankTerm:
     """A symmetric positive semi-definite term ``C = scale B M B^T`` added to a 5-point
-    operator on ``(m, n)`` points: ``B`` sparse with few touched points, ``M`` small and dense.
+    operator on ``(m, n)`` points: ``B`` sparse with few touched points, ``M`` block diagonal
+    with a small dense block and a `BandedInverse` (a body's compliance through its factor).
 
     Attributes:
         offsets: CSR row offsets of ``B^T`` (one row per column of ``B``), int64, (k+1,).
         points: Flat point index ``i * n + j`` of each entry, int64.
         weights: ``B``'s value of each entry.
-        matrix: ``M``, symmetric positive semi-definite, shape (k, k).
+        matrix: The dense block of ``M``, symmetric positive semi-definite: (k, k) over every
+            column when ``dense_slots`` is None, else over the columns it names.
         scale: ``scale`` >= 0.
+        dense_slots: For each column, its row in ``matrix`` or -1 (None: all, in order).
+        banded: The banded block, on the columns its ``slots`` name (disjoint from the
+            dense block's).
     """
 
     offsets: NDArray[np.int64]
@@ -54,26 +87,67 @@ class LowRankTerm:
     weights: NDArray[np.float64]
     matrix: NDArray[np.float64]
     scale: float
+    dense_slots: NDArray[np.int64] | None = None
+    banded: BandedInverse | None = None
+
+    @property
+    def columns(self) -> int:
+        return int(self.offsets.shape[0] - 1)
+
+    def kernel_term(self) -> tuple:
+        """The arrays the kernels read, bundled (with scratch space): offsets, weights,
+        scale, dense slots, dense block, band slots, ``U`` by columns and by rows, and the
+        scratch vectors."""
+        k = self.columns
+        dense = (np.arange(k, dtype=np.int64) if self.dense_slots is None
+                 else np.ascontiguousarray(self.dense_slots, dtype=np.int64))
+        matrix = np.ascontiguousarray(self.matrix, dtype=np.float64)
+        if matrix.size == 0:
+            matrix = _NO_MATRIX
+        if self.banded is None:
+            band_slots, columns, rows = np.full(k, -1, np.int64), _NO_BAND, _NO_BAND
+        else:
+            band_slots = np.ascontiguousarray(self.banded.slots, dtype=np.int64)
+            columns = np.ascontiguousarray(self.banded.columns, dtype=np.float64)
+            rows = np.ascontiguousarray(self.banded.rows, dtype=np.float64)
+        return (np.ascontiguousarray(self.offsets, dtype=np.int64),
+                np.ascontiguousarray(self.weights, dtype=np.float64), float(self.scale),
+                dense, matrix, band_slots, columns, rows, np.zeros(k), np.zeros(k),
+                np.zeros(matrix.shape[0]), np.zeros(matrix.shape[0]),
+                np.zeros(columns.shape[0]))
 
     def diagonal(self, shape: tuple[int, int]) -> NDArray[np.float64]:
-        """``diag(C)`` as an (m, n) array."""
+        """``diag(C)`` as an (m, n) array (see `diagonal_with_count` for when it is not
+        exact)."""
+        return self.diagonal_with_count(shape)[0]
+
+    def diagonal_with_count(self, shape: tuple[int, int]) -> tuple[NDArray[np.float64], int]:
+        """``diag(C)`` and the number of pairs of banded columns meeting at a point whose
+        entry of the inverse was not computed (0: exact). The banded part's entries come from
+        the inverse's band widened as far as such pairs reach, up to ``_WIDEST_BAND`` times
+        the factor's band (cost ``n b w``); pairs further apart count as 0, which only the
+        preconditioner reads (it needs an approximation of the diagonal, kept >= 0)."""
         out = np.zeros(shape[0] * shape[1])
-        low_rank_diagonal_kernel(self.offsets, self.points, self.weights,
-                                 np.ascontiguousarray(self.matrix), float(self.scale),
-                                 out.shape[0], out)
-        return out.reshape(shape)
+        points = np.ascontiguousarray(self.points, dtype=np.int64)
+        term = self.kernel_term()
+        selected = _NO_BAND
+        if self.banded is not None and self.banded.rows.shape[0]:
+            rows = np.ascontiguousarray(self.banded.rows)
+            gap = low_rank_band_gap(points, term, out.shape[0])
+            width = max(rows.shape[1] - 1, min(gap, _WIDEST_BAND * rows.shape[1],
+                                               rows.shape[0] - 1))
+            selected = np.empty((rows.shape[0], width + 1))
+            banded_selected_inverse(rows, selected)
+        outside = low_rank_diagonal_kernel(points, term, selected, out.shape[0], out)
+        return out.reshape(shape), int(outside)
 
     def apply(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
         """``C x`` for ``x`` of shape (m, n)."""
-        flat = x.reshape(-1)
-        k = self.offsets.shape[0] - 1
-        rows = np.repeat(np.arange(k), np.diff(self.offsets))
-        y = np.zeros(k)
-        np.add.at(y, rows, self.weights * flat[self.points])
-        w = self.matrix @ y
+        flat = np.ascontiguousarray(x, dtype=np.float64).reshape(-1)
         out = np.zeros(flat.shape[0])
-        np.add.at(out, self.points, self.scale * self.weights * w[rows])
-        return out.reshape(x.shape)
+        low_rank_apply_kernel(flat, np.ascontiguousarray(self.points, dtype=np.int64),
+                              self.kernel_term(), out)
+        return out.reshape(np.shape(x))
 
 
 class _Hierarchy:
@@ -368,16 +442,14 @@ class PoissonSolverMGPCG:
         pad_values_kernel(extra, padded_extra)
         operator_total = hierarchy.total[:hierarchy.b.size] - padded_extra
         padded_points = (coupling.points // n + 1) * (n + 2) + coupling.points % n + 1
-        k = coupling.offsets.shape[0] - 1
         threshold = (self.rtol * norm_b) ** 2
         iterations, squared = pcg_low_rank_kernel(
             hierarchy.rows, hierarchy.cols, hierarchy.offsets, hierarchy.diagonal,
             hierarchy.weights_x, hierarchy.weights_y, hierarchy.total, hierarchy.inverse,
             hierarchy.level_x, hierarchy.level_b, hierarchy.factor, hierarchy.b, hierarchy.x,
             hierarchy.r, hierarchy.p, hierarchy.q, hierarchy.z, threshold, self.max_iterations,
-            self.smoothing_sweeps, coupling.offsets, padded_points.astype(np.int64),
-            coupling.weights, np.ascontiguousarray(coupling.matrix), float(coupling.scale),
-            np.zeros(k), np.zeros(k), operator_total,
+            self.smoothing_sweeps, padded_points.astype(np.int64), coupling.kernel_term(),
+            operator_total,
         )
         x = _output(out, operator.shape)
         unpad_values_kernel(hierarchy.x, x)

@@ -27,6 +27,8 @@ from scipy import linalg, sparse
 from scipy.sparse.csgraph import reverse_cuthill_mckee
 from threadpoolctl import ThreadpoolController
 
+from elastoflow.linalg import banded_sweep_layouts
+
 
 
 @njit(cache=True)
@@ -249,13 +251,7 @@ class StepResponse:
         ``banded_inverse_columns``), built once."""
         if self._sweep_layout is None:
             assert self._banded is not None
-            band, n = self._banded.shape[0] - 1, self._banded.shape[1]
-            columns = np.ascontiguousarray(self._banded.T)
-            rows = np.zeros((n, band + 1))
-            for t in range(band + 1):
-                # U[i, i + t] sits at storage[band - t, i + t].
-                rows[: n - t, t] = self._banded[band - t, t:]
-            self._sweep_layout = (columns, rows)
+            self._sweep_layout = banded_sweep_layouts(self._banded)
         return self._sweep_layout
 
     @property
@@ -301,6 +297,27 @@ class StepResponse:
                 block = self.dt * self._solve(unit)[local[movable]]
                 result[np.ix_(movable, movable)] = 0.5 * (block + block.T)
         return result
+
+    def compliance_factor(self, dofs: np.ndarray
+                          ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+        """The compliance ``dt A^-1`` through its banded factor instead of as a matrix:
+        ``(columns, rows, positions)`` with ``(U^T U)^-1 = dt A^-1`` in the factor's order,
+        ``U`` laid out for the two sweeps of `elastoflow.linalg.BandedInverse`, and each of
+        ``dofs``'s position in it (-1 on a held degree of freedom); None when the response is
+        not held as a banded factor (`compliance` then forms the matrix)."""
+        if self._banded is None or not self.free.size:
+            return None
+        assert self._order is not None
+        columns, rows = self._sweeps()
+        # U / sqrt(dt) makes (U^T U)^-1 the compliance itself.
+        root = np.sqrt(self.dt)
+        dofs = np.asarray(dofs, dtype=np.int64)
+        position = np.full(max(int(dofs.max(initial=0)), int(self.free.max())) + 1, -1,
+                           np.int64)
+        where = np.empty(self._order.shape[0], np.int64)
+        where[self._order] = np.arange(self._order.shape[0])
+        position[self.free] = where
+        return columns / root, rows / root, position[dofs]
 
     def velocity_change(self, forces: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
         """``dv`` [m/s], shape (n, 2), answering nodal ``forces`` [N/m] held over ``dt``."""

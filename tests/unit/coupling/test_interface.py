@@ -67,6 +67,9 @@ class _Held:
     def compliance(self, dofs):
         return np.zeros((len(dofs), len(dofs)))
 
+    def compliance_factor(self, dofs):
+        return None
+
 
 def _active_cells(grid, interior):
     """Active as in the pressure operator: a cell with an interior face open by OPEN_MIN."""

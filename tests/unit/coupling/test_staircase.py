@@ -194,6 +194,9 @@ class _Held:
     def compliance(self, dofs):
         return np.zeros((len(dofs), len(dofs)))
 
+    def compliance_factor(self, dofs):
+        return None
+
 
 @pytest.mark.parametrize("index", [0, 1])
 def test_uniform_pressure_exerts_no_net_force_or_torque(index: int) -> None:

@@ -165,6 +165,23 @@ def test_every_factorization_gives_the_same_answer(path: str,
     dofs = np.flatnonzero(rng.random(2 * mesh.point_count) < 0.3)
     assert np.allclose(response.compliance(dofs), reference.compliance(dofs), rtol=1e-9,
                        atol=1e-12 * np.abs(reference.compliance(dofs)).max())
+    factor = response.compliance_factor(dofs)
+    assert (factor is not None) == path.startswith("banded")
+    if factor is not None:
+        # The factor's inverse, read at the dofs' positions, is the compliance; held dofs
+        # have no position.
+        columns, rows, positions = factor
+        inverse = np.zeros((columns.shape[0], columns.shape[0]))
+        for i in range(columns.shape[0]):
+            inverse[i, i:i + rows.shape[1]] = rows[i, : columns.shape[0] - i]
+        inverse = np.linalg.inv(inverse.T @ inverse)
+        movable = positions >= 0
+        held = np.zeros(mesh.point_count, bool)
+        held[fixed] = True
+        assert np.all(movable == ~np.repeat(held, 2)[dofs])
+        expected = reference.compliance(dofs)[np.ix_(movable, movable)]
+        got = inverse[np.ix_(positions[movable], positions[movable])]
+        assert np.allclose(got, expected, rtol=1e-9, atol=1e-12 * np.abs(expected).max())
 
 
 def _spinning_vibrating_disc(density: float) -> tuple[ElasticBody, BodyState]:
