@@ -501,10 +501,12 @@ def speed_section(study: SpeedStudy, figure: str, table_csv: str) -> str:
         "(reusing the previous result's arrays, as a run does; the interior includes the "
         "classification by the map's scanline fill); against it the brute force "
         "(`classify_points_brute_force`: every cell centre, u and v point against every "
-        f"triangle), run where grid points x triangles stays below {BRUTE_FORCE_LIMIT:.0e}. "
+        f"triangle), run where grid points x triangles stays below {BRUTE_FORCE_LIMIT:.2g}. "
         f"Best of {SPEED_REPEATS} for the map and the interiors, one run of the brute force; "
-        f"shared 2-core machine, load average {load} (before, after). The exponents in the "
-        "last row are a least-squares fit of `log time` on `log cells` and `log edges`.",
+        f"shared 2-core machine, load average {load} (before, after): the whole steps below "
+        "are for the two treatments' ratio and the boundary's share, the idle machine's step "
+        "times are in docs/benchmarks.md. The exponents in the last row are a least-squares "
+        "fit of `log time` on `log cells` and `log edges`.",
         f"The map alone takes {1e3 * min(map_times):.2f} to {1e3 * max(map_times):.2f} ms "
         f"at every size here (fit cells^{map_fit[0]:.2f} edges^{map_fit[1]:.2f}; slope "
         f"{study.map_order():.2f} against its crossings plus edges): it loops over the edges "
@@ -564,6 +566,9 @@ STABILITY_CELLS = 64
 """Cells across the bar-in-a-jet box (the scene has 256)."""
 STABILITY_DURATION = 3.0
 """Simulated time of each run [s] (the scene runs 10 s)."""
+STABILITY_MIN_STEPS = 40
+"""Fewest steps of a run, so that a large dt still takes enough steps for a growing mode to
+show (the run then goes past `STABILITY_DURATION`)."""
 STABILITY_DT = 0.013
 """The scene's time step [s]; its multiples are bisected."""
 SCENE_DENSITY_RATIO = 1.1
@@ -572,6 +577,9 @@ DT_FACTORS = (1.0, 64.0)
 """Bracket of dt / the scene's dt for the bisection."""
 DENSITY_RATIOS = (1e-4, SCENE_DENSITY_RATIO)
 """Bracket of solid / fluid density for the bisection."""
+EXPLICIT_DENSITY_MIN = 1e-2
+"""Bottom of the explicit scheme's density bracket: its FEM substeps shrink as the square
+root of the density (870 a step at 1e-2, 84000 at 1e-4), which would take most of the part."""
 BISECTION_STEPS = 6
 """Bisections (in log) of each bracket."""
 NO_CFL_LIMIT = 1.0e6
@@ -625,7 +633,7 @@ def bar_run(treatment: str, *, scheme: str = "monolithic", force_model: str = "t
     from elastoflow.simulation import SimulationBlowUp
     from elastoflow.solid import SolidInversionError
 
-    steps = max(1, math.ceil(duration / dt - 1e-9))
+    steps = max(STABILITY_MIN_STEPS, math.ceil(duration / dt - 1e-9))
     start = _time.perf_counter()
     changes: dict[str, Any] = {
         "coupling__boundary": treatment, "coupling__scheme": scheme, "domain__nx": cells,
@@ -704,7 +712,8 @@ def bisect_limit(treatment: str, quantity: str, *, scheme: str = "monolithic",
                  duration: float = STABILITY_DURATION) -> StabilityLimit:
     """Bisect (in log) the largest stable dt (``quantity = "dt"``, at the scene's density) or
     the lowest stable density ratio (``"density_ratio"``, at the scene's dt) inside the
-    brackets `DT_FACTORS` and `DENSITY_RATIOS`."""
+    brackets `DT_FACTORS` and `DENSITY_RATIOS` (`EXPLICIT_DENSITY_MIN` for the explicit
+    scheme)."""
     runs: list[StabilityRun] = []
 
     def run(value: float) -> bool:
@@ -719,6 +728,8 @@ def bisect_limit(treatment: str, quantity: str, *, scheme: str = "monolithic",
         good, bad = STABILITY_DT * DT_FACTORS[0], STABILITY_DT * DT_FACTORS[1]
     else:
         good, bad = DENSITY_RATIOS[1], DENSITY_RATIOS[0]
+        if scheme == "explicit":
+            bad = max(bad, EXPLICIT_DENSITY_MIN)
     label = (treatment, scheme, force_model, quantity)
     if not run(good):
         return StabilityLimit(*label, math.nan, good, tuple(runs))
@@ -793,9 +804,9 @@ def stability_table(study: StabilityStudy) -> list[str]:
         dt = study.limit(treatment, scheme, model, "dt")
         density = study.limit(treatment, scheme, model, "density_ratio")
         lines.append(f"| {_LABEL[treatment]} | {_COUPLING_LABEL.get((scheme, model), scheme)} "
-                     f"| {_bound(dt.stable)} | {_bound(dt.unstable)} | {_cell(dt.reason)} | "
-                     f"{_bound(density.stable)} | {_bound(density.unstable)} | "
-                     f"{_cell(density.reason)} |")
+                     f"| {_bound(dt.stable)} | {_bound(dt.unstable)} | "
+                     f"{_cell(_what_stopped(dt.reason))} | {_bound(density.stable)} | "
+                     f"{_bound(density.unstable)} | {_cell(_what_stopped(density.reason))} |")
     return lines
 
 
@@ -864,8 +875,11 @@ def stability_section(study: StabilityStudy, figure: str, table_csv: str) -> str
         f"the coupling's. Bisection in log, {BISECTION_STEPS} halvings of the bracket: dt "
         f"from {DT_FACTORS[0]:g} to {DT_FACTORS[1]:g} times the scene's {STABILITY_DT:g} s "
         f"(bar density {SCENE_DENSITY_RATIO:g} times the fluid's, the scene's), the density "
-        f"ratio from {DENSITY_RATIOS[1]:g} down to {DENSITY_RATIOS[0]:g} (at the scene's "
-        "dt). \"none\": every run of the bracket was unstable (or stable) on that side.",
+        f"ratio from {DENSITY_RATIOS[1]:g} down to {DENSITY_RATIOS[0]:g} (explicit: "
+        f"{EXPLICIT_DENSITY_MIN:g}, its FEM substeps growing as 1 / sqrt(density)) at the "
+        f"scene's dt. Each run lasts {study.duration:g} s or {STABILITY_MIN_STEPS} steps, "
+        "whichever is longer. \"none\": no run of the bracket was unstable (or stable) on "
+        "that side.",
         _stability_reading(study),
         f"Data: [{Path(table_csv).name}]({table_csv}) (every run: dt, density ratio, "
         "largest displacement and CFL number, steps, what stopped it). Test: "
@@ -876,31 +890,77 @@ def stability_section(study: StabilityStudy, figure: str, table_csv: str) -> str
                            figure, "largest displacement of every run")
 
 
+def _what_stopped(reason: str) -> str:
+    """A run's reason in a few words."""
+    if "implicit step" in reason and "det F" in reason:
+        return "an element inverts in the implicit solid step"
+    if "substep" in reason and "det F" in reason:
+        return "an element inverts in an explicit FEM substep at its stability bound"
+    return reason
+
+
 def _stability_reading(study: StabilityStudy) -> str:
     """What limits each bound, from the runs."""
-    sentences = []
+    top = STABILITY_DT * DT_FACTORS[1]
+    dt_limits = [study.limit(*row, "dt") for row in study.rows]
+    unstable_dt = [item for item in dt_limits if math.isfinite(item.unstable)]
+    largest_cfl = max((r.cfl for item in dt_limits for r in item.runs
+                       if math.isfinite(r.cfl)), default=math.nan)
+    if unstable_dt:
+        text = "Time step: " + "; ".join(
+            f"{_LABEL[item.treatment]}, {item.scheme} {item.force_model.replace('_', ' ')} "
+            f"stable up to {_bound(item.stable)} s ({_what_stopped(item.reason)} beyond)"
+            for item in unstable_dt) + "; the other rows stable over the whole bracket."
+    else:
+        text = (f"Time step: no run was unstable in any row up to {top:.3g} s, "
+                f"{DT_FACTORS[1]:g} times the scene's (CFL number up to {largest_cfl:.0f}): "
+                "the semi-Lagrangian fluid, the implicit solid step of the monolithic scheme "
+                "and the explicit scheme's relaxed force with substeps at the FEM's bound "
+                "all stay bounded.")
+    rows = []
     for treatment, scheme, model in study.rows:
-        dt = study.limit(treatment, scheme, model, "dt")
         density = study.limit(treatment, scheme, model, "density_ratio")
-        top = STABILITY_DT * DT_FACTORS[1]
-        if not math.isfinite(dt.unstable):
-            dt_text = f"stable up to the bracket's top, dt = {top:.3g} s"
-        elif not math.isfinite(dt.stable):
-            dt_text = f"unstable already at the scene's dt ({dt.reason})"
-        else:
-            dt_text = (f"stable up to dt = {dt.stable:.3g} s "
-                       f"({dt.stable / STABILITY_DT:.2g} times the scene's; beyond: "
-                       f"{dt.reason})")
-        if not math.isfinite(density.unstable):
-            density_text = f"stable down to the bracket's bottom, {DENSITY_RATIOS[0]:g}"
+        label = f"{_LABEL[treatment]}, {scheme} {model.replace('_', ' ')}"
+        moved = max((r.displacement for item in (study.limit(treatment, scheme, model, "dt"),
+                                                 density)
+                     for r in item.runs if math.isfinite(r.displacement)), default=0.0)
+        if moved == 0.0:
+            rows.append(f"{label}: the bar never moves in any run (this force model gives "
+                        "it next to no force with this boundary), so its row says nothing "
+                        "about stability")
+        elif not math.isfinite(density.unstable):
+            rows.append(f"{label}: stable over the whole bracket")
         elif not math.isfinite(density.stable):
-            density_text = f"unstable already at the scene's density ({density.reason})"
+            rows.append(f"{label}: unstable already at the scene's density "
+                        f"({_what_stopped(density.reason)})")
         else:
-            density_text = (f"down to a density ratio of {density.stable:.3g} (below: "
-                            f"{density.reason})")
-        sentences.append(f"{_LABEL[treatment]}, {scheme} {model.replace('_', ' ')}: "
-                         f"{dt_text}; {density_text}")
-    return ". ".join(sentences) + "."
+            rows.append(f"{label}: down to {density.stable:.3g} "
+                        f"({_what_stopped(density.reason)} below)")
+    text += " Density ratio: " + "; ".join(rows) + "."
+    monolithic = {row[0]: study.limit(*row, "density_ratio").stable for row in study.rows
+                  if row[1] == "monolithic"}
+    if all(math.isfinite(monolithic.get(t, math.nan)) for t in TREATMENTS):
+        lighter = monolithic["cut_cell"] / monolithic["staircase"]
+        if lighter > 1.0:
+            text += (f" With the monolithic scheme the staircase's bar goes {lighter:.0f} "
+                     "times lighter than the cut cells' before an element inverts; why is "
+                     f"not isolated here (the bar is {0.05 * study.cells:.1f} cells wide on "
+                     "this grid).")
+        else:
+            text += (f" With the monolithic scheme the cut cells' bar goes {1 / lighter:.0f} "
+                     "times lighter than the staircase's before an element inverts.")
+    reference = {row: study.limit(*row, "dt").runs[0] for row in study.rows}
+    loads = [f"{_LABEL[row[0]]} {reference[row].displacement:.3g} m"
+             for row in study.rows if row[2] == "momentum_exchange"
+             and reference[row].stable]
+    traction = [f"{reference[row].displacement:.3g}" for row in study.rows
+                if row[2] == "traction" and reference[row].stable]
+    if loads and traction:
+        text += (" The momentum-exchange rows are not comparable with the traction rows: at "
+                 "the scene's dt and density it moves the bar by (largest node displacement) "
+                 + ", ".join(loads) + f" against {', '.join(traction)} m with traction "
+                 "(it sees little of the jet's force), so its bar is hardly loaded.")
+    return text
 
 
 def write_stability_report(study: StabilityStudy, folder: str | Path) -> list[Path]:

@@ -374,7 +374,8 @@ is regenerated, tables and figures, by
     elastoflow validate boundary-study --out docs/validation
 
 which rewrites only the marked block of each part it runs (all, or the one named after
-`boundary-study`); the figures and CSV files are in `docs/validation/boundary_study/`.
+`boundary-study`: `poisson`, `leakage`, `spurious`, `force_jump`, `dfg`, `speed`,
+`stability`); the figures and CSV files are in `docs/validation/boundary_study/`.
 """
 
 
@@ -960,7 +961,7 @@ def splitting_table(study: ForceJumpStudy) -> list[str]:
         projection = "incremental" if r.incremental else "plain"
         drag = "" if not math.isfinite(r.drag) else f"{r.drag:.1f}"
         drift = "" if not math.isfinite(r.drift) else f"{100 * r.drift:+.1f} %"
-        lines.append(f"| {r.cells} | {steps} | {r.diffusion_number:.3g} | {projection} | "
+        lines.append(f"| {r.cells} | {steps} | {r.diffusion_number:.4g} | {projection} | "
                      f"{drag} | {r.slip:+.2f} | {r.gap:.2f} | {r.spurious:.2f} | {drift} | "
                      f"{r.failure.replace('|', '/')} |")
     return lines
@@ -1085,11 +1086,11 @@ def _splitting_reading(study: ForceJumpStudy) -> str:
         " The second table (cut cells) finds the cause in the time splitting, not in the "
         f"boundary: at this part's steps the diffusion number nu dt / h^2 is {numbers} "
         f"{at}, and at the first u face above the disc (its gap from the wall in brackets) "
-        f"u is {slips(plain)} against the wall's +V: the projection after the implicit "
-        "viscosity step, which solves for the whole pressure, gives back a slip that the "
-        "viscosity step had removed. With steps of nu dt / h^2 = "
+        f"u is {slips(plain)} against the wall's +V: the error of splitting the implicit "
+        "viscosity step from a projection that solves for the whole pressure grows with "
+        "nu dt / h^2 and leaves the wall slipping. With steps of nu dt / h^2 = "
         f"{JUMP_DIFFUSION_NUMBER:g} ({JUMP_CHECK_TIME:g} s from rest) the same faces move "
-        f"with the wall ({slips(plain_small)}) and the drag converges: {drags(plain_small)} "
+        f"the wall's way ({slips(plain_small)}) and the drag converges: {drags(plain_small)} "
         f"N/m {at}, where the part's steps give {drags(plain)}. "
         "`FluidSolver(incremental_pressure=True)` (the projection corrects a pressure "
         "increment) is the usual cure, and with small steps it gives "
@@ -1099,10 +1100,12 @@ def _splitting_reading(study: ForceJumpStudy) -> str:
     if stopped:
         text += (", and the run " + " and ".join(f"at {r.cells}^2" for r in stopped)
                  + f" stops ({stopped[0].failure})")
-    drifts = [r.drift for r in incremental if math.isfinite(r.drift)]
-    if drifts:
-        largest = max(drifts, key=abs)
-        text += f", its drag drifting by {100 * largest:+.0f} % of the mean over the run"
+    finished = [r for r in incremental if math.isfinite(r.drift)]
+    if finished:
+        drifting = max(finished, key=lambda r: abs(r.drift))
+        text += (f"; at {drifting.cells}^2 its drag drifts by {100 * drifting.drift:+.0f} % "
+                 "of the mean over the run (the plain projection's by at most "
+                 f"{100 * max(abs(r.drift) for r in plain):.0f} %, the trend)")
     text += (". The likeliest reason, not isolated here: the previous pressure it "
              "subtracts before the viscosity step is that of solid cells where the moving "
              "disc uncovers them. The part keeps the plain projection: its jumps, relative "
