@@ -679,7 +679,7 @@ def _boundary_study(part: str | None, out: Path) -> None:
     )
     from elastoflow.validation._boundary_study import (
         dfg_table,
-        force_jump_table,
+        force_jump_lines,
         poisson_table,
         run_dfg_study,
         run_force_jump_study,
@@ -716,7 +716,7 @@ def _boundary_study(part: str | None, out: Path) -> None:
         "spurious": ("spurious velocities: a fixed body in water at rest", run_spurious_study,
                      spurious_table, write_spurious_report),
         "force_jump": ("force smoothness: a disc moving slowly across the grid",
-                       run_force_jump_study, force_jump_table, write_force_jump_report),
+                       run_force_jump_study, force_jump_lines, write_force_jump_report),
         "dfg": ("DFG 2D-1: c_D and c_L against resolution", run_dfg_study, dfg_table,
                 write_dfg_study_report),
         "speed": ("speed: map, interiors and brute force against edges and grid; whole steps",

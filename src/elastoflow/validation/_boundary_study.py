@@ -1056,6 +1056,11 @@ def force_jump_section(study: ForceJumpStudy, figure: str, table_csv: str) -> st
                            paragraphs, table, figure, "drag over its mean against cells crossed")
 
 
+def force_jump_lines(study: ForceJumpStudy) -> list[str]:
+    """What the command prints: the part's table and its splitting check's."""
+    return [*force_jump_table(study), *splitting_table(study)]
+
+
 def _splitting_reading(study: ForceJumpStudy) -> str:
     """What the splitting check shows, in words with its numbers."""
     means = ", ".join(f"{abs(study.run('cut_cell', n).mean):.0f}" for n in study.cells)
