@@ -55,7 +55,8 @@ def test_explicit_scheme_reproduces_its_results_before_the_redesign(name: str) -
     # The scenes' coupling and advection of the time.
     explicit = CouplingSpec(scheme="explicit", force_model="traction", force_relaxation=0.1)
     scene = get_scene(name)
-    fluid_spec = scene.fluid.model_copy(update={"advection": "semi_lagrangian"})
+    fluid_spec = scene.fluid.model_copy(update={"advection": "semi_lagrangian",
+                                                "pressure_guess": "previous"})
     simulation = elastoflow.load(scene.model_copy(update={"coupling": explicit,
                                                           "fluid": fluid_spec}))
     for _ in range(50):

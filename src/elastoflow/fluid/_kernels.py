@@ -870,3 +870,15 @@ def add_body_forces(u, v, dye, dt, gravity_x, gravity_y, buoyancy):
         for i in prange(nx):
             for j in range(1, ny):
                 v[i, j] += dt * (gravity_y + buoyancy * 0.5 * (dye[i, j - 1] + dye[i, j]))
+
+
+@njit(cache=True)
+def extrapolate_into(current, previous, ratio):
+    """``current, previous = current + ratio (current - previous), current`` in place: the
+    linear extrapolation of a field one step ahead, and the field it came from kept."""
+    flat_current = current.reshape(-1)
+    flat_previous = previous.reshape(-1)
+    for k in range(flat_current.shape[0]):
+        value = flat_current[k]
+        flat_current[k] = value + ratio * (value - flat_previous[k])
+        flat_previous[k] = value

@@ -26,6 +26,10 @@ class FluidState:
             ``advecting_velocity="extrapolated"`` (None otherwise, and before its first step).
         previous_velocity_y: v at the start of the last step, likewise.
         previous_dt: The last step's dt [s] (None with the two fields above).
+        previous_pressure: The pressure before the last projection, kept by a solver with
+            ``pressure_guess="extrapolated"`` (None otherwise, and before its second
+            projection) to start the next solve from ``p + dt / dt_p (p - p_previous)``.
+        previous_pressure_dt: The step between ``previous_pressure`` and ``pressure`` [s].
     """
 
     velocity_x: np.ndarray
@@ -35,6 +39,8 @@ class FluidState:
     previous_velocity_x: np.ndarray | None = field(default=None, metadata=OPTIONAL)
     previous_velocity_y: np.ndarray | None = field(default=None, metadata=OPTIONAL)
     previous_dt: float | None = field(default=None, metadata=OPTIONAL)
+    previous_pressure: np.ndarray | None = field(default=None, metadata=OPTIONAL)
+    previous_pressure_dt: float | None = field(default=None, metadata=OPTIONAL)
 
     @classmethod
     def zeros(cls, grid: Grid2D) -> FluidState:
@@ -77,6 +83,7 @@ class FluidState:
             "dye": grid.shape_cells,
             "previous_velocity_x": grid.shape_faces_x,
             "previous_velocity_y": grid.shape_faces_y,
+            "previous_pressure": grid.shape_cells,
         }
         for name, shape in expected.items():
             value = getattr(self, name)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import contextlib
+import errno
 import os
 import queue
 import subprocess
@@ -144,6 +145,9 @@ class VideoWriter:
                 encoder.close()
             except Exception as error:
                 self._discard_temporary()
+                # Keep the errno (a full disk stays ENOSPC for the caller), not its "[Errno N]".
+                if isinstance(error, OSError) and error.errno is not None:
+                    raise OSError(error.errno, f"video not written: {error.strerror}") from None
                 raise OSError(f"video not written: {error}") from None
             os.replace(self._temporary, self.path)  # type: ignore[arg-type]
             self._temporary = None
@@ -287,6 +291,10 @@ class _Encoder:
         said = self._said()
         self._log.close()
         if status != 0:
+            code = _ffmpeg_errno(status)
+            if code is not None:
+                raise OSError(code, f"ffmpeg exited with status {status} "
+                                    f"({os.strerror(code)}){said}")
             raise OSError(f"ffmpeg exited with status {status}{said}")
 
     def abort(self) -> None:
@@ -417,3 +425,18 @@ def join_videos(segments: list[Path], path: str | Path) -> Path:
         if temporary.exists():
             temporary.unlink()
     return path
+
+
+# The file-system errors that ffmpeg reports by exiting with AVERROR(errno) & 0xff, i.e.
+# 256 - errno (a full disk: 228): named in the error, as a writer of our own would.
+_FILE_SYSTEM_ERRNOS = frozenset(
+    code for code in (getattr(errno, name, None) for name in
+                      ("ENOSPC", "EDQUOT", "EROFS", "EIO", "EACCES", "EFBIG"))
+    if code is not None
+)
+
+
+def _ffmpeg_errno(status: int) -> int | None:
+    """The errno behind ffmpeg's exit status, for the file-system errors it exits with."""
+    code = 256 - status
+    return code if 0 < status < 256 and code in _FILE_SYSTEM_ERRNOS else None

@@ -201,6 +201,7 @@ def build_fluid_solver(scene: Scene, grid: Grid2D) -> Any:
         incremental_pressure=scene.fluid.incremental_pressure,
         advecting_velocity=scene.fluid.advecting_velocity,
         viscosity_scheme=scene.fluid.viscosity_scheme,
+        pressure_guess=scene.fluid.pressure_guess,
     )
 
 

@@ -384,6 +384,7 @@ def case_simulation(setup: Setup) -> tuple[Simulation, int | None]:
     solver = fluid.FluidSolver(
         grid, density=case.fluid_density, viscosity=case.viscosity, boundaries=boundaries,
         pressure_solver=linalg.PoissonSolverMGPCG(), advection="maccormack",
+        pressure_guess="extrapolated",
     )
     segments = _circle_segments(setup.h)
     bodies = []

@@ -71,3 +71,27 @@ def test_render_says_it_could_not_write(tmp_path: Path, failing_ffmpeg: Path) ->
     assert result.exit_code == 2, result.output
     assert "No space left on device" in result.output and "wrote" not in result.output
     assert not list((tmp_path / "run").glob("render_*"))
+
+
+def test_ffmpeg_exiting_with_an_errno_names_it(tmp_path: Path,
+                                               monkeypatch: pytest.MonkeyPatch) -> None:
+    """ffmpeg exits with AVERROR(ENOSPC) & 0xff = 228 when the disk fills, and may say only
+    "Nothing was written into output file": the error names the errno."""
+    import errno
+
+    import imageio_ffmpeg
+
+    script = tmp_path / "bin" / "ffmpeg"
+    script.parent.mkdir()
+    script.write_text("#!/bin/sh\ncat > /dev/null\n"
+                      "echo 'Nothing was written into output file' >&2\nexit 228\n")
+    os.chmod(script, 0o755)
+    monkeypatch.setattr(imageio_ffmpeg, "get_ffmpeg_exe", lambda: str(script))
+    out = tmp_path / "out"
+    out.mkdir()
+    video = VideoWriter(out / "v.mp4", fps=10)
+    video.append(np.zeros((16, 16, 3), dtype=np.uint8))
+    with pytest.raises(OSError, match=r"status 228 \(No space left on device\)") as raised:
+        video.close()
+    assert raised.value.errno == errno.ENOSPC
+    assert list(out.iterdir()) == []
