@@ -18,9 +18,14 @@ from __future__ import annotations
 import math
 import time as _time
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from elastoflow.validation._turek_hron import Case, Progress, Result, Setup, evaluate
+
+if TYPE_CHECKING:
+    from elastoflow.simulation import Simulation
 
 DOMAIN = ((-3.0, 3.0), (0.0, 4.0))
 FLAP = ((-0.05, 0.05), (0.0, 1.0))
@@ -64,15 +69,14 @@ def flap_setup(resolution: int, *, duration: float | None = None, dt: float | No
     return Setup(FLAP_CASE, resolution, h, float(dt), float(duration), scheme, layers)
 
 
-def run_flap(resolution: int = 20, *, duration: float | None = None, dt: float | None = None,
-             scheme: str = "monolithic", progress: Progress | None = None) -> Result:
-    """Run the perpendicular flap and evaluate the tip's oscillation."""
+def flap_simulation(setup: Setup) -> tuple[Simulation, int, np.ndarray]:
+    """The `Simulation` of the flap (fluid at the inflow speed everywhere: the impulsive
+    start), the tip's node and its rest position."""
     from elastoflow import fluid, linalg
     from elastoflow.grid import Grid2D
     from elastoflow.simulation import MonolithicCoupling, Simulation
     from elastoflow.solid import ElasticBody, MaterialStVK, mesh_rectangle
 
-    setup = flap_setup(resolution, duration=duration, dt=dt, scheme=scheme)
     h = setup.h
     grid = Grid2D(nx=round(6.0 / h), ny=round(4.0 / h), h=h, origin=(DOMAIN[0][0], 0.0))
     boundaries = fluid.DomainBoundaries(
@@ -81,7 +85,7 @@ def run_flap(resolution: int = 20, *, duration: float | None = None, dt: float |
     solver = fluid.FluidSolver(
         grid, density=FLAP_CASE.fluid_density, viscosity=FLAP_CASE.viscosity,
         boundaries=boundaries, pressure_solver=linalg.PoissonSolverMGPCG(),
-        advection="maccormack")
+        advection="maccormack", pressure_guess="extrapolated")
     layers = setup.layers
     mesh = mesh_rectangle(0.1, 1.0, counts=(layers, 10 * layers), origin=(FLAP[0][0], 0.0),
                           pattern="crossed")
@@ -90,16 +94,24 @@ def run_flap(resolution: int = 20, *, duration: float | None = None, dt: float |
                             poisson_ratio=FLAP_CASE.poisson_ratio)
     body = ElasticBody(mesh, material, fixed_nodes=np.flatnonzero(mesh.points[:, 1] <= 1e-12))
     tip = int(np.argmin(np.linalg.norm(mesh.points - np.asarray(TIP), axis=1)))
-    coupling = MonolithicCoupling() if scheme == "monolithic" else "explicit"
+    coupling = MonolithicCoupling() if setup.scheme == "monolithic" else "explicit"
     simulation = Simulation(grid, solver, bodies=[body], dt=setup.dt, coupling=coupling)
-    # Impulsive start: the whole channel at the inflow speed.
     simulation.state.fluid.velocity_x[...] = SPEED
+    return simulation, tip, mesh.points[tip].copy()
+
+
+def run_flap(resolution: int = 20, *, duration: float | None = None, dt: float | None = None,
+             scheme: str = "monolithic", progress: Progress | None = None) -> Result:
+    """Run the perpendicular flap and evaluate the tip's oscillation."""
+    setup = flap_setup(resolution, duration=duration, dt=dt, scheme=scheme)
+    simulation, tip, rest = flap_simulation(setup)
+    grid = simulation.grid
+    mesh_triangles = simulation.bodies[0].mesh.triangle_count
     began = _time.perf_counter()
     steps = setup.steps
     times = np.zeros(steps + 1)
     ux = np.zeros(steps + 1)
     uy = np.zeros(steps + 1)
-    rest = mesh.points[tip].copy()
     for k in range(1, steps + 1):
         simulation.step()
         times[k] = simulation.time
@@ -109,4 +121,4 @@ def run_flap(resolution: int = 20, *, duration: float | None = None, dt: float |
             progress(k, steps)
     seconds = _time.perf_counter() - began
     return evaluate(setup, times, {"ux_tip": ux, "uy_tip": uy}, seconds, (grid.nx, grid.ny),
-                    mesh.triangle_count, steps)
+                    mesh_triangles, steps)
