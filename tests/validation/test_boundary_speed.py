@@ -31,14 +31,16 @@ def test_brute_force_agrees_with_the_map() -> None:
 
 def test_speed_part_runs_and_writes_its_table(tmp_path: Path) -> None:
     study = run_speed_study(edges=(16, 32), cells=(16, 32), scenes=("bar_in_jet",),
-                            repeats=1, step_count=2, step_cells=48)
-    assert len(study.cases) == 4 and len(study.steps) == 2
+                            repeats=1, step_count=2, step_cells=48, map_edges=(64,),
+                            map_cells=(64, 1024))
+    assert len(study.cases) == 4 and len(study.steps) == 2 and len(study.maps) == 2
+    assert study.maps[1].crossings > study.maps[0].crossings
     assert all(c.disagreements == 0 for c in study.cases)
     assert all(s.disagreements == 0 for s in study.steps)
     write_speed_report(study, tmp_path)
     page = (tmp_path / "boundary_study.md").read_text()
     assert "<!-- speed:begin -->" in page and "| 32 |" in page
-    assert (tmp_path / "boundary_study" / "speed.csv").read_text().count("\n") == 1 + 4 + 2
+    assert (tmp_path / "boundary_study" / "speed.csv").read_text().count("\n") == 1 + 4 + 2 + 2
     assert (tmp_path / "boundary_study" / "speed.png").stat().st_size > 0
 
 

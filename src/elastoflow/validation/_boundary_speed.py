@@ -59,10 +59,14 @@ SPEED_REPEATS = 5
 """Each map and interior is timed this many times; the best counts."""
 BRUTE_FORCE_LIMIT = 2.5e8
 """Grid points times triangles above which the brute force is not run (about 2 s here, 8 ns a test)."""
+MAP_EDGES: tuple[int, ...] = (512, 4096, 32768)
+"""Edges of the outline-only discs that time the map alone at large sizes."""
+MAP_CELLS: tuple[int, ...] = (512, 4096, 32768)
+"""Their grids: the map never allocates per grid point, so 32768^2 costs nothing to set up."""
 STEP_SCENES: tuple[str, ...] = ("bar_in_jet", "windmill")
 STEP_WARMUP = 10
 STEP_COUNT = 20
-STEP_REPEATS = 3
+STEP_REPEATS = 5
 
 
 def disc_mesh(edges: int) -> Any:
@@ -186,6 +190,41 @@ def classification_disagreements(first: Any, second: Any) -> int:
 
 
 @dataclass(frozen=True)
+class MapCase:
+    """The boundary map alone for a disc outline on a large grid, timed.
+
+    Attributes:
+        edges: Edges of the outline.
+        cells: Cells across the unit square.
+        crossings: Entries of the map.
+        seconds: `build_boundary_map` [s], best of the repeats.
+    """
+
+    edges: int
+    cells: int
+    crossings: int
+    seconds: float
+
+
+def map_case(edges: int, cells: int, *, repeats: int = SPEED_REPEATS) -> MapCase:
+    """Time `build_boundary_map` of a disc outline with ``edges`` edges on ``cells``^2."""
+    from elastoflow.coupling import build_boundary_map
+    from elastoflow.grid import Grid2D
+
+    grid = Grid2D(cells, cells, 1.0 / cells)
+    angles = 2.0 * np.pi * np.arange(edges) / edges
+    points = np.column_stack((SPEED_CENTRE[0] + SPEED_RADIUS * np.cos(angles),
+                              SPEED_CENTRE[1] + SPEED_RADIUS * np.sin(angles)))
+    velocities = np.zeros_like(points)
+    loop = np.arange(edges)
+    outline = np.column_stack((loop, (loop + 1) % edges))
+    bmap = build_boundary_map(grid, points, velocities, outline)
+    seconds = _best(lambda: build_boundary_map(grid, points, velocities, outline), repeats)
+    return MapCase(edges, cells, int(bmap.x_coordinate.shape[0] + bmap.y_coordinate.shape[0]),
+                   seconds)
+
+
+@dataclass(frozen=True)
 class SceneStep:
     """The whole coupled step of a built-in scene with one treatment, timed.
 
@@ -297,6 +336,7 @@ class SpeedStudy:
     steps: tuple[SceneStep, ...]
     load: tuple[float, float] = (math.nan, math.nan)
     seconds: float = 0.0
+    maps: tuple[MapCase, ...] = ()
 
     @property
     def edges(self) -> tuple[int, ...]:
@@ -332,8 +372,12 @@ class SpeedStudy:
         return observed_order([c.grid_points * c.triangles for c in run],
                               [c.brute_force_seconds for c in run])
 
-    def map_order(self) -> float:
-        """Slope of the map's time against its crossings plus edges."""
+    def map_order(self, *, large: bool = False) -> float:
+        """Slope of the map's time against its crossings plus edges (``large``: over the
+        outline-only discs on large grids)."""
+        if large:
+            return observed_order([m.crossings + m.edges for m in self.maps],
+                                  [m.seconds for m in self.maps])
         return observed_order([c.crossings + c.edges for c in self.cases],
                               [c.map_seconds for c in self.cases])
 
@@ -351,8 +395,10 @@ def run_speed_study(edges: Sequence[int] = SPEED_EDGES, cells: Sequence[int] = S
                     scenes: Sequence[str] = STEP_SCENES,
                     treatments: Sequence[str] = TREATMENTS, *,
                     repeats: int = SPEED_REPEATS, step_count: int = STEP_COUNT,
-                    step_cells: int | None = None) -> SpeedStudy:
-    """`speed_case` for every disc and grid, `scene_step` for every scene and treatment."""
+                    step_cells: int | None = None, map_edges: Sequence[int] = MAP_EDGES,
+                    map_cells: Sequence[int] = MAP_CELLS) -> SpeedStudy:
+    """`speed_case` for every disc and grid, `map_case` for every outline and large grid,
+    `scene_step` for every scene and treatment."""
     start = _time.perf_counter()
     load_before = _load()
     # Compile every kernel before the first timing.
@@ -361,10 +407,11 @@ def run_speed_study(edges: Sequence[int] = SPEED_EDGES, cells: Sequence[int] = S
     for count in edges:
         mesh = disc_mesh(count)
         cases.extend(speed_case(mesh, n, repeats=repeats) for n in cells)
+    maps = tuple(map_case(count, n, repeats=repeats) for count in map_edges for n in map_cells)
     steps = tuple(scene_step(name, treatment, steps=step_count, cells=step_cells)
                   for name in scenes for treatment in treatments)
     return SpeedStudy(tuple(cases), steps, (load_before, _load()),
-                      _time.perf_counter() - start)
+                      _time.perf_counter() - start, maps)
 
 
 def speed_table(study: SpeedStudy) -> list[str]:
@@ -385,6 +432,21 @@ def speed_table(study: SpeedStudy) -> list[str]:
     fits = {q: study.fit(q) for q in ("map", "cut_cell", "staircase", "brute_force")}
     lines.append("| fitted time ~ cells^a edges^b | | | | "
                  + " | ".join(f"a {a:.2f}, b {b:.2f}" for a, b in fits.values()) + " | |")
+    return lines
+
+
+def maps_table(study: SpeedStudy) -> list[str]:
+    """Markdown table: the map alone at large sizes [ms], edges by rows, grids by columns."""
+    if not study.maps:
+        return []
+    cells = tuple(dict.fromkeys(m.cells for m in study.maps))
+    edges = tuple(dict.fromkeys(m.edges for m in study.maps))
+    lines = ["| map alone [ms] (crossings) | " + " | ".join(f"{n}^2" for n in cells) + " |",
+             "|---:|" + "---:|" * len(cells)]
+    for count in edges:
+        row = [m for m in study.maps if m.edges == count]
+        lines.append(f"| {count} edges | " + " | ".join(
+            f"{1e3 * m.seconds:.3f} ({m.crossings})" for m in row) + " |")
     return lines
 
 
@@ -412,6 +474,9 @@ def speed_csv(study: SpeedStudy) -> str:
                          f"{c.map_seconds:.4e}", f"{c.cut_cell_seconds:.4e}",
                          f"{c.staircase_seconds:.4e}", f"{c.classify_seconds:.4e}",
                          f"{c.brute_force_seconds:.4e}", c.disagreements, "", ""])
+    for m in study.maps:
+        writer.writerow(["map only", "", m.edges, "", m.cells, m.crossings,
+                         f"{m.seconds:.4e}", "", "", "", "", "", "", ""])
     for s in study.steps:
         writer.writerow(["scene", f"{s.scene} {s.treatment}", "", s.triangles,
                          f"{s.cells[0]}x{s.cells[1]}", "", "", "", "", "",
@@ -445,6 +510,10 @@ def plot_speed(study: SpeedStudy, path: Path) -> None:
     work_map = np.array([c.crossings + c.edges for c in study.cases], dtype=float)
     right.loglog(work_map, [c.map_seconds for c in study.cases], "o", ms=3, color="C0",
                  label="map vs crossings + edges")
+    if study.maps:
+        right.loglog([m.crossings + m.edges for m in study.maps],
+                     [m.seconds for m in study.maps], "^", ms=4, color="C2",
+                     label="map alone, outlines on grids to 32768^2")
     run = [c for c in study.cases if math.isfinite(c.brute_force_seconds)]
     work_brute = np.array([c.grid_points * c.triangles for c in run], dtype=float)
     right.loglog(work_brute, [c.brute_force_seconds for c in run], "s", ms=3, color="C3",
@@ -508,10 +577,11 @@ def speed_section(study: SpeedStudy, figure: str, table_csv: str) -> str:
         "times are in docs/benchmarks.md. The exponents in the last row are a least-squares "
         "fit of `log time` on `log cells` and `log edges`.",
         f"The map alone takes {1e3 * min(map_times):.2f} to {1e3 * max(map_times):.2f} ms "
-        f"at every size here (fit cells^{map_fit[0]:.2f} edges^{map_fit[1]:.2f}; slope "
-        f"{study.map_order():.2f} against its crossings plus edges): it loops over the edges "
-        "and their crossings and never visits a grid point, so at these sizes its fixed "
-        "cost per call dominates. The boundary's whole work per step, the map and the "
+        f"at every size of the first table (fit cells^{map_fit[0]:.2f} "
+        f"edges^{map_fit[1]:.2f}; slope {study.map_order():.2f} against its crossings plus "
+        "edges): it loops over the edges and their crossings and never visits a grid point, "
+        "so at these sizes its fixed cost per call dominates. " + _large_maps(study)
+        + "The boundary's whole work per step, the map and the "
         "treatment's interior, grows with the grid and not with the edges (cut cells "
         f"cells^{cut_fit[0]:.2f} edges^{cut_fit[1]:.2f}, staircase cells^{stair_fit[0]:.2f} "
         f"edges^{stair_fit[1]:.2f}): the interior classifies by the map's scanline fill, "
@@ -532,10 +602,26 @@ def speed_section(study: SpeedStudy, figure: str, table_csv: str) -> str:
         "a tiny size and the two classifications agree; timings are never asserted). The "
         f"whole part took {study.seconds:.1f} s.",
     ]
-    table = [*speed_table(study), "", *steps_table(study)]
+    table = [*speed_table(study), "", *maps_table(study), "", *steps_table(study)]
+    if not study.maps:
+        table = [*speed_table(study), "", *steps_table(study)]
     return compose_section("Speed: the boundary per step against perimeter and grid",
                            paragraphs, table, figure,
                            "boundary time against cells and against each method's work")
+
+
+def _large_maps(study: SpeedStudy) -> str:
+    """The second table in words."""
+    if not study.maps:
+        return ""
+    largest = max(study.maps, key=lambda m: m.crossings + m.edges)
+    per = 1e9 * largest.seconds / (largest.crossings + largest.edges)
+    return (f"On outlines of up to {max(m.edges for m in study.maps)} edges on grids up to "
+            f"{max(m.cells for m in study.maps)}^2 (second table) it follows the perimeter: "
+            f"slope {study.map_order(large=True):.2f} against crossings plus edges, "
+            f"{1e3 * largest.seconds:.1f} ms for {largest.crossings} crossings "
+            f"({per:.0f} ns each) on a grid of {largest.cells}^2 cells that it never "
+            "touches. ")
 
 
 def _extrapolate(study: SpeedStudy, case: SpeedCase) -> float:
@@ -557,7 +643,7 @@ def write_speed_report(study: SpeedStudy, folder: str | Path) -> list[Path]:
 
 def speed_lines(study: SpeedStudy) -> list[str]:
     """What the command prints: both tables."""
-    return [*speed_table(study), *steps_table(study)]
+    return [*speed_table(study), *maps_table(study), *steps_table(study)]
 
 
 # -- stability: the bar in a jet ---------------------------------------------------------------
