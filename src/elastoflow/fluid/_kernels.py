@@ -882,3 +882,13 @@ def extrapolate_into(current, previous, ratio):
         value = flat_current[k]
         flat_current[k] = value + ratio * (value - flat_previous[k])
         flat_previous[k] = value
+
+
+@njit(cache=True)
+def any_nonzero(values):
+    """Whether any entry of ``values`` is not 0 (stops at the first)."""
+    flat = values.reshape(-1)
+    for k in range(flat.shape[0]):
+        if flat[k] != 0.0:
+            return True
+    return False
