@@ -1,12 +1,18 @@
 """Turek-Hron study: every case at the chosen resolutions, quantities, run time and plots.
 
 ``python -m benchmarks turek_hron [--cases=FSI2,FSI3] [--resolutions=10,20] [--name=NAME]
-[--quick]`` writes ``benchmarks/results/NAME.json`` (default turek_hron; one row per run), and per run the plots and
+[--quick] [--speed]`` writes ``benchmarks/results/NAME.json`` (default turek_hron; one row per run), and per run the plots and
 quantities into ``docs/validation/turek-hron/`` (``<case>_n<N>.png`` / ``.json``) and the time
 series into ``out/validation/`` (CSV, not kept in the repository). docs/validation/turek-hron.md
 is written from these. ``--quick``: CFD1, CSM1 and FSI1 at N = 10 over 2 s (a smoke test). ``--reevaluate``: no runs;
 the quantities, plots and JSON again from the time series in ``out/validation`` (after a
-change to the evaluation).
+change to the evaluation). ``--speed``: no whole runs; per FSI case and resolution (default
+FSI2 and FSI3 at N = 20) the cost of a step after ``--warmup`` steps (default 30), over
+``--steps`` timed steps (default 200) with the traction probe every step as a run takes it,
+split by phase, and the wall time that projects to t = 10 s (issue 12's headline:
+``benchmarks/results/turek_hron_speed.json``). From rest the pressure changes faster than in
+the developed oscillation, so the projection is an upper bound of what the warm-started
+solves cost there.
 """
 
 from __future__ import annotations
@@ -49,6 +55,63 @@ def _reevaluate(name: str, resolution: int) -> Any:
                     saved["flag_elements"], saved["steps"])
 
 
+TARGET_MINUTES = 10.0
+
+
+def speed(argv: list[str]) -> list[dict[str, Any]]:
+    """ms per coupled step of the FSI cases and the projected wall time to t = 10 s."""
+    from elastoflow.validation import default_setup, get_case
+    from elastoflow.validation._turek_hron import case_simulation
+
+    from benchmarks._common import versus_target
+
+    cases = _option(argv, "cases", "FSI2,FSI3").split(",")
+    resolutions = [int(v) for v in _option(argv, "resolutions", "20").split(",")]
+    warmup = int(_option(argv, "warmup", "30"))
+    steps = int(_option(argv, "steps", "200"))
+    rows: list[dict[str, Any]] = []
+    for name in cases:
+        for resolution in resolutions:
+            setup = default_setup(get_case(name), resolution)
+            simulation, _ = case_simulation(setup)
+            for _ in range(warmup):
+                simulation.step()
+                simulation.traction_forces()
+            phases: dict[str, float] = {}
+            iterations = 0
+            began = time.perf_counter()
+            for _ in range(steps):
+                report = simulation.step()
+                simulation.traction_forces()
+                iterations += report.pressure_iterations
+                for phase, seconds in report.seconds_by_phase.items():
+                    phases[phase] = phases.get(phase, 0.0) + seconds
+            per_step = (time.perf_counter() - began) / steps
+            to_ten = round(10.0 / setup.dt)
+            minutes = per_step * to_ten / 60.0
+            row: dict[str, Any] = {
+                "case": name, "N": resolution,
+                "grid": f"{simulation.grid.nx}x{simulation.grid.ny}", "dt [s]": setup.dt,
+                "ms per step": 1e3 * per_step, "steps to t = 10 s": to_ten,
+                "projected minutes to t = 10 s": minutes,
+                "CG iterations": iterations / steps,
+                "vs target": versus_target(minutes, TARGET_MINUTES, at_most=True),
+            }
+            for phase in ("advection", "viscosity", "pressure", "solid", "map",
+                          "coupling_force"):
+                row[f"ms {phase}"] = 1e3 * phases.get(phase, 0.0) / steps
+            rows.append(row)
+            print(f"{name} N={resolution}: {1e3 * per_step:.1f} ms a step, "
+                  f"{minutes:.1f} min to t = 10 s", flush=True)
+    columns = ["case", "N", "grid", "dt [s]", "ms per step", "steps to t = 10 s",
+               "projected minutes to t = 10 s", "vs target", "CG iterations", "ms pressure",
+               "ms advection", "ms viscosity", "ms solid", "ms map", "ms coupling_force"]
+    print(markdown_table(rows, columns))
+    write_results(_option(argv, "name", "turek_hron_speed"), rows)
+    print(machine())
+    return rows
+
+
 def main(argv: list[str] | None = None) -> list[dict[str, Any]]:
     from elastoflow.analysis import PeriodicStatistics
     from elastoflow.simulation import SimulationBlowUp
@@ -56,6 +119,8 @@ def main(argv: list[str] | None = None) -> list[dict[str, Any]]:
     from elastoflow.validation import CASES, format_quantities, run_case, write_report
 
     argv = list(argv or [])
+    if "--speed" in argv:
+        return speed(argv)
     quick = "--quick" in argv
     cases = _option(argv, "cases", "CFD1,CSM1,FSI1" if quick else ",".join(CASES)).split(",")
     resolutions = [int(v) for v in _option(argv, "resolutions", "10").split(",")]
