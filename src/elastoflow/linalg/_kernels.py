@@ -545,11 +545,15 @@ def coarse_solve_kernel(factor, b, x, m, n):
 
 
 @njit(cache=True)
-def v_cycle(rows, cols, offsets, diagonal, weights_x, weights_y, total, inverse, level_x,
-            level_b, coarse_factor, r, z, sweeps):
-    """Symmetric V-cycle ``z = M r``: red-black Gauss-Seidel before, black-red after."""
-    levels = rows.shape[0]
-    for level in range(levels - 1):
+def v_cycle(levels, r, z, sweeps):
+    """Symmetric V-cycle ``z = M r``: red-black Gauss-Seidel before, black-red after.
+    ``levels`` bundles the hierarchy (`_Hierarchy.levels`): rows, cols and offsets of every
+    level, their diagonal, weights, totals and inverse totals, the levels' x and b, and the
+    coarsest level's factor."""
+    (rows, cols, offsets, _, weights_x, weights_y, total, inverse, level_x, level_b,
+     coarse_factor) = levels
+    count = rows.shape[0]
+    for level in range(count - 1):
         m = rows[level]
         n = cols[level]
         start = offsets[level]
@@ -574,13 +578,13 @@ def v_cycle(rows, cols, offsets, diagonal, weights_x, weights_y, total, inverse,
                 smooth_serial(x, b, inv, wx, wy, m, n, 0, sweep == 0)
             restrict_serial(x, b, total[start:stop], inv, wx, wy, coarse_b, m, n,
                             rows[level + 1], cols[level + 1])
-    last = levels - 1
+    last = count - 1
     if last == 0:
         coarse_solve_kernel(coarse_factor, r, z, rows[0], cols[0])
         return
     coarse_solve_kernel(coarse_factor, level_b[offsets[last]:offsets[last + 1]],
                         level_x[offsets[last]:offsets[last + 1]], rows[last], cols[last])
-    for level in range(levels - 2, -1, -1):
+    for level in range(count - 2, -1, -1):
         m = rows[level]
         n = cols[level]
         start = offsets[level]
@@ -756,10 +760,10 @@ def _step(x, r, p, q, alpha, m, n):
 
 
 @njit(cache=True)
-def pcg_kernel(rows, cols, offsets, diagonal, weights_x, weights_y, total, inverse, level_x,
-               level_b, coarse_factor, b, x, r, p, q, z, threshold, max_iterations, sweeps):
+def pcg_kernel(levels, b, x, r, p, q, z, threshold, max_iterations, sweeps):
     """Preconditioned CG on level 0 until ``|b - A x|^2 <= threshold`` (checked on the true
-    residual). Returns ``(iterations, |b - A x|^2)``."""
+    residual), ``levels`` as in `v_cycle`. Returns ``(iterations, |b - A x|^2)``."""
+    rows, cols, offsets, _, weights_x, weights_y, total = levels[:7]
     m = rows[0]
     n = cols[0]
     size = offsets[1]
@@ -778,8 +782,7 @@ def pcg_kernel(rows, cols, offsets, diagonal, weights_x, weights_y, total, inver
         if iterations >= max_iterations:
             squared = _residual_norm(x, b, d_total, wx, wy, r, m, n)
             break
-        v_cycle(rows, cols, offsets, diagonal, weights_x, weights_y, total, inverse, level_x,
-                level_b, coarse_factor, r, z, sweeps)
+        v_cycle(levels, r, z, sweeps)
         rz = _dot(r, z, m, n)
         beta = 0.0
         pq = 1.0
@@ -792,8 +795,7 @@ def pcg_kernel(rows, cols, offsets, diagonal, weights_x, weights_y, total, inver
             iterations += 1
             if squared <= threshold:
                 break
-            v_cycle(rows, cols, offsets, diagonal, weights_x, weights_y, total, inverse,
-                    level_x, level_b, coarse_factor, r, z, sweeps)
+            v_cycle(levels, r, z, sweeps)
             rz_next = _dot(r, z, m, n)
             beta = rz_next / rz
             rz = rz_next
@@ -1196,14 +1198,14 @@ def low_rank_apply_kernel(v, cells, term, out):
 
 
 @njit(cache=True)
-def pcg_low_rank_kernel(rows, cols, offsets, diagonal, weights_x, weights_y, total, inverse,
-                        level_x, level_b, coarse_factor, b, x, r, p, q, z, threshold,
-                        max_iterations, sweeps, term_cells, term, operator_total):
+def pcg_low_rank_kernel(levels, b, x, r, p, q, z, threshold, max_iterations, sweeps,
+                        term_cells, term, operator_total):
     """`pcg_kernel` for ``A + C``, ``C = scale B M B^T`` (``B^T`` in CSR over the padded points
     ``term_cells``, ``M`` symmetric positive semi-definite, `term` as `LowRankTerm.kernel_term`
     bundles it): the multigrid levels hold ``A + diag(C)``
     as the preconditioner, ``operator_total`` (padded) is ``A``'s own diagonal plus weights.
     Returns ``(iterations, |b - (A + C) x|^2)``."""
+    rows, cols, offsets, _, weights_x, weights_y = levels[:6]
     m = rows[0]
     n = cols[0]
     size = offsets[1]
@@ -1218,8 +1220,7 @@ def pcg_low_rank_kernel(rows, cols, offsets, diagonal, weights_x, weights_y, tot
     while True:
         if squared <= threshold or iterations >= max_iterations:
             break
-        v_cycle(rows, cols, offsets, diagonal, weights_x, weights_y, total, inverse, level_x,
-                level_b, coarse_factor, r, z, sweeps)
+        v_cycle(levels, r, z, sweeps)
         rz = _dot(r, z, m, n)
         beta = 0.0
         pq = 1.0
@@ -1234,8 +1235,7 @@ def pcg_low_rank_kernel(rows, cols, offsets, diagonal, weights_x, weights_y, tot
             iterations += 1
             if squared <= threshold:
                 break
-            v_cycle(rows, cols, offsets, diagonal, weights_x, weights_y, total, inverse,
-                    level_x, level_b, coarse_factor, r, z, sweeps)
+            v_cycle(levels, r, z, sweeps)
             rz_next = _dot(r, z, m, n)
             beta = rz_next / rz
             rz = rz_next

@@ -183,6 +183,12 @@ class _Hierarchy:
         # The operator the levels hold; kept alive so that its identity is not reused.
         self.operator: Operator5Point | None = None
 
+    def levels(self) -> tuple:
+        """The hierarchy's arrays as the kernels take them (`v_cycle`)."""
+        return (self.rows, self.cols, self.offsets, self.diagonal, self.weights_x,
+                self.weights_y, self.total, self.inverse, self.level_x, self.level_b,
+                self.factor)
+
     def _allocate_levels(self) -> None:
         """Grow the level arrays to hold every level (the fine level's values are kept)."""
         total_size = int(self.offsets[-1])
@@ -388,11 +394,8 @@ class PoissonSolverMGPCG:
                 solution = hierarchy.p
         else:
             iterations, squared = pcg_kernel(
-                hierarchy.rows, hierarchy.cols, hierarchy.offsets, hierarchy.diagonal,
-                hierarchy.weights_x, hierarchy.weights_y, hierarchy.total, hierarchy.inverse,
-                hierarchy.level_x, hierarchy.level_b, hierarchy.factor, hierarchy.b,
-                hierarchy.x, hierarchy.r, hierarchy.p, hierarchy.q, hierarchy.z, threshold,
-                self.max_iterations, self.smoothing_sweeps,
+                hierarchy.levels(), hierarchy.b, hierarchy.x, hierarchy.r, hierarchy.p,
+                hierarchy.q, hierarchy.z, threshold, self.max_iterations, self.smoothing_sweeps,
             )
         x = _output(out, operator.shape)
         unpad_values_kernel(solution, x)
@@ -444,12 +447,9 @@ class PoissonSolverMGPCG:
         padded_points = (coupling.points // n + 1) * (n + 2) + coupling.points % n + 1
         threshold = (self.rtol * norm_b) ** 2
         iterations, squared = pcg_low_rank_kernel(
-            hierarchy.rows, hierarchy.cols, hierarchy.offsets, hierarchy.diagonal,
-            hierarchy.weights_x, hierarchy.weights_y, hierarchy.total, hierarchy.inverse,
-            hierarchy.level_x, hierarchy.level_b, hierarchy.factor, hierarchy.b, hierarchy.x,
-            hierarchy.r, hierarchy.p, hierarchy.q, hierarchy.z, threshold, self.max_iterations,
-            self.smoothing_sweeps, padded_points.astype(np.int64), coupling.kernel_term(),
-            operator_total,
+            hierarchy.levels(), hierarchy.b, hierarchy.x, hierarchy.r, hierarchy.p,
+            hierarchy.q, hierarchy.z, threshold, self.max_iterations, self.smoothing_sweeps,
+            padded_points.astype(np.int64), coupling.kernel_term(), operator_total,
         )
         x = _output(out, operator.shape)
         unpad_values_kernel(hierarchy.x, x)
