@@ -32,6 +32,7 @@ def force_momentum_exchange(
     density: float,
     dt: float,
     alpha: float = 0.5,
+    interior: InteriorBoundary | None = None,
 ) -> np.ndarray:
     """Fluid force on the boundary points by the paper's momentum exchange, eq. (8).
 
@@ -54,6 +55,11 @@ def force_momentum_exchange(
         density: Fluid density rho [kg/m^3].
         dt: Fluid time step [s].
         alpha: Volume fraction of the body in the cell next to the boundary (paper: 0.5).
+        interior: The step's `InteriorBoundary`: ``u_P`` is then the first velocity point on
+            the fluid side that it does not mark solid. Needed with a staircase boundary,
+            whose closed faces carry the body's velocity (``u_P - u_s`` would be about 0
+            there); with cut cells the point next to the crossing is never solid, and None
+            gives the same force.
 
     Returns:
         Nodal forces [N per metre of depth] on the map's boundary points, shape (P, 2).
@@ -69,15 +75,18 @@ def force_momentum_exchange(
     h = grid.h
     coefficient = alpha * density * h * h / dt
     force = np.zeros((bmap.point_count, 2))
+    nothing = np.zeros((0, 0), dtype=np.bool_)
+    solid_x = nothing if interior is None else np.ascontiguousarray(interior.solid_faces_x)
+    solid_y = nothing if interior is None else np.ascontiguousarray(interior.solid_faces_y)
     _kernels.momentum_exchange_lines(
         bmap.x_offsets, bmap.x_coordinate, bmap.x_sign, bmap.x_edge, bmap.x_parameter,
         bmap.x_velocity, bmap.edges, 0, 1, grid.ny, grid.nx + 1, grid.origin[0], h, velocity_x,
-        True, coefficient, force,
+        solid_x, True, coefficient, force,
     )
     _kernels.momentum_exchange_lines(
         bmap.y_offsets, bmap.y_coordinate, bmap.y_sign, bmap.y_edge, bmap.y_parameter,
         bmap.y_velocity, bmap.edges, 1, 1, grid.nx, grid.ny + 1, grid.origin[1], h, velocity_y,
-        False, coefficient, force,
+        solid_y, False, coefficient, force,
     )
     return force
 

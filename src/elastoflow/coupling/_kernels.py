@@ -388,17 +388,22 @@ def momentum_exchange_lines(
     origin_along: float,
     h: float,
     field: np.ndarray,
+    solid: np.ndarray,
     point_first: bool,
     coefficient: float,
     force_out: np.ndarray,
 ) -> None:
     """Paper eq. (8) along lines through velocity points of one component.
 
-    For each crossing the velocity point of that component next to it on the fluid side (the
-    side the edge orientation says is fluid) gives ``coefficient * (u_P - u_s)``, split between
-    the edge's nodes by the edge parameter. A crossing whose neighbour point is separated from
-    it by another crossing (a sliver thinner than h) is skipped.
+    For each crossing the first velocity point of that component on the fluid side (the side
+    the edge orientation says is fluid) that is not solid gives ``coefficient * (u_P - u_s)``,
+    split between the edge's nodes by the edge parameter. With cut cells that is the point
+    next to the crossing; a staircase boundary closes the faces of the cells its centres put
+    inside, so the fluid point can lie a face further out. ``solid`` has the field's shape
+    (or is empty: nothing solid). A crossing whose fluid point lies beyond another crossing (a
+    sliver thinner than the point's distance) is skipped.
     """
+    check = solid.size > 0
     for l in range(line_count_out):
         line = line_start + 2 * l
         begin = offsets[line]
@@ -408,10 +413,16 @@ def momentum_exchange_lines(
             if sign[c] > 0:
                 # Entering: fluid on the minus side; the point exactly at the crossing is solid.
                 k = math.ceil(s) - 1
+                while check and 0 <= k < face_count and (
+                        solid[k, l] if point_first else solid[l, k]):
+                    k -= 1
                 if c > begin and coordinate[c - 1] > origin_along + k * h:
                     continue
             else:
                 k = math.ceil(s)
+                while check and 0 <= k < face_count and (
+                        solid[k, l] if point_first else solid[l, k]):
+                    k += 1
                 if c + 1 < end and coordinate[c + 1] <= origin_along + k * h:
                     continue
             if k < 0 or k >= face_count:

@@ -150,7 +150,7 @@ class ExplicitCoupling:
             t0 = clock()
             nodal_force = force_momentum_exchange(
                 model.grid, boundary.boundary_map, out.velocity_x, out.velocity_y,
-                fluid.density, dt, self.alpha,
+                fluid.density, dt, self.alpha, interior,
             )
             seconds["coupling_force"] = clock() - t0
 
