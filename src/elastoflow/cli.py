@@ -525,8 +525,9 @@ def validate(
         help="dfg-2d-2: the back-trace's velocity, current or extrapolated (to mid-step, "
              "second order in time).")] = "current",
     viscosity_scheme: Annotated[str, typer.Option(
-        help="dfg-2d-2: the viscosity's time discretization, backward_euler or "
-             "crank_nicolson.")] = "backward_euler",
+        help="dfg-2d-2: the viscosity's time discretization, backward_euler, "
+             "crank_nicolson, or bdf2 (the whole step by BDF2 along trajectories).")
+    ] = "backward_euler",
     incremental_pressure: Annotated[bool, typer.Option(
         "--incremental-pressure", help="dfg-2d-2: solve for the pressure increment.")] = False,
 ) -> None:
