@@ -11,8 +11,8 @@ FSI2 and FSI3 at N = 20) the cost of a step after ``--warmup`` steps (default 30
 ``--steps`` timed steps (default 200) with the traction probe every step as a run takes it,
 split by phase, and the wall time that projects to t = 10 s (issue 12's headline:
 ``benchmarks/results/turek_hron_speed.json``). The first steps after rest cost less than the
-developed oscillation (fewer CG iterations: FSI3 at N = 20, 4.1 a step over steps 30-230
-against about 8 later), so the projection is a lower bound; the whole run's wall time
+developed oscillation (FSI3 at N = 20: 30.6 ms a step over steps 30-230, 47 ms on average
+over a whole run), so the projection is a lower bound; the whole run's wall time
 (``--cases=FSI3 --resolutions=20``) is the headline.
 """
 
