@@ -49,9 +49,30 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
     try:
         yield temporary
         os.replace(temporary, path)
+    except Exception as error:
+        # A Ctrl-C inside a writer can surface as the writer's own error on the way out
+        # (np.savez: zipfile's close refuses while the interrupted entry's handle is open,
+        # "Can't close the ZIP file while there is an open writing handle"): the user asked
+        # to stop, so the interrupt is what propagates, not a failed run.
+        interrupt = _interrupt_behind(error)
+        if interrupt is not None:
+            raise interrupt from None
+        raise
     finally:
         if temporary.exists():
             temporary.unlink()
+
+
+def _interrupt_behind(error: BaseException) -> KeyboardInterrupt | None:
+    """The KeyboardInterrupt that ``error`` was raised while handling, if any."""
+    seen: set[int] = set()
+    current: BaseException | None = error
+    while current is not None and id(current) not in seen:
+        if isinstance(current, KeyboardInterrupt):
+            return current
+        seen.add(id(current))
+        current = current.__cause__ or current.__context__
+    return None
 
 
 def write_bytes_atomic(path: str | Path, data: bytes, *, sync: bool = False) -> None:

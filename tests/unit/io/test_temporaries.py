@@ -66,3 +66,27 @@ def test_a_process_naming_a_finished_file_is_not_a_writer(tmp_path: Path) -> Non
     finally:
         reader.kill()
         reader.wait()
+
+
+def test_a_ctrl_c_inside_a_writer_stays_a_ctrl_c_and_leaves_no_temporary(
+        tmp_path: Path) -> None:
+    """np.savez interrupted mid-entry fails again in zipfile's close ("Can't close the ZIP
+    file while there is an open writing handle"), raised while handling the interrupt: the
+    atomic write re-raises the interrupt (the run then stops with exit 130 and its resume
+    command, not as a failed run) and removes its temporary; a plain error stays itself."""
+    from elastoflow.io._atomic import atomic_path
+
+    target = tmp_path / "checkpoint.npz"
+    with pytest.raises(KeyboardInterrupt):
+        with atomic_path(target) as temporary:
+            temporary.write_bytes(b"partial")
+            try:
+                raise KeyboardInterrupt
+            except KeyboardInterrupt:
+                raise ValueError("Can't close the ZIP file while there is an open writing "
+                                 "handle on it.") from None
+    assert list(tmp_path.iterdir()) == []
+    with pytest.raises(ValueError, match="disk says no"):
+        with atomic_path(target):
+            raise ValueError("disk says no")
+    assert list(tmp_path.iterdir()) == []
