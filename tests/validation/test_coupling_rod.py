@@ -17,7 +17,9 @@ def test_rod_across_a_closed_box_lets_nothing_through(offset: float) -> None:
     rod sweeps. Flux through the face line x = 0.25 against the change of the area between
     it and the rod's polyline, each step: measured 5.5e-9 of V H at offsets 0.1-0.9 of a
     cell past a face line; 1.6e-3 with the rod exactly on the cell centres (offset 0.5),
-    where the thin cut flips between the two faces beside it as the rod moves."""
+    where the thin cut flips between the two faces beside it as the rod jitters across the
+    centre line. That flux alternates and carries nothing: over 60 steps the volume through
+    the line differs from the swept area by 4.5e-6 of V H T (offset 0.3: 4e-11)."""
     n = 32
     grid = Grid2D(nx=n, ny=n, h=1.0 / n)
     walls = fluid.DomainBoundaries(left=fluid.WallNoSlip(), right=fluid.WallNoSlip(),
