@@ -23,6 +23,22 @@ def boundary_edges_of(triangles: np.ndarray) -> np.ndarray:
     return edges[counts[inverse.ravel()] == 1]
 
 
+def _two_layers(points: np.ndarray, thickness: float) -> np.ndarray:
+    """The nodes at z = -thickness/2 (first n) and at +thickness/2 (next n), (2n, 3)."""
+    n = points.shape[0]
+    vertices = np.empty((2 * n, 3))
+    vertices[:n, :2] = points
+    vertices[:n, 2] = -0.5 * thickness
+    vertices[n:, :2] = points
+    vertices[n:, 2] = 0.5 * thickness
+    return vertices
+
+
+def _quads(a: np.ndarray, b: np.ndarray, n: int) -> np.ndarray:
+    """Two triangles a, b, b' and a, b', a' per segment a -> b (primes: the top layer)."""
+    return np.concatenate((np.column_stack((a, b, b + n)), np.column_stack((a, b + n, a + n))))
+
+
 def extrude_surface(points: np.ndarray, triangles: np.ndarray,
                     thickness: float) -> tuple[np.ndarray, np.ndarray]:
     """Closed surface of the prism ``mesh x [-thickness/2, thickness/2]``.
@@ -39,19 +55,13 @@ def extrude_surface(points: np.ndarray, triangles: np.ndarray,
     points = np.asarray(points, dtype=np.float64)
     triangles = np.asarray(triangles, dtype=np.int64)
     n = points.shape[0]
-    half = 0.5 * thickness
-    vertices = np.empty((2 * n, 3))
-    vertices[:n, :2] = points
-    vertices[:n, 2] = -half
-    vertices[n:, :2] = points
-    vertices[n:, 2] = half
+    vertices = _two_layers(points, thickness)
     top = triangles + n
     bottom = triangles[:, ::-1]
     edges = boundary_edges_of(triangles)
     a, b = edges[:, 0], edges[:, 1]
     # Body on the left of a -> b: the outward side quad is a, b, b', a' seen from outside.
-    sides = np.concatenate((np.column_stack((a, b, b + n)), np.column_stack((a, b + n, a + n))))
-    return vertices, np.concatenate((bottom, top, sides))
+    return vertices, np.concatenate((bottom, top, _quads(a, b, n)))
 
 
 def extrude_polyline(points: np.ndarray, thickness: float) -> tuple[np.ndarray, np.ndarray]:
@@ -67,16 +77,10 @@ def extrude_polyline(points: np.ndarray, thickness: float) -> tuple[np.ndarray, 
     """
     points = np.asarray(points, dtype=np.float64)
     n = points.shape[0]
-    half = 0.5 * thickness
-    vertices = np.empty((2 * n, 3))
-    vertices[:n, :2] = points
-    vertices[:n, 2] = -half
-    vertices[n:, :2] = points
-    vertices[n:, 2] = half
+    vertices = _two_layers(points, thickness)
     a = np.arange(n - 1, dtype=np.int64)
     b = a + 1
-    faces = np.concatenate((np.column_stack((a, b, b + n)), np.column_stack((a, b + n, a + n))))
-    return vertices, faces
+    return vertices, _quads(a, b, n)
 
 
 def write_obj(path: str | Path, vertices: np.ndarray, faces: np.ndarray) -> None:
