@@ -5,7 +5,9 @@ MacCormack advection, implicit viscosity, forces, and a projection whose faces a
 their open fraction so that bodies described by an ``InteriorBoundary`` (METHOD.md §6) enter
 with cut-distance boundary conditions. ``divergence_faces_to_cells`` and
 ``gradient_cells_to_faces`` are the discrete operators the projection is built from.
-Validation: docs/validation_fluid.md.
+``FreeSurfaceSolver`` adds a free surface (a level set in ``FreeSurfaceState``, a ghost-fluid
+projection, ``LevelSetTransport``). Validation: docs/validation_fluid.md, and for the free
+surface docs/validation/free_surface.md.
 """
 
 from elastoflow.fluid._boundaries import (
@@ -17,8 +19,23 @@ from elastoflow.fluid._boundaries import (
     WallMoving,
     WallNoSlip,
 )
+from elastoflow.fluid._free_surface import (
+    FreeSurfaceSolver,
+    FreeSurfaceState,
+    FreeSurfaceStepReport,
+    GhostFluidProjection,
+)
 from elastoflow.fluid._interior import InteriorBoundary
 from elastoflow.fluid._kernels import OPEN_MIN
+from elastoflow.fluid._level_set import (
+    LevelSetTransport,
+    RedistanceFastSweeping,
+    correct_volume,
+    level_set_below,
+    level_set_box,
+    level_set_from_function,
+    liquid_area,
+)
 from elastoflow.fluid._operators import divergence_faces_to_cells, gradient_cells_to_faces
 from elastoflow.fluid._solver import CoupledBodies, FluidSolver, FluidStepReport
 from elastoflow.fluid._state import FluidState
@@ -30,13 +47,24 @@ __all__ = [
     "FluidSolver",
     "FluidState",
     "FluidStepReport",
+    "FreeSurfaceSolver",
+    "FreeSurfaceState",
+    "FreeSurfaceStepReport",
+    "GhostFluidProjection",
     "Inflow",
     "InteriorBoundary",
     "Jet",
+    "LevelSetTransport",
     "Outflow",
+    "RedistanceFastSweeping",
     "WallFreeSlip",
     "WallMoving",
     "WallNoSlip",
+    "correct_volume",
     "divergence_faces_to_cells",
     "gradient_cells_to_faces",
+    "level_set_below",
+    "level_set_box",
+    "level_set_from_function",
+    "liquid_area",
 ]

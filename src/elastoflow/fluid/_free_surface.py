@@ -1,0 +1,365 @@
+"""Liquid with a free surface: a level set in the state, a ghost-fluid projection, a solver.
+
+Model, state and scheme, as for the rest of the fluid:
+
+* `FreeSurfaceState`: the fluid's state (`FluidState`) and the level set beside it, with the
+  liquid area the volume correction keeps; checkpointed by `to_arrays` / `load_arrays`.
+* `GhostFluidProjection`: the pressure projection with ``p = 0`` on the surface, placed at its
+  sub-cell position (Gibou et al. 2002, Enright et al. 2003); air is a void.
+* `LevelSetTransport` (elastoflow.fluid._level_set): how the level set moves.
+* `FreeSurfaceSolver`: one step from the `FluidSolver`'s own phases (advection, viscosity,
+  forces: gravity on the faces) and the two parts above, which it is given.
+
+::
+
+    air  (phi >= 0): inactive in the pressure solve, velocity extrapolated from the liquid
+    -----------------  surface phi = 0, p = 0 at theta h from the liquid cell centre
+    liquid (phi < 0): 5-point Poisson equation, weight 1 between liquid cells, 1/theta on the
+                      diagonal towards an air neighbour; walls: no flux
+"""
+
+from __future__ import annotations
+
+import math
+import time as _time
+from dataclasses import dataclass, field, fields
+
+import numpy as np
+from numpy.typing import NDArray
+
+from elastoflow.fluid import _kernels as fluid_kernels
+from elastoflow.fluid import _level_set_kernels as kernels
+from elastoflow.fluid._boundaries import WallFreeSlip, WallMoving, WallNoSlip
+from elastoflow.fluid._level_set import (
+    LevelSetTransport,
+    LevelSetWorkspace,
+    liquid_area,
+    transport_level_set,
+)
+from elastoflow.fluid._solver import FluidSolver
+from elastoflow.fluid._solver import _takes_out as takes_out
+from elastoflow.fluid._solver import _writable_into as writable_into
+from elastoflow.fluid._state import FluidState
+from elastoflow.grid import Grid2D
+from elastoflow.linalg import Operator5Point, SolveReport
+
+FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.int32]
+
+
+@dataclass
+class FreeSurfaceState:
+    """The changing part of a liquid with a free surface.
+
+    Attributes:
+        fluid: Velocity, pressure (0 in the air) and dye; the velocity is extrapolated into the
+            air after each step, so that advection sees a smooth field.
+        level_set: Level set phi [m] at the cell centres, shape (nx, ny): liquid where
+            ``phi < 0``; a signed distance after redistancing.
+        liquid_area: The liquid area [m^2] (volume per metre of depth) that the volume
+            correction keeps: the initial one.
+        step_index: Steps taken (redistancing runs every `LevelSetTransport.redistance_interval`).
+    """
+
+    fluid: FluidState
+    level_set: FloatArray
+    liquid_area: float
+    step_index: int = 0
+
+    @classmethod
+    def create(cls, grid: Grid2D, level_set: FloatArray,
+               fluid: FluidState | None = None) -> FreeSurfaceState:
+        """Liquid at rest (or ``fluid``) in the region where ``level_set`` [m] is negative."""
+        phi = np.ascontiguousarray(level_set, dtype=np.float64).copy()
+        if phi.shape != grid.shape_cells:
+            raise ValueError(
+                f"level_set shape {phi.shape}: must be {grid.shape_cells} (the cells)"
+            )
+        if not np.all(np.isfinite(phi)):
+            raise ValueError("level_set: values must be finite")
+        if not np.any(phi < 0.0):
+            raise ValueError("level_set: no liquid (no cell with phi < 0)")
+        state = FluidState.zeros(grid) if fluid is None else fluid
+        return cls(fluid=state, level_set=phi, liquid_area=liquid_area(phi, grid.h))
+
+    def copy(self) -> FreeSurfaceState:
+        """An independent copy."""
+        return FreeSurfaceState(self.fluid.copy(), self.level_set.copy(), self.liquid_area,
+                                self.step_index)
+
+    def assign(self, other: FreeSurfaceState) -> None:
+        """Copy ``other``'s values into this state's arrays."""
+        self.fluid.assign(other.fluid)
+        self.level_set[...] = other.level_set
+        self.liquid_area = other.liquid_area
+        self.step_index = other.step_index
+
+    def to_arrays(self) -> dict[str, np.ndarray]:
+        """Every value as a named array (``fluid.velocity_x``, ..., ``level_set``), for a
+        checkpoint; the optional fluid fields only when present."""
+        arrays: dict[str, np.ndarray] = {}
+        for item in fields(self.fluid):
+            value = getattr(self.fluid, item.name)
+            if value is not None:
+                arrays[f"fluid.{item.name}"] = np.asarray(value).copy()
+        arrays["level_set"] = self.level_set.copy()
+        arrays["liquid_area"] = np.asarray(self.liquid_area)
+        arrays["step_index"] = np.asarray(self.step_index)
+        return arrays
+
+    @classmethod
+    def from_arrays(cls, arrays: dict[str, np.ndarray]) -> FreeSurfaceState:
+        """The state that `to_arrays` wrote (bit-exact)."""
+        values: dict[str, np.ndarray | float | None] = {}
+        for item in fields(FluidState):
+            key = f"fluid.{item.name}"
+            if key not in arrays:
+                values[item.name] = None
+                continue
+            value = np.asarray(arrays[key])
+            values[item.name] = float(value) if value.ndim == 0 else value.copy()
+        fluid = FluidState(**values)  # type: ignore[arg-type]
+        return cls(fluid, np.asarray(arrays["level_set"], dtype=np.float64).copy(),
+                   float(arrays["liquid_area"]), int(arrays["step_index"]))
+
+
+@dataclass(frozen=True)
+class GhostFluidProjection:
+    """Pressure projection of a liquid with a free surface (ghost fluid method).
+
+    Solves ``A p = -(rho h / dt) h div w`` on the liquid cells with `A` from
+    `build_free_surface_operator` (1/theta diagonal terms for p = 0 at the surface's sub-cell
+    position), then subtracts the gradient on every face with liquid on a side, with the
+    same ghost values. Faces between two air cells are not solved.
+
+    Guarantees: after `project`, the divergence of every liquid cell is zero to the pressure
+    solver's tolerance; the operator is symmetric positive definite on each liquid region that
+    touches air (semi-definite on one enclosed by walls, which the solvers handle).
+
+    Attributes:
+        theta_min: Floor of the surface's fraction of the spacing (see
+            `elastoflow.fluid._level_set_kernels.THETA_MIN_DEFAULT` for the choice).
+    """
+
+    theta_min: float = kernels.THETA_MIN_DEFAULT
+
+    def __post_init__(self) -> None:
+        if not (isinstance(self.theta_min, (int, float)) and 0.0 < self.theta_min <= 1.0):
+            raise ValueError(
+                f"GhostFluidProjection.theta_min = {self.theta_min!r}: must be in (0, 1]"
+            )
+
+    def operator(self, level_set: FloatArray, out: tuple[FloatArray, FloatArray, FloatArray]
+                 ) -> Operator5Point:
+        """The pressure operator for ``level_set``, assembled into ``out`` (diagonal (nx, ny),
+        weights_x (nx-1, ny), weights_y (nx, ny-1))."""
+        diagonal, weights_x, weights_y = out
+        kernels.build_free_surface_operator(level_set, float(self.theta_min), diagonal,
+                                            weights_x, weights_y)
+        return Operator5Point(diagonal, weights_x, weights_y)
+
+    def project(self, solver: FluidSolver, state: FluidState, level_set: FloatArray, dt: float,
+                workspace: FreeSurfaceWorkspace) -> SolveReport:
+        """Make the liquid's velocity divergence-free; pressure [Pa] into ``state.pressure``
+        (0 in the air); marks the solved faces in ``workspace.valid_u`` / ``valid_v``."""
+        grid = solver.grid
+        h = grid.h
+        operator = self.operator(level_set, workspace.operator_arrays)
+        rhs = workspace.rhs
+        fluid_kernels.pressure_rhs(
+            state.velocity_x, state.velocity_y, solver.density * h / dt, False,
+            workspace.no_values, workspace.no_values, workspace.no_values, workspace.no_values,
+            rhs,
+        )
+        pressure = state.pressure
+        if takes_out(solver.pressure_solver) and writable_into(pressure):
+            _, report = solver.pressure_solver.solve(operator, rhs, x0=pressure, out=pressure)
+        else:
+            solution, report = solver.pressure_solver.solve(operator, rhs, x0=pressure)
+            fluid_kernels.copy_into(solution, pressure)
+        kernels.subtract_free_surface_gradient(
+            state.velocity_x, state.velocity_y, pressure, level_set, dt / (solver.density * h),
+            float(self.theta_min), workspace.valid_u, workspace.valid_v,
+        )
+        return report
+
+
+class FreeSurfaceWorkspace:
+    """Scratch arrays of a `FreeSurfaceSolver` on one grid (allocated once)."""
+
+    def __init__(self, grid: Grid2D) -> None:
+        nx, ny = grid.shape_cells
+        self.operator_arrays = (np.zeros((nx, ny)), np.zeros((nx - 1, ny)),
+                                np.zeros((nx, ny - 1)))
+        self.rhs = np.zeros((nx, ny))
+        self.no_values = np.zeros((1, 1))
+        self.valid_u = np.zeros(grid.shape_faces_x, dtype=np.int32)
+        self.valid_v = np.zeros(grid.shape_faces_y, dtype=np.int32)
+        self.level_set = LevelSetWorkspace(grid)
+
+
+@dataclass(frozen=True)
+class FreeSurfaceStepReport:
+    """What one free-surface step did.
+
+    Attributes:
+        pressure_iterations: Iterations of the pressure solve.
+        pressure_residual: Its final relative residual.
+        pressure_converged: Whether it reached its tolerance.
+        viscosity_iterations: Iterations of the viscosity solves (0 if inviscid).
+        liquid_cells: Cells with ``phi < 0`` after the step.
+        seconds_by_phase: Wall time [s] of "level_set", "advection", "viscosity", "forces",
+            "pressure", "extrapolation".
+    """
+
+    pressure_iterations: int
+    pressure_residual: float
+    pressure_converged: bool
+    viscosity_iterations: int
+    liquid_cells: int
+    seconds_by_phase: dict[str, float] = field(default_factory=dict)
+
+
+_WALLS = (WallNoSlip, WallFreeSlip, WallMoving)
+
+
+class FreeSurfaceSolver:
+    """A liquid with a free surface on the MAC grid: level set plus ghost-fluid projection.
+
+    One step of ``dt`` (Enright et al. 2002's order, as in Bridson's book): the level set is
+    carried by the velocity of the last step (`LevelSetTransport`: advection, redistancing,
+    volume correction); then the fluid's own phases advect and diffuse the velocity over the
+    whole grid (air included, where it holds the extrapolated field) and add gravity on the
+    faces; `GhostFluidProjection` makes the liquid divergence-free with p = 0 on the new
+    surface; the velocity is extrapolated from the liquid's faces into the air
+    (``extrapolation_layers`` layers, the rest of the air set to 0).
+
+    Guarantees: after `step`, every liquid cell's divergence is zero to the pressure solver's
+    tolerance; with ``volume_correction`` the liquid area (`liquid_area`) equals the initial
+    one to round-off.
+
+    Args:
+        fluid: The fluid solver whose density, viscosity, gravity, advection and viscosity
+            schemes and pressure solver are used. Its four sides must be walls (the air is a
+            void; open sides are not supported yet) and it must not use the incremental
+            pressure or BDF2 (they assume one pressure over the whole grid).
+        projection: The free-surface pressure projection.
+        transport: How the level set moves.
+        extrapolation_layers: Layers of faces the velocity is extended into the air; must
+            exceed the CFL number of the step, since back-traces sample that far.
+    """
+
+    def __init__(
+        self,
+        fluid: FluidSolver,
+        *,
+        projection: GhostFluidProjection | None = None,
+        transport: LevelSetTransport | None = None,
+        extrapolation_layers: int = 5,
+    ) -> None:
+        if not isinstance(fluid, FluidSolver):
+            raise ValueError(f"FreeSurfaceSolver fluid = {fluid!r}: must be a FluidSolver")
+        for name, side in zip(("left", "right", "bottom", "top"), fluid.boundaries.sides()):
+            if not isinstance(side, _WALLS):
+                raise ValueError(
+                    f"FreeSurfaceSolver: the fluid's {name} side is {side!r}; a free-surface "
+                    "liquid needs walls on all four sides (open sides are not supported yet)"
+                )
+        if fluid.incremental_pressure or fluid.viscosity_scheme == "bdf2":
+            raise ValueError(
+                "FreeSurfaceSolver: the fluid's incremental_pressure and viscosity_scheme "
+                "'bdf2' are not available with a free surface"
+            )
+        if fluid.jets:
+            raise ValueError("FreeSurfaceSolver: jets are not supported with a free surface yet")
+        if not isinstance(extrapolation_layers, int) or extrapolation_layers < 1:
+            raise ValueError(
+                f"FreeSurfaceSolver extrapolation_layers = {extrapolation_layers!r}: "
+                "must be an int >= 1"
+            )
+        self.fluid = fluid
+        self.grid = fluid.grid
+        self.projection = projection if projection is not None else GhostFluidProjection()
+        self.transport = transport if transport is not None else LevelSetTransport()
+        self.extrapolation_layers = extrapolation_layers
+        self.workspace = FreeSurfaceWorkspace(self.grid)
+
+    def state(self, level_set: FloatArray) -> FreeSurfaceState:
+        """Liquid at rest where ``level_set`` [m] < 0, with its velocity extrapolated (zero)
+        and the hydrostatic pressure not yet computed (the first step's projection finds it)."""
+        return FreeSurfaceState.create(self.grid, level_set)
+
+    def pressure_operator(self, level_set: FloatArray) -> Operator5Point:
+        """The ghost-fluid operator for ``level_set`` (fresh arrays; for tests)."""
+        nx, ny = self.grid.shape_cells
+        return self.projection.operator(
+            level_set, (np.zeros((nx, ny)), np.zeros((nx - 1, ny)), np.zeros((nx, ny - 1))))
+
+    def extrapolate_velocity(self, state: FreeSurfaceState, solved: bool = False) -> None:
+        """Extend the velocity from the faces with liquid on a side into the air, in place.
+
+        ``solved``: the workspace's marks are those of this state's last projection (else
+        they are recomputed from the level set)."""
+        workspace = self.workspace
+        if not solved:
+            kernels.mark_liquid_faces(state.level_set, workspace.valid_u, workspace.valid_v)
+        layers = self.extrapolation_layers
+        kernels.extrapolate_faces(state.fluid.velocity_x, workspace.valid_u, layers, 0)
+        kernels.extrapolate_faces(state.fluid.velocity_y, workspace.valid_v, layers, 1)
+
+    def stable_dt(self, state: FreeSurfaceState, cfl: float, dt_max: float) -> float:
+        """``min(dt_max, cfl h / max|u|)`` [s] over the faces, and at most the time in which
+        gravity alone would reach that speed from rest (``sqrt(cfl h / |g|)``)."""
+        speed = max(float(np.max(np.abs(state.fluid.velocity_x))),
+                    float(np.max(np.abs(state.fluid.velocity_y))))
+        h = self.grid.h
+        dt = float(dt_max)
+        if speed > 0.0:
+            dt = min(dt, cfl * h / speed)
+        g = math.hypot(*self.fluid.gravity)
+        if g > 0.0:
+            dt = min(dt, math.sqrt(cfl * h / g))
+        return dt
+
+    def step(self, state: FreeSurfaceState, dt: float, time: float = 0.0) -> FreeSurfaceStepReport:
+        """One step of ``dt`` [s] from ``time`` [s], in place."""
+        if not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0.0):
+            raise ValueError(f"time step dt = {dt!r}: must be a finite number > 0")
+        fluid, grid, workspace = self.fluid, self.grid, self.workspace
+        clock = _time.perf_counter
+        t0 = clock()
+        transport_level_set(
+            self.transport, grid, state.level_set, state.fluid.velocity_x,
+            state.fluid.velocity_y, dt, state.step_index, state.liquid_area,
+            workspace.level_set,
+        )
+        t1 = clock()
+        fluid.advect(state.fluid, dt)
+        t2 = clock()
+        viscosity_iterations = fluid.diffuse(state.fluid, dt)
+        t3 = clock()
+        fluid.apply_forces(state.fluid, dt, time)
+        t4 = clock()
+        report = self.projection.project(fluid, state.fluid, state.level_set, dt, workspace)
+        t5 = clock()
+        self.extrapolate_velocity(state, solved=True)
+        t6 = clock()
+        state.step_index += 1
+        return FreeSurfaceStepReport(
+            pressure_iterations=int(report.iterations),
+            pressure_residual=float(report.residual),
+            pressure_converged=bool(report.converged),
+            viscosity_iterations=int(viscosity_iterations),
+            liquid_cells=int(np.count_nonzero(state.level_set < 0.0)),
+            seconds_by_phase={"level_set": t1 - t0, "advection": t2 - t1,
+                              "viscosity": t3 - t2, "forces": t4 - t3, "pressure": t5 - t4,
+                              "extrapolation": t6 - t5},
+        )
+
+    def divergence(self, state: FreeSurfaceState) -> FloatArray:
+        """Cell divergence [1/s] of the velocity, 0 in the air cells, shape (nx, ny)."""
+        out = np.empty(self.grid.shape_cells)
+        fluid_kernels.divergence(state.fluid.velocity_x, state.fluid.velocity_y, self.grid.h,
+                                 False, self.workspace.no_values, self.workspace.no_values, out)
+        out[state.level_set >= 0.0] = 0.0
+        return out

@@ -1,0 +1,402 @@
+"""Numba kernels of the level-set free surface: ghost-fluid pressure, level-set transport,
+redistancing, volume, velocity extrapolation.
+
+Index conventions are those of `elastoflow.grid`: the level set ``phi`` lives in the cells,
+shape (nx, ny), liquid where ``phi < 0``, air where ``phi >= 0``; u on x-faces (nx+1, ny), v on
+y-faces (nx, ny+1). Positions inside the kernels are in cell-index units: the centre of cell
+``(i, j)`` is at ``(i, j)``, so ``u[i, j]`` is at ``(i - 1/2, j)`` and ``v[i, j]`` at
+``(i, j - 1/2)``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit, prange
+
+# Per-axis crossing fraction of a liquid cell's centre to the interface, as the fraction of
+# the spacing h. 1e-3 is the fluid's cut-cell floor for bodies (`fluid._kernels.THETA_MIN`):
+# a clamped theta changes the liquid cell's pressure by at most theta_min h |grad p| (the
+# pressure there is ~theta h |grad p| anyway), while 1/theta_min = 1000 on the diagonal is
+# what the multigrid-CG handles without more iterations (measured in
+# docs/validation/free_surface.md). Mantaflow clamps at 1e-4, Bridson's book at 1e-2.
+THETA_MIN_DEFAULT = 1e-3
+
+
+@njit(cache=True, inline="always")
+def interface_fraction(phi_liquid: float, phi_air: float, theta_min: float) -> float:
+    """Fraction theta in [theta_min, 1] of the spacing from a liquid point (phi < 0) to the
+    zero of the linear interpolant towards an air point (phi >= 0)."""
+    theta = phi_liquid / (phi_liquid - phi_air)
+    if theta < theta_min:
+        return theta_min
+    if theta > 1.0:
+        return 1.0
+    return theta
+
+
+@njit(cache=True)
+def build_free_surface_operator(phi, theta_min, diagonal, weights_x, weights_y):
+    """Ghost-fluid pressure operator (Gibou et al. 2002): ``A p = -h^2 lap p`` on liquid cells.
+
+    Two liquid cells are coupled with weight 1; a liquid cell next to an air cell gets
+    ``1 / theta`` on its diagonal (p = 0 at the interface, a fraction theta of the spacing
+    away); air cells are inactive (all zero); domain sides are walls (no term). The operator is
+    symmetric and diagonally dominant, positive definite on every liquid region that touches
+    air.
+    """
+    nx, ny = phi.shape
+    for i in range(nx):
+        for j in range(ny):
+            diagonal[i, j] = 0.0
+            if i + 1 < nx:
+                weights_x[i, j] = 0.0
+            if j + 1 < ny:
+                weights_y[i, j] = 0.0
+    for i in range(nx):
+        for j in range(ny):
+            here = phi[i, j]
+            if here >= 0.0:
+                continue
+            d = 0.0
+            if i + 1 < nx:
+                if phi[i + 1, j] < 0.0:
+                    weights_x[i, j] = 1.0
+                else:
+                    d += 1.0 / interface_fraction(here, phi[i + 1, j], theta_min)
+            if i > 0 and phi[i - 1, j] >= 0.0:
+                d += 1.0 / interface_fraction(here, phi[i - 1, j], theta_min)
+            if j + 1 < ny:
+                if phi[i, j + 1] < 0.0:
+                    weights_y[i, j] = 1.0
+                else:
+                    d += 1.0 / interface_fraction(here, phi[i, j + 1], theta_min)
+            if j > 0 and phi[i, j - 1] >= 0.0:
+                d += 1.0 / interface_fraction(here, phi[i, j - 1], theta_min)
+            diagonal[i, j] = d
+
+
+@njit(cache=True, inline="always")
+def _face_gradient(p_low, p_high, phi_low, phi_high, theta_min):
+    """``(p_high - p_low)`` across one face with the ghost-fluid value on an air side; the
+    second result says whether the face has liquid on a side (is solved)."""
+    low_liquid = phi_low < 0.0
+    high_liquid = phi_high < 0.0
+    if low_liquid and high_liquid:
+        return p_high - p_low, True
+    if low_liquid:
+        return -p_low / interface_fraction(phi_low, phi_high, theta_min), True
+    if high_liquid:
+        return p_high / interface_fraction(phi_high, phi_low, theta_min), True
+    return 0.0, False
+
+
+@njit(cache=True, parallel=True)
+def subtract_free_surface_gradient(u, v, p, phi, k, theta_min, valid_u, valid_v):
+    """``u -= (dt / rho) grad p`` on faces with liquid on a side, with the ghost pressure of
+    ``build_free_surface_operator``; ``k = dt / (rho h)``.
+
+    Marks ``valid_u`` / ``valid_v`` (int32, face shapes) 1 on the faces solved and on the wall
+    faces of liquid cells, 0 elsewhere (the faces `extrapolate_faces` fills). Wall faces keep
+    their values.
+    """
+    nx, ny = phi.shape
+    for i in prange(nx + 1):
+        for j in range(ny):
+            if i == 0:
+                valid_u[i, j] = 1 if phi[0, j] < 0.0 else 0
+                continue
+            if i == nx:
+                valid_u[i, j] = 1 if phi[nx - 1, j] < 0.0 else 0
+                continue
+            gradient, solved = _face_gradient(p[i - 1, j], p[i, j], phi[i - 1, j], phi[i, j],
+                                              theta_min)
+            if solved:
+                u[i, j] -= k * gradient
+                valid_u[i, j] = 1
+            else:
+                valid_u[i, j] = 0
+    for i in prange(nx):
+        for j in range(ny + 1):
+            if j == 0:
+                valid_v[i, j] = 1 if phi[i, 0] < 0.0 else 0
+                continue
+            if j == ny:
+                valid_v[i, j] = 1 if phi[i, ny - 1] < 0.0 else 0
+                continue
+            gradient, solved = _face_gradient(p[i, j - 1], p[i, j], phi[i, j - 1], phi[i, j],
+                                              theta_min)
+            if solved:
+                v[i, j] -= k * gradient
+                valid_v[i, j] = 1
+            else:
+                valid_v[i, j] = 0
+
+
+@njit(cache=True)
+def mark_liquid_faces(phi, valid_u, valid_v):
+    """``valid_*`` = 1 on faces with liquid on a side (as `subtract_free_surface_gradient`
+    marks them), 0 elsewhere; for extrapolating a velocity that was not projected."""
+    nx, ny = phi.shape
+    for i in range(nx + 1):
+        for j in range(ny):
+            low = i > 0 and phi[i - 1, j] < 0.0
+            high = i < nx and phi[i, j] < 0.0
+            valid_u[i, j] = 1 if (low or high) else 0
+    for i in range(nx):
+        for j in range(ny + 1):
+            low = j > 0 and phi[i, j - 1] < 0.0
+            high = j < ny and phi[i, j] < 0.0
+            valid_v[i, j] = 1 if (low or high) else 0
+
+
+@njit(cache=True)
+def extrapolate_faces(f, valid, layers, side_axis):
+    """Extend ``f`` from its valid points into the others, one layer at a time.
+
+    A point not valid that has valid 4-neighbours (valid before this layer) takes their mean
+    and becomes valid at this layer; after ``layers`` layers the points still not reached are
+    set to 0 (air far from the liquid, never sampled by a back-trace shorter than ``layers``
+    cells). Points on the domain sides normal to ``side_axis`` (0: the first index's ends, for
+    u; 1: the second's, for v) hold wall values and are never written.
+
+    Args:
+        f: Face values, shape (m, n), in place.
+        valid: int32 (m, n), 1 where ``f`` is known, 0 elsewhere; on return the layer at which
+            each point was reached (``layers + 1`` for the unreached ones).
+        layers: Number of layers to extend.
+        side_axis: Which index's ends are domain sides.
+    """
+    m, n = f.shape
+    for layer in range(1, layers + 1):
+        changed = 0
+        for i in range(m):
+            for j in range(n):
+                if valid[i, j] != 0:
+                    continue
+                if (side_axis == 0 and (i == 0 or i == m - 1)) or (
+                        side_axis == 1 and (j == 0 or j == n - 1)):
+                    continue
+                total = 0.0
+                count = 0
+                if i > 0 and 0 < valid[i - 1, j] <= layer:
+                    total += f[i - 1, j]
+                    count += 1
+                if i + 1 < m and 0 < valid[i + 1, j] <= layer:
+                    total += f[i + 1, j]
+                    count += 1
+                if j > 0 and 0 < valid[i, j - 1] <= layer:
+                    total += f[i, j - 1]
+                    count += 1
+                if j + 1 < n and 0 < valid[i, j + 1] <= layer:
+                    total += f[i, j + 1]
+                    count += 1
+                if count > 0:
+                    f[i, j] = total / count
+                    valid[i, j] = layer + 1
+                    changed += 1
+        if changed == 0:
+            break
+    for i in range(m):
+        for j in range(n):
+            if valid[i, j] == 0:
+                if (side_axis == 0 and (i == 0 or i == m - 1)) or (
+                        side_axis == 1 and (j == 0 or j == n - 1)):
+                    continue
+                f[i, j] = 0.0
+                valid[i, j] = layers + 1
+
+
+# -- level-set transport ---------------------------------------------------------------------
+
+@njit(cache=True, inline="always")
+def _sample_clamped(f, x, y):
+    """Bilinear sample of ``f`` at index coordinates (x, y), clamped to the array (constant
+    extension beyond its ends: a wall sees zero normal gradient of the level set)."""
+    m, n = f.shape
+    x = min(max(x, 0.0), m - 1.0)
+    y = min(max(y, 0.0), n - 1.0)
+    i = min(int(x), m - 2)
+    j = min(int(y), n - 2)
+    tx = x - i
+    ty = y - j
+    low = f[i, j] + tx * (f[i + 1, j] - f[i, j])
+    high = f[i, j + 1] + tx * (f[i + 1, j + 1] - f[i, j + 1])
+    return low + ty * (high - low)
+
+
+@njit(cache=True, inline="always")
+def _range_around(f, x, y):
+    """Minimum and maximum of the four values that a clamped bilinear sample at (x, y) reads."""
+    m, n = f.shape
+    x = min(max(x, 0.0), m - 1.0)
+    y = min(max(y, 0.0), n - 1.0)
+    i = min(int(x), m - 2)
+    j = min(int(y), n - 2)
+    a, b, c, d = f[i, j], f[i + 1, j], f[i, j + 1], f[i + 1, j + 1]
+    return min(min(a, b), min(c, d)), max(max(a, b), max(c, d))
+
+
+@njit(cache=True, inline="always")
+def _departure(u, v, x, y, step):
+    """Departure point of the cell point (x, y) by the midpoint rule over ``step = dt / h``
+    (negative: forwards in time), in cell-index units."""
+    ux = _sample_clamped(u, x + 0.5, y)
+    uy = _sample_clamped(v, x, y + 0.5)
+    xm = x - 0.5 * step * ux
+    ym = y - 0.5 * step * uy
+    ux = _sample_clamped(u, xm + 0.5, ym)
+    uy = _sample_clamped(v, xm, ym + 0.5)
+    return x - step * ux, y - step * uy
+
+
+@njit(cache=True, parallel=True)
+def advect_cells_semi_lagrangian(phi, u, v, step, out):
+    """``out = phi`` at the departure points (midpoint back-trace over ``step = dt / h``
+    [cells per (m/s)], bilinear sampling): one semi-Lagrangian step of a cell field."""
+    nx, ny = phi.shape
+    for i in prange(nx):
+        for j in range(ny):
+            xd, yd = _departure(u, v, float(i), float(j), step)
+            out[i, j] = _sample_clamped(phi, xd, yd)
+
+
+@njit(cache=True, parallel=True)
+def maccormack_correct(phi, forward, backward, u, v, step, out):
+    """MacCormack's corrected value ``forward + (phi - backward) / 2`` (Selle et al. 2008),
+    clamped to the range of the four values of ``phi`` around the departure point (no new
+    extrema). ``forward`` is phi carried over ``step``, ``backward`` is ``forward`` carried
+    back over ``-step``; ``out`` may be ``backward``."""
+    nx, ny = phi.shape
+    for i in prange(nx):
+        for j in range(ny):
+            xd, yd = _departure(u, v, float(i), float(j), step)
+            low, high = _range_around(phi, xd, yd)
+            value = forward[i, j] + 0.5 * (phi[i, j] - backward[i, j])
+            out[i, j] = min(max(value, low), high)
+
+
+# -- redistancing ----------------------------------------------------------------------------
+
+@njit(cache=True, inline="always")
+def _is_interface(phi, i, j):
+    nx, ny = phi.shape
+    liquid = phi[i, j] < 0.0
+    if i > 0 and (phi[i - 1, j] < 0.0) != liquid:
+        return True
+    if i + 1 < nx and (phi[i + 1, j] < 0.0) != liquid:
+        return True
+    if j > 0 and (phi[i, j - 1] < 0.0) != liquid:
+        return True
+    if j + 1 < ny and (phi[i, j + 1] < 0.0) != liquid:
+        return True
+    return False
+
+
+@njit(cache=True, inline="always")
+def _gradient_norm(phi, i, j, h):
+    """|grad phi| by central differences (one-sided on the domain's edge)."""
+    nx, ny = phi.shape
+    i0, i1 = max(i - 1, 0), min(i + 1, nx - 1)
+    j0, j1 = max(j - 1, 0), min(j + 1, ny - 1)
+    gx = (phi[i1, j] - phi[i0, j]) / ((i1 - i0) * h)
+    gy = (phi[i, j1] - phi[i, j0]) / ((j1 - j0) * h)
+    return math.sqrt(gx * gx + gy * gy)
+
+
+@njit(cache=True, inline="always")
+def _eikonal_update(distance, i, j, h):
+    """The upwind solution of ``|grad d| = 1`` at (i, j) from its neighbours' distances."""
+    nx, ny = distance.shape
+    a = np.inf
+    if i > 0:
+        a = distance[i - 1, j]
+    if i + 1 < nx:
+        a = min(a, distance[i + 1, j])
+    b = np.inf
+    if j > 0:
+        b = distance[i, j - 1]
+    if j + 1 < ny:
+        b = min(b, distance[i, j + 1])
+    if abs(a - b) >= h:
+        return min(a, b) + h
+    return 0.5 * (a + b + math.sqrt(2.0 * h * h - (a - b) * (a - b)))
+
+
+@njit(cache=True)
+def _sweep(distance, fixed, h, i_first, i_step, j_first, j_step):
+    nx, ny = distance.shape
+    for ii in range(nx):
+        i = i_first + i_step * ii
+        for jj in range(ny):
+            j = j_first + j_step * jj
+            if fixed[i, j]:
+                continue
+            candidate = _eikonal_update(distance, i, j, h)
+            if candidate < distance[i, j]:
+                distance[i, j] = candidate
+
+
+@njit(cache=True)
+def redistance_fast_sweeping(phi, h, rounds, out, fixed):
+    """Signed distance to the zero level of ``phi`` [m] by fast sweeping (Zhao 2005).
+
+    Cells next to the interface (a 4-neighbour on the other side) keep their zero crossing:
+    they become ``phi / |grad phi|`` (central differences), which leaves a signed distance
+    unchanged to round-off. The others take the first-order upwind distance from them, by
+    Gauss-Seidel sweeps in the four diagonal orders, ``rounds`` times (one round is exact for
+    a straight interface); signs are those of ``phi``.
+
+    Args:
+        phi: Level set [m], shape (nx, ny).
+        h: Cell side [m].
+        rounds: Rounds of four sweeps.
+        out: Result [m], shape (nx, ny), not ``phi``.
+        fixed: bool scratch, shape (nx, ny).
+    """
+    nx, ny = phi.shape
+    for i in range(nx):
+        for j in range(ny):
+            if _is_interface(phi, i, j):
+                norm = _gradient_norm(phi, i, j, h)
+                # A flat spot (|grad phi| ~ 0 at a crossing) cannot be rescaled: keep phi.
+                value = phi[i, j] / norm if norm > 1e-12 / h else phi[i, j]
+                out[i, j] = abs(value)
+                fixed[i, j] = True
+            else:
+                out[i, j] = np.inf
+                fixed[i, j] = False
+    for _ in range(rounds):
+        _sweep(out, fixed, h, 0, 1, 0, 1)
+        _sweep(out, fixed, h, nx - 1, -1, 0, 1)
+        _sweep(out, fixed, h, nx - 1, -1, ny - 1, -1)
+        _sweep(out, fixed, h, 0, 1, ny - 1, -1)
+    for i in range(nx):
+        for j in range(ny):
+            if phi[i, j] < 0.0:
+                out[i, j] = -out[i, j]
+
+
+# -- volume ----------------------------------------------------------------------------------
+
+@njit(cache=True)
+def liquid_area(phi, h):
+    """Liquid area [m^2] as the sum of cell fractions ``clamp(1/2 - phi / h, 0, 1) h^2``, and
+    the number of cells on the ramp (``|phi| < h / 2``, where the area changes with phi).
+
+    The fraction is exact for a straight interface along a grid line; it is the measure the
+    global volume correction keeps.
+    """
+    nx, ny = phi.shape
+    total = 0.0
+    ramp = 0
+    for i in range(nx):
+        for j in range(ny):
+            fraction = 0.5 - phi[i, j] / h
+            if fraction >= 1.0:
+                total += 1.0
+            elif fraction > 0.0:
+                total += fraction
+                ramp += 1
+    return total * h * h, ramp
