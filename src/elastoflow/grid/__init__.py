@@ -12,10 +12,11 @@ Picture of one cell ``(i, j)`` of side ``h`` (x to the right, y up)::
         (i,j) v-face            v-faces (odd, even), corners (even, even)
 
 Arrays are indexed ``[i, j]`` with ``i`` along x. Positions are relative to ``origin``.
-Dimension-specific geometry lives here so that the rest of the package can grow a 3D grid
-beside this one.
+Dimension-specific geometry lives here; `Grid3D` is the 3D grid beside this one (its module
+docstring has its picture: u (nx+1, ny, nz), v (nx, ny+1, nz), w (nx, ny, nz+1), p (nx, ny, nz)).
 """
 
 from elastoflow.grid._grid import Grid2D
+from elastoflow.grid._grid3d import Grid3D
 
-__all__ = ["Grid2D"]
+__all__ = ["Grid2D", "Grid3D"]

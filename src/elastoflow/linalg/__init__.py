@@ -27,21 +27,30 @@ converges for every such operator, and its iteration count barely grows with the
 (6-7 iterations to 1e-6 from 128^2 to 1024^2 on pressure problems with outflow, bodies with
 fractional faces, or closed boxes). It keeps its multigrid levels and component analysis while
 the operator is unchanged, so an operator's arrays must not be modified after construction.
+
+In 3D: ``Operator7Point(diagonal, weights_x, weights_y, weights_z)`` on ``(m, n, l)`` arrays,
+``apply_operator_3d``, and ``PoissonSolverMGPCG3D(rtol, max_iterations, smoothing_sweeps)``
+with the same ``solve`` contract and `SolveReport`.
 """
 
 
 from elastoflow.linalg._banded import banded_sweep_layouts
 from elastoflow.linalg._jacobi import PoissonSolverJacobi
 from elastoflow.linalg._mgpcg import BandedInverse, LowRankTerm, PoissonSolverMGPCG
+from elastoflow.linalg._mgpcg3d import PoissonSolverMGPCG3D
 from elastoflow.linalg._operator import Operator5Point, SolveReport, apply_operator
+from elastoflow.linalg._operator3d import Operator7Point, apply_operator_3d
 
 __all__ = [
     "BandedInverse",
     "LowRankTerm",
     "Operator5Point",
+    "Operator7Point",
     "PoissonSolverJacobi",
     "PoissonSolverMGPCG",
+    "PoissonSolverMGPCG3D",
     "SolveReport",
     "apply_operator",
+    "apply_operator_3d",
     "banded_sweep_layouts",
 ]

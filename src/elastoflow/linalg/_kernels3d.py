@@ -1,0 +1,617 @@
+"""Numba kernels of the 7-point operator on ``(m, n, l)`` arrays: application, operator
+loading, connected components, and the pieces of the multigrid V-cycle and of conjugate
+gradient (red-black Gauss-Seidel, residual restriction, prolongation, fused vector updates).
+
+Every kernel takes plain arrays and scalars (no Python objects), so that it can be retargeted
+to a GPU later. The outer loop runs over ``i``; the twins from `serial_and_parallel` are
+picked by `PARALLEL_MINIMUM_3D`. Pointwise kernels that do not care about the dimension
+(finiteness probes, component means) are the 2D ones, called on ``(m * n, l)`` views.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from elastoflow._numba import serial_and_parallel
+
+# Below this many points a parallel region costs more than it saves (a 16^3 level).
+PARALLEL_MINIMUM_3D = 16 * 16 * 16
+# Gauss-Seidel colours: a point (i, j, k) is red when i + j + k is even.
+RED = 0
+BLACK = 1
+
+
+@njit(cache=True, inline="always")
+def _neighbour_sum(diagonal, weights_x, weights_y, weights_z, x, i, j, k, m, n, l):
+    """Return ``(D, sum w x_nb)`` at ``[i, j, k]``, with ``D = diagonal + sum w``."""
+    total = diagonal[i, j, k]
+    coupled = 0.0
+    if i > 0:
+        w = weights_x[i - 1, j, k]
+        total += w
+        coupled += w * x[i - 1, j, k]
+    if i < m - 1:
+        w = weights_x[i, j, k]
+        total += w
+        coupled += w * x[i + 1, j, k]
+    if j > 0:
+        w = weights_y[i, j - 1, k]
+        total += w
+        coupled += w * x[i, j - 1, k]
+    if j < n - 1:
+        w = weights_y[i, j, k]
+        total += w
+        coupled += w * x[i, j + 1, k]
+    if k > 0:
+        w = weights_z[i, j, k - 1]
+        total += w
+        coupled += w * x[i, j, k - 1]
+    if k < l - 1:
+        w = weights_z[i, j, k]
+        total += w
+        coupled += w * x[i, j, k + 1]
+    return total, coupled
+
+
+@njit(cache=True, inline="always")
+def _coupled_sum(weights_x, weights_y, weights_z, x, i, j, k, m, n, l):
+    """``sum w x_nb`` at ``[i, j, k]`` (the totals are precomputed for the V-cycle)."""
+    coupled = 0.0
+    if i > 0:
+        coupled += weights_x[i - 1, j, k] * x[i - 1, j, k]
+    if i < m - 1:
+        coupled += weights_x[i, j, k] * x[i + 1, j, k]
+    if j > 0:
+        coupled += weights_y[i, j - 1, k] * x[i, j - 1, k]
+    if j < n - 1:
+        coupled += weights_y[i, j, k] * x[i, j + 1, k]
+    if k > 0:
+        coupled += weights_z[i, j, k - 1] * x[i, j, k - 1]
+    if k < l - 1:
+        coupled += weights_z[i, j, k] * x[i, j, k + 1]
+    return coupled
+
+
+def _make_apply(loop):
+    def kernel(diagonal, weights_x, weights_y, weights_z, x, out):
+        m, n, l = x.shape
+        for i in loop(m):
+            for j in range(n):
+                for k in range(l):
+                    total, coupled = _neighbour_sum(diagonal, weights_x, weights_y, weights_z,
+                                                    x, i, j, k, m, n, l)
+                    out[i, j, k] = total * x[i, j, k] - coupled
+    return kernel
+
+
+_apply_serial, _apply_parallel = serial_and_parallel(_make_apply)
+
+
+@njit(cache=True)
+def apply_operator_kernel_3d(diagonal, weights_x, weights_y, weights_z, x, out):
+    """``out = A x`` for the 7-point operator, all arrays ``(m, n, l)`` (weights one shorter
+    along their axis)."""
+    if x.size > PARALLEL_MINIMUM_3D:
+        return _apply_parallel(diagonal, weights_x, weights_y, weights_z, x, out)
+    return _apply_serial(diagonal, weights_x, weights_y, weights_z, x, out)
+
+
+def _make_load(loop):
+    def kernel(diagonal, weights_x, weights_y, weights_z, total, inverse, active, dominance):
+        m, n, l = diagonal.shape
+        for i in loop(m):
+            # A minimum per plane: no min-reduction across threads.
+            smallest = np.inf
+            for j in range(n):
+                for k in range(l):
+                    d = diagonal[i, j, k]
+                    off = 0.0
+                    if i > 0:
+                        off += weights_x[i - 1, j, k]
+                    if i < m - 1:
+                        off += weights_x[i, j, k]
+                    if j > 0:
+                        off += weights_y[i, j - 1, k]
+                    if j < n - 1:
+                        off += weights_y[i, j, k]
+                    if k > 0:
+                        off += weights_z[i, j, k - 1]
+                    if k < l - 1:
+                        off += weights_z[i, j, k]
+                    t = d + off
+                    total[i, j, k] = t
+                    is_active = t > 0.0
+                    active[i, j, k] = is_active
+                    inverse[i, j, k] = 1.0 / t if is_active else 0.0
+                    if is_active:
+                        smallest = min(smallest, d / off if off > 0.0 else np.inf)
+            dominance[i] = smallest
+    return kernel
+
+
+_load_serial, _load_parallel = serial_and_parallel(_make_load)
+
+
+@njit(cache=True)
+def load_operator_kernel_3d(diagonal, weights_x, weights_y, weights_z, total, inverse, active):
+    """Fill ``total = diagonal + sum of weights``, its inverse (0 at inactive points) and the
+    ``active`` mask; return ``(whether every active point has a positive diagonal, the
+    smallest ratio diagonal / sum of weights over active points)``."""
+    m = diagonal.shape[0]
+    dominance = np.empty(m)
+    if diagonal.size > PARALLEL_MINIMUM_3D:
+        _load_parallel(diagonal, weights_x, weights_y, weights_z, total, inverse, active,
+                       dominance)
+    else:
+        _load_serial(diagonal, weights_x, weights_y, weights_z, total, inverse, active,
+                     dominance)
+    all_have_diagonal = True
+    for i in range(m):
+        for j in range(diagonal.shape[1]):
+            for k in range(diagonal.shape[2]):
+                if active[i, j, k] and diagonal[i, j, k] <= 0.0:
+                    all_have_diagonal = False
+    return all_have_diagonal, dominance.min()
+
+
+@njit(cache=True, inline="always")
+def _find(parent, k):
+    while parent[k] != k:
+        parent[k] = parent[parent[k]]
+        k = parent[k]
+    return k
+
+
+@njit(cache=True, inline="always")
+def _union(parent, a, b):
+    ra = _find(parent, a)
+    rb = _find(parent, b)
+    if ra != rb:
+        parent[max(ra, rb)] = min(ra, rb)
+
+
+@njit(cache=True)
+def label_components_kernel_3d(diagonal, weights_x, weights_y, weights_z, active, labels):
+    """Label the connected components (through positive weights) of the active points.
+
+    Writes ``labels`` (-1 at inactive points, else 0..count-1) and returns ``(count,
+    singular)``, ``singular[c]`` saying component ``c`` has no positive diagonal.
+    """
+    m, n, l = diagonal.shape
+    parent = np.arange(m * n * l)
+    for i in range(m):
+        for j in range(n):
+            for k in range(l):
+                if not active[i, j, k]:
+                    continue
+                flat = (i * n + j) * l + k
+                if i + 1 < m and weights_x[i, j, k] > 0.0:
+                    _union(parent, flat, flat + n * l)
+                if j + 1 < n and weights_y[i, j, k] > 0.0:
+                    _union(parent, flat, flat + l)
+                if k + 1 < l and weights_z[i, j, k] > 0.0:
+                    _union(parent, flat, flat + 1)
+    root_label = np.full(m * n * l, -1, dtype=np.int64)
+    count = 0
+    for i in range(m):
+        for j in range(n):
+            for k in range(l):
+                if not active[i, j, k]:
+                    labels[i, j, k] = -1
+                    continue
+                root = _find(parent, (i * n + j) * l + k)
+                if root_label[root] < 0:
+                    root_label[root] = count
+                    count += 1
+                labels[i, j, k] = root_label[root]
+    singular = np.ones(count, dtype=np.bool_)
+    for i in range(m):
+        for j in range(n):
+            for k in range(l):
+                c = labels[i, j, k]
+                if c >= 0 and diagonal[i, j, k] > 0.0:
+                    singular[c] = False
+    return count, singular
+
+
+def _make_coarsen(loop):
+    def kernel(fine_diagonal, fine_weights_x, fine_weights_y, fine_weights_z, fine_total,
+               diagonal, weights_x, weights_y, weights_z):
+        m, n, l = fine_diagonal.shape
+        mc, nc, lc = diagonal.shape
+        for ic in loop(mc):
+            for jc in range(nc):
+                for kc in range(lc):
+                    # The volume part of the children's diagonal (the smallest one, shared by
+                    # all active children: a Helmholtz identity) adds up under the summing
+                    # restriction; the rest (Dirichlet sides) is a surface term and, like the
+                    # face weights, scales by half the sum (rediscretisation at 2h of an
+                    # operator scaled by h^2, restricted by summing 8 children).
+                    count = 0
+                    smallest = np.inf
+                    summed = 0.0
+                    for a in range(2):
+                        i = 2 * ic + a
+                        if i >= m:
+                            continue
+                        for b in range(2):
+                            j = 2 * jc + b
+                            if j >= n:
+                                continue
+                            for c in range(2):
+                                k = 2 * kc + c
+                                if k >= l or fine_total[i, j, k] <= 0.0:
+                                    continue
+                                count += 1
+                                d = fine_diagonal[i, j, k]
+                                summed += d
+                                smallest = min(smallest, d)
+                    if count > 0:
+                        diagonal[ic, jc, kc] = count * smallest + 0.5 * (summed - count * smallest)
+                    else:
+                        diagonal[ic, jc, kc] = 0.0
+                    if ic + 1 < mc:
+                        w = 0.0
+                        for b in range(2):
+                            for c in range(2):
+                                j = 2 * jc + b
+                                k = 2 * kc + c
+                                if j < n and k < l:
+                                    w += fine_weights_x[2 * ic + 1, j, k]
+                        weights_x[ic, jc, kc] = 0.5 * w
+                    if jc + 1 < nc:
+                        w = 0.0
+                        for a in range(2):
+                            for c in range(2):
+                                i = 2 * ic + a
+                                k = 2 * kc + c
+                                if i < m and k < l:
+                                    w += fine_weights_y[i, 2 * jc + 1, k]
+                        weights_y[ic, jc, kc] = 0.5 * w
+                    if kc + 1 < lc:
+                        w = 0.0
+                        for a in range(2):
+                            for b in range(2):
+                                i = 2 * ic + a
+                                j = 2 * jc + b
+                                if i < m and j < n:
+                                    w += fine_weights_z[i, j, 2 * kc + 1]
+                        weights_z[ic, jc, kc] = 0.5 * w
+    return kernel
+
+
+_coarsen_serial, _coarsen_parallel = serial_and_parallel(_make_coarsen)
+
+
+@njit(cache=True)
+def coarsen_kernel_3d(fine_diagonal, fine_weights_x, fine_weights_y, fine_weights_z,
+                      fine_total, diagonal, weights_x, weights_y, weights_z):
+    """The next coarser level's operator: each coarse point covers up to 2 x 2 x 2 fine
+    points; a coarse face weight is half the sum of the (up to four) fine faces it covers."""
+    if diagonal.size > PARALLEL_MINIMUM_3D // 8:
+        return _coarsen_parallel(fine_diagonal, fine_weights_x, fine_weights_y, fine_weights_z,
+                                 fine_total, diagonal, weights_x, weights_y, weights_z)
+    return _coarsen_serial(fine_diagonal, fine_weights_x, fine_weights_y, fine_weights_z,
+                           fine_total, diagonal, weights_x, weights_y, weights_z)
+
+
+def _make_smooth(loop):
+    def kernel(x, b, inverse, weights_x, weights_y, weights_z, colour):
+        m, n, l = x.shape
+        for i in loop(m):
+            for j in range(n):
+                for k in range((colour + i + j) & 1, l, 2):
+                    inv = inverse[i, j, k]
+                    if inv == 0.0:
+                        x[i, j, k] = 0.0
+                        continue
+                    coupled = _coupled_sum(weights_x, weights_y, weights_z, x, i, j, k, m, n, l)
+                    x[i, j, k] = (b[i, j, k] + coupled) * inv
+    return kernel
+
+
+_smooth_serial, _smooth_parallel = serial_and_parallel(_make_smooth)
+
+
+@njit(cache=True)
+def smooth_kernel_3d(x, b, inverse, weights_x, weights_y, weights_z, colour):
+    """One half sweep of red-black Gauss-Seidel on ``A x = b``: the points of ``colour``
+    (`RED`: i + j + k even, `BLACK`: odd) get ``x = (b + sum w x_nb) / D``."""
+    if x.size > PARALLEL_MINIMUM_3D:
+        return _smooth_parallel(x, b, inverse, weights_x, weights_y, weights_z, colour)
+    return _smooth_serial(x, b, inverse, weights_x, weights_y, weights_z, colour)
+
+
+def _make_restrict(loop):
+    def kernel(x, b, total, weights_x, weights_y, weights_z, coarse_b):
+        m, n, l = x.shape
+        mc, nc, lc = coarse_b.shape
+        # One coarse plane per task, filled by walking its (up to two) fine planes in memory
+        # order: the residual is computed once per fine point and added to its parent.
+        for ic in loop(mc):
+            for jc in range(nc):
+                for kc in range(lc):
+                    coarse_b[ic, jc, kc] = 0.0
+            for i in range(2 * ic, min(2 * ic + 2, m)):
+                for j in range(n):
+                    jc = j >> 1
+                    for k in range(l):
+                        t = total[i, j, k]
+                        if t > 0.0:
+                            coupled = _coupled_sum(weights_x, weights_y, weights_z, x, i, j,
+                                                   k, m, n, l)
+                            coarse_b[ic, jc, k >> 1] += b[i, j, k] - t * x[i, j, k] + coupled
+    return kernel
+
+
+_restrict_serial, _restrict_parallel = serial_and_parallel(_make_restrict)
+
+
+@njit(cache=True)
+def restrict_residual_kernel_3d(x, b, total, weights_x, weights_y, weights_z, coarse_b):
+    """``coarse_b`` = the residual ``b - A x`` summed over each coarse point's children (the
+    transpose of piecewise-constant prolongation)."""
+    if x.size > PARALLEL_MINIMUM_3D:
+        return _restrict_parallel(x, b, total, weights_x, weights_y, weights_z, coarse_b)
+    return _restrict_serial(x, b, total, weights_x, weights_y, weights_z, coarse_b)
+
+
+def _make_prolong(loop):
+    def kernel(coarse_x, inverse, x):
+        m, n, l = x.shape
+        for i in loop(m):
+            for j in range(n):
+                for k in range(l):
+                    if inverse[i, j, k] != 0.0:
+                        x[i, j, k] += coarse_x[i >> 1, j >> 1, k >> 1]
+    return kernel
+
+
+_prolong_serial, _prolong_parallel = serial_and_parallel(_make_prolong)
+
+
+@njit(cache=True)
+def prolong_add_kernel_3d(coarse_x, inverse, x):
+    """``x += P coarse_x`` (piecewise constant) at the active points (``inverse != 0``)."""
+    if x.size > PARALLEL_MINIMUM_3D:
+        return _prolong_parallel(coarse_x, inverse, x)
+    return _prolong_serial(coarse_x, inverse, x)
+
+
+@njit(cache=True)
+def dense_matrix_kernel_3d(diagonal, weights_x, weights_y, weights_z, matrix):
+    """The operator as a dense matrix over flat indices ``(i n + j) l + k``."""
+    m, n, l = diagonal.shape
+    matrix[:, :] = 0.0
+    for i in range(m):
+        for j in range(n):
+            for k in range(l):
+                a = (i * n + j) * l + k
+                matrix[a, a] += diagonal[i, j, k]
+                if i + 1 < m:
+                    _add_coupling(matrix, a, a + n * l, weights_x[i, j, k])
+                if j + 1 < n:
+                    _add_coupling(matrix, a, a + l, weights_y[i, j, k])
+                if k + 1 < l:
+                    _add_coupling(matrix, a, a + 1, weights_z[i, j, k])
+
+
+@njit(cache=True, inline="always")
+def _add_coupling(matrix, a, b, w):
+    matrix[a, a] += w
+    matrix[b, b] += w
+    matrix[a, b] -= w
+    matrix[b, a] -= w
+
+
+@njit(cache=True)
+def dense_solve_kernel(factor, b, x):
+    """Solve with a semi-definite Cholesky factor (`semidefinite_cholesky_kernel`); pinned
+    unknowns (zero pivot) get 0. ``b`` and ``x`` are the level's ``(m, n, l)`` arrays."""
+    size = factor.shape[0]
+    values = b.ravel().copy()
+    for a in range(size):
+        value = values[a]
+        for p in range(a):
+            value -= factor[a, p] * values[p]
+        values[a] = value / factor[a, a] if factor[a, a] > 0.0 else 0.0
+    for a in range(size - 1, -1, -1):
+        if factor[a, a] > 0.0:
+            value = values[a]
+            for p in range(a + 1, size):
+                value -= factor[p, a] * values[p]
+            values[a] = value / factor[a, a]
+        else:
+            values[a] = 0.0
+    flat = x.ravel()
+    for a in range(size):
+        flat[a] = values[a]
+
+
+def _make_fill(loop):
+    def kernel(x, value):
+        m, n, l = x.shape
+        for i in loop(m):
+            for j in range(n):
+                for k in range(l):
+                    x[i, j, k] = value
+    return kernel
+
+
+_fill_serial, _fill_parallel = serial_and_parallel(_make_fill)
+
+
+@njit(cache=True)
+def fill_kernel_3d(x, value):
+    """``x[...] = value`` (threaded on large arrays)."""
+    if x.size > PARALLEL_MINIMUM_3D:
+        return _fill_parallel(x, value)
+    return _fill_serial(x, value)
+
+
+# Conjugate gradient's vector work, fused so that each vector is read once per iteration.
+# Reassociation lets the reductions vectorise.
+_REDUCTION_MATH = {"reassoc", "nsz"}
+
+
+def _make_residual(loop):
+    def kernel(diagonal, weights_x, weights_y, weights_z, x, b, r):
+        m, n, l = x.shape
+        squared = 0.0
+        for i in loop(m):
+            plane = 0.0
+            for j in range(n):
+                for k in range(l):
+                    total, coupled = _neighbour_sum(diagonal, weights_x, weights_y, weights_z,
+                                                    x, i, j, k, m, n, l)
+                    value = b[i, j, k] - total * x[i, j, k] + coupled
+                    r[i, j, k] = value
+                    plane += value * value
+            squared += plane
+        return squared
+    return kernel
+
+
+_residual_serial, _residual_parallel = serial_and_parallel(_make_residual,
+                                                           fastmath=_REDUCTION_MATH)
+
+
+@njit(cache=True)
+def residual_kernel_3d(diagonal, weights_x, weights_y, weights_z, x, b, r):
+    """``r = b - A x``; returns ``|r|^2``."""
+    if x.size > PARALLEL_MINIMUM_3D:
+        return _residual_parallel(diagonal, weights_x, weights_y, weights_z, x, b, r)
+    return _residual_serial(diagonal, weights_x, weights_y, weights_z, x, b, r)
+
+
+def _make_apply_dot(loop):
+    def kernel(diagonal, weights_x, weights_y, weights_z, p, q):
+        m, n, l = p.shape
+        dot = 0.0
+        for i in loop(m):
+            plane = 0.0
+            for j in range(n):
+                for k in range(l):
+                    total, coupled = _neighbour_sum(diagonal, weights_x, weights_y, weights_z,
+                                                    p, i, j, k, m, n, l)
+                    value = total * p[i, j, k] - coupled
+                    q[i, j, k] = value
+                    plane += value * p[i, j, k]
+            dot += plane
+        return dot
+    return kernel
+
+
+_apply_dot_serial, _apply_dot_parallel = serial_and_parallel(_make_apply_dot,
+                                                             fastmath=_REDUCTION_MATH)
+
+
+@njit(cache=True)
+def apply_dot_kernel_3d(diagonal, weights_x, weights_y, weights_z, p, q):
+    """``q = A p``; returns ``p . q``."""
+    if p.size > PARALLEL_MINIMUM_3D:
+        return _apply_dot_parallel(diagonal, weights_x, weights_y, weights_z, p, q)
+    return _apply_dot_serial(diagonal, weights_x, weights_y, weights_z, p, q)
+
+
+def _make_step(loop):
+    def kernel(x, r, p, q, alpha):
+        m, n, l = x.shape
+        squared = 0.0
+        for i in loop(m):
+            plane = 0.0
+            for j in range(n):
+                for k in range(l):
+                    x[i, j, k] += alpha * p[i, j, k]
+                    value = r[i, j, k] - alpha * q[i, j, k]
+                    r[i, j, k] = value
+                    plane += value * value
+            squared += plane
+        return squared
+    return kernel
+
+
+_step_serial, _step_parallel = serial_and_parallel(_make_step, fastmath=_REDUCTION_MATH)
+
+
+@njit(cache=True)
+def step_kernel_3d(x, r, p, q, alpha):
+    """``x += alpha p``, ``r -= alpha q``; returns ``|r|^2``."""
+    if x.size > PARALLEL_MINIMUM_3D:
+        return _step_parallel(x, r, p, q, alpha)
+    return _step_serial(x, r, p, q, alpha)
+
+
+def _make_dot(loop):
+    def kernel(a, b):
+        m, n, l = a.shape
+        dot = 0.0
+        for i in loop(m):
+            plane = 0.0
+            for j in range(n):
+                for k in range(l):
+                    plane += a[i, j, k] * b[i, j, k]
+            dot += plane
+        return dot
+    return kernel
+
+
+_dot_serial, _dot_parallel = serial_and_parallel(_make_dot, fastmath=_REDUCTION_MATH)
+
+
+@njit(cache=True)
+def dot_kernel_3d(a, b):
+    """``a . b`` over ``(m, n, l)`` arrays."""
+    if a.size > PARALLEL_MINIMUM_3D:
+        return _dot_parallel(a, b)
+    return _dot_serial(a, b)
+
+
+def _make_direction(loop):
+    def kernel(z, p, beta):
+        m, n, l = z.shape
+        for i in loop(m):
+            for j in range(n):
+                for k in range(l):
+                    p[i, j, k] = z[i, j, k] + beta * p[i, j, k]
+    return kernel
+
+
+_direction_serial, _direction_parallel = serial_and_parallel(_make_direction)
+
+
+@njit(cache=True)
+def direction_kernel_3d(z, p, beta):
+    """``p = z + beta p``."""
+    if z.size > PARALLEL_MINIMUM_3D:
+        return _direction_parallel(z, p, beta)
+    return _direction_serial(z, p, beta)
+
+
+def _make_masked_copy(loop):
+    def kernel(values, active, out):
+        m, n, l = values.shape
+        squared = 0.0
+        for i in loop(m):
+            plane = 0.0
+            for j in range(n):
+                for k in range(l):
+                    value = values[i, j, k] if active[i, j, k] else 0.0
+                    out[i, j, k] = value
+                    plane += value * value
+            squared += plane
+        return squared
+    return kernel
+
+
+_masked_copy_serial, _masked_copy_parallel = serial_and_parallel(_make_masked_copy,
+                                                                 fastmath=_REDUCTION_MATH)
+
+
+@njit(cache=True)
+def masked_copy_kernel_3d(values, active, out):
+    """``out = values`` at active points, 0 elsewhere; returns ``|out|^2``."""
+    if values.size > PARALLEL_MINIMUM_3D:
+        return _masked_copy_parallel(values, active, out)
+    return _masked_copy_serial(values, active, out)

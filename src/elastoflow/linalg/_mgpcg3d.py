@@ -1,0 +1,364 @@
+"""Conjugate gradient preconditioned by a geometric multigrid V-cycle, on 7-point operators.
+
+The 3D twin of `PoissonSolverMGPCG`: same contract (`SolveReport`, inactive points, singular
+components, true residual), its own kernels (`_kernels3d`). The levels are separate
+``(m, n, l)`` arrays walked by a short Python loop (a handful of levels, a few kernel calls
+each); the work per grid point is all in the kernels.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+from elastoflow.linalg._kernels import (
+    finite_minimum_kernel,
+    remove_component_means_kernel,
+    semidefinite_cholesky_kernel,
+)
+from elastoflow.linalg._kernels3d import (
+    BLACK,
+    RED,
+    apply_dot_kernel_3d,
+    coarsen_kernel_3d,
+    dense_matrix_kernel_3d,
+    dense_solve_kernel,
+    direction_kernel_3d,
+    dot_kernel_3d,
+    fill_kernel_3d,
+    label_components_kernel_3d,
+    load_operator_kernel_3d,
+    masked_copy_kernel_3d,
+    prolong_add_kernel_3d,
+    residual_kernel_3d,
+    restrict_residual_kernel_3d,
+    smooth_kernel_3d,
+    step_kernel_3d,
+)
+from elastoflow.linalg._operator import SolveReport
+from elastoflow.linalg._operator3d import Operator7Point
+from elastoflow.linalg._problem import _output, incompatibility
+
+Shape3 = tuple[int, int, int]
+
+# The coarsest level is solved by a dense semi-definite Cholesky factor: up to 8^3 points
+# (factored once per operator in ~20 ms, 0.3 ms per solve).
+_COARSEST_SIZE = 512
+# Smallest ratio of diagonal to sum of weights at which symmetric Gauss-Seidel alone is the
+# preconditioner (implicit viscosity, I - nu dt lap with nu dt / h^2 <= 2/3): coarse levels
+# would cost more to build and run than the few extra iterations they save.
+_SMOOTHER_ONLY_DOMINANCE = 0.25
+
+
+def _finite(array: NDArray[np.float64]) -> bool:
+    """Whether every entry of an ``(m, n, l)`` array is finite."""
+    return array.size == 0 or finite_minimum_kernel(array.reshape(-1, array.shape[-1]))[0] == 0
+
+
+@dataclass
+class _NullSpace3D:
+    """Active points and the singular (pure Neumann) components of an operator."""
+
+    active: NDArray[np.bool_]
+    labels: NDArray[np.int64] | None
+    singular: NDArray[np.bool_] | None
+    count: int
+
+    @property
+    def has_singular(self) -> bool:
+        return self.singular is not None and bool(self.singular.any())
+
+    def remove_means(self, x: NDArray[np.float64]) -> float:
+        """Make ``x`` zero-mean on every singular component (in place); return the 2-norm of
+        what was removed."""
+        if not self.has_singular:
+            return 0.0
+        assert self.labels is not None and self.singular is not None
+        # The 2D kernel visits every point once: it runs on (m n, l) views unchanged.
+        l = x.shape[-1]
+        removed = remove_component_means_kernel(
+            x.reshape(-1, l), self.labels.reshape(-1, l), self.singular, self.count
+        )
+        return float(np.sqrt(removed))
+
+
+@dataclass
+class _Level:
+    """One level's operator (``total = diagonal + sum of weights``, its inverse, 0 at inactive
+    points) and its correction ``x`` and right-hand side ``b``."""
+
+    diagonal: NDArray[np.float64]
+    weights_x: NDArray[np.float64]
+    weights_y: NDArray[np.float64]
+    weights_z: NDArray[np.float64]
+    total: NDArray[np.float64]
+    inverse: NDArray[np.float64]
+    x: NDArray[np.float64]
+    b: NDArray[np.float64]
+
+    @classmethod
+    def zeros(cls, shape: Shape3) -> _Level:
+        m, n, l = shape
+        return cls(np.zeros(shape), np.zeros((m - 1, n, l)), np.zeros((m, n - 1, l)),
+                   np.zeros((m, n, l - 1)), np.zeros(shape), np.zeros(shape), np.zeros(shape),
+                   np.zeros(shape))
+
+
+def _level_shapes(shape: Shape3) -> list[Shape3]:
+    """Halve every dimension (rounding up) until at most `_COARSEST_SIZE` points remain."""
+    shapes = [shape]
+    while np.prod(shapes[-1]) > _COARSEST_SIZE and max(shapes[-1]) > 1:
+        m, n, l = shapes[-1]
+        shapes.append(((m + 1) // 2, (n + 1) // 2, (l + 1) // 2))
+    return shapes
+
+
+class _Hierarchy3D:
+    """Storage for one grid shape: the levels, the CG vectors, the coarsest factor."""
+
+    def __init__(self, shape: Shape3) -> None:
+        self.shape = shape
+        self.shapes = _level_shapes(shape)
+        # The fine level's operator arrays are the operator's own (set in `prepare`).
+        self.levels = [_Level.zeros(s) for s in self.shapes]
+        self.active = np.zeros(shape, dtype=np.bool_)
+        self.b, self.x, self.r, self.p, self.q, self.z = (np.zeros(shape) for _ in range(6))
+        coarse = int(np.prod(self.shapes[-1]))
+        self.dense = np.zeros((coarse, coarse))
+        self.factor = np.zeros((coarse, coarse))
+        self.coarse = True
+        self.null_space: _NullSpace3D | None = None
+        # The operator the levels hold; kept alive so that its identity is not reused.
+        self.operator: Operator7Point | None = None
+
+    def prepare(self, operator: Operator7Point) -> _NullSpace3D:
+        """Make the levels hold ``operator`` (kept while the same object comes back); return
+        its active points and null space."""
+        if self.null_space is not None and operator is self.operator:
+            return self.null_space
+        fine = self.levels[0]
+        fine.diagonal, fine.weights_x = operator.diagonal, operator.weights_x
+        fine.weights_y, fine.weights_z = operator.weights_y, operator.weights_z
+        # A fresh mask each time: the previous null space may still be held by a caller.
+        active = np.empty(self.shape, dtype=np.bool_)
+        all_have_diagonal, dominance = load_operator_kernel_3d(
+            fine.diagonal, fine.weights_x, fine.weights_y, fine.weights_z, fine.total,
+            fine.inverse, active,
+        )
+        self.active = active
+        # A strongly diagonal operator (implicit viscosity) needs no coarse correction.
+        self.coarse = len(self.levels) == 1 or dominance < _SMOOTHER_ONLY_DOMINANCE
+        if self.coarse:
+            self._build()
+        self.null_space = self._analyse(operator, active, bool(all_have_diagonal))
+        self.operator = operator
+        return self.null_space
+
+    def _build(self) -> None:
+        """Fill the coarse levels from the fine one and factor the coarsest."""
+        for fine, coarse in zip(self.levels[:-1], self.levels[1:], strict=True):
+            coarsen_kernel_3d(fine.diagonal, fine.weights_x, fine.weights_y, fine.weights_z,
+                              fine.total, coarse.diagonal, coarse.weights_x, coarse.weights_y,
+                              coarse.weights_z)
+            load_operator_kernel_3d(coarse.diagonal, coarse.weights_x, coarse.weights_y,
+                                    coarse.weights_z, coarse.total, coarse.inverse,
+                                    np.empty(coarse.total.shape, dtype=np.bool_))
+        last = self.levels[-1]
+        dense_matrix_kernel_3d(last.diagonal, last.weights_x, last.weights_y, last.weights_z,
+                               self.dense)
+        semidefinite_cholesky_kernel(self.dense, self.factor)
+
+    @staticmethod
+    def _analyse(operator: Operator7Point, active: NDArray[np.bool_],
+                 all_have_diagonal: bool) -> _NullSpace3D:
+        if all_have_diagonal:
+            return _NullSpace3D(active, None, None, 0)
+        labels = np.empty(operator.shape, dtype=np.int64)
+        count, singular = label_components_kernel_3d(
+            operator.diagonal, operator.weights_x, operator.weights_y, operator.weights_z,
+            active, labels,
+        )
+        return _NullSpace3D(active, labels, singular, int(count))
+
+    def v_cycle(self, r: NDArray[np.float64], z: NDArray[np.float64], sweeps: int) -> None:
+        """``z = M r``: one symmetric V-cycle (red-black Gauss-Seidel before, black-red after),
+        or symmetric Gauss-Seidel alone on a strongly diagonal operator."""
+        levels = self.levels if self.coarse else self.levels[:1]
+        count = len(levels)
+        for index, level in enumerate(levels):
+            x = z if index == 0 else level.x
+            b = r if index == 0 else level.b
+            if index == count - 1 and self.coarse:
+                dense_solve_kernel(self.factor, b, x)
+                break
+            fill_kernel_3d(x, 0.0)
+            for _ in range(sweeps):
+                smooth_kernel_3d(x, b, level.inverse, level.weights_x, level.weights_y,
+                                 level.weights_z, RED)
+                smooth_kernel_3d(x, b, level.inverse, level.weights_x, level.weights_y,
+                                 level.weights_z, BLACK)
+            if index < count - 1:
+                restrict_residual_kernel_3d(x, b, level.total, level.weights_x,
+                                            level.weights_y, level.weights_z,
+                                            levels[index + 1].b)
+        start = count - 2 if self.coarse else 0
+        for index in range(start, -1, -1):
+            level = levels[index]
+            x = z if index == 0 else level.x
+            b = r if index == 0 else level.b
+            if self.coarse:
+                prolong_add_kernel_3d(levels[index + 1].x, level.inverse, x)
+            for _ in range(sweeps):
+                smooth_kernel_3d(x, b, level.inverse, level.weights_x, level.weights_y,
+                                 level.weights_z, BLACK)
+                smooth_kernel_3d(x, b, level.inverse, level.weights_x, level.weights_y,
+                                 level.weights_z, RED)
+
+
+@dataclass(frozen=True)
+class PoissonSolverMGPCG3D:
+    """Conjugate gradient preconditioned by one geometric multigrid V-cycle per iteration, on
+    a 7-point operator (`Operator7Point`).
+
+    The hierarchy halves each dimension (rounding up) down to at most 512 points, solved by a
+    semi-definite Cholesky factorization (one unknown pinned per singular component). A coarse
+    face weight is half the sum of the four fine faces it covers and the coarse diagonal sums
+    the children's shared (volume) part and halves the sum of the rest (surface terms): the
+    operator rediscretised at 2h, scaled to the summing restriction. Restriction is the
+    transpose of piecewise-constant prolongation; smoothing is red-black Gauss-Seidel before
+    and black-red after, so the preconditioner is symmetric positive definite on the active
+    points and CG converges for every operator of the contract. An operator whose diagonal
+    is at least a quarter of the sum of its weights everywhere (implicit viscosity) is
+    preconditioned by symmetric Gauss-Seidel alone.
+
+    Guarantee: the same as `PoissonSolverMGPCG`: returns when the true relative residual is
+    ``<= rtol`` or after ``max_iterations`` iterations; inactive points get 0; singular
+    components get a compatible right-hand side and a zero-mean answer; the iteration count
+    is nearly independent of the grid size (docs/architecture.md, section 3D, for the
+    measured counts). Storage is allocated once per grid shape and reused, so one instance
+    must not solve from several threads at once.
+
+    Attributes:
+        rtol: Relative residual tolerance ``|b - A x| / |b|``.
+        max_iterations: Maximum number of CG iterations.
+        smoothing_sweeps: Red-black Gauss-Seidel sweeps before and after each coarse correction.
+    """
+
+    rtol: float = 1e-6
+    max_iterations: int = 200
+    smoothing_sweeps: int = 2
+    _hierarchies: dict[Shape3, _Hierarchy3D] = field(
+        default_factory=dict, init=False, repr=False, compare=False
+    )
+
+    def __post_init__(self) -> None:
+        if not (self.rtol > 0.0):
+            raise ValueError(f"rtol: {self.rtol!r} is not allowed; expected > 0")
+        if self.max_iterations < 0:
+            raise ValueError(f"max_iterations: {self.max_iterations!r} is not allowed; expected >= 0")
+        if self.smoothing_sweeps < 1:
+            raise ValueError(
+                f"smoothing_sweeps: {self.smoothing_sweeps!r} is not allowed; expected >= 1"
+            )
+
+    def _hierarchy(self, shape: Shape3) -> _Hierarchy3D:
+        hierarchy = self._hierarchies.get(shape)
+        if hierarchy is None:
+            hierarchy = _Hierarchy3D(shape)
+            self._hierarchies[shape] = hierarchy
+        return hierarchy
+
+    def solve(
+        self,
+        operator: Operator7Point,
+        rhs: NDArray[np.float64],
+        x0: NDArray[np.float64] | None = None,
+        out: NDArray[np.float64] | None = None,
+    ) -> tuple[NDArray[np.float64], SolveReport]:
+        """Solve ``A x = rhs``.
+
+        Args:
+            operator: The operator ``A`` on an ``(m, n, l)`` array.
+            rhs: Right-hand side, shape ``(m, n, l)``.
+            x0: Optional initial guess (warm start), shape ``(m, n, l)``.
+            out: Optional C-contiguous float64 array of shape ``(m, n, l)`` to receive ``x``
+                (may be ``x0``); a new array otherwise.
+
+        Returns:
+            ``x`` (shape ``(m, n, l)``; 0 at inactive points, zero mean on singular
+            components) and the report.
+        """
+        shape = operator.shape
+        _output(out, shape)  # type: ignore[arg-type]
+        rhs = np.ascontiguousarray(rhs, dtype=np.float64)
+        if rhs.shape != shape:
+            raise ValueError(f"rhs: shape {rhs.shape} is not allowed; expected {shape}")
+        if not _finite(rhs):
+            raise ValueError("rhs: values must be finite; got NaN or inf")
+        if x0 is not None:
+            x0 = np.ascontiguousarray(x0, dtype=np.float64)
+            if x0.shape != shape:
+                raise ValueError(f"x0: shape {x0.shape} is not allowed; expected {shape}")
+            if not _finite(x0):
+                raise ValueError("x0: values must be finite; got NaN or inf")
+        hierarchy = self._hierarchy(shape)
+        null_space = hierarchy.prepare(operator)
+        squared_b = masked_copy_kernel_3d(rhs, null_space.active, hierarchy.b)
+        incompatible = 0.0
+        if null_space.has_singular:
+            removed = null_space.remove_means(hierarchy.b)
+            incompatible = incompatibility(removed, float(np.sqrt(squared_b)))
+            squared_b = dot_kernel_3d(hierarchy.b, hierarchy.b)
+        norm_b = float(np.sqrt(squared_b))
+        # x0 may be `out`: read it into the solver's own x before anything is written.
+        if x0 is None:
+            fill_kernel_3d(hierarchy.x, 0.0)
+        else:
+            masked_copy_kernel_3d(x0, null_space.active, hierarchy.x)
+        x = _output(out, shape)  # type: ignore[arg-type]
+        if norm_b == 0.0:
+            x[...] = 0.0
+            return x, SolveReport(0, 0.0, incompatible <= self.rtol, incompatible)
+        threshold = (self.rtol * norm_b) ** 2
+        iterations, squared = self._pcg(hierarchy, operator, threshold)
+        x[...] = hierarchy.x
+        null_space.remove_means(x)
+        relative = float(np.sqrt(squared)) / norm_b
+        return x, SolveReport(int(iterations), relative,
+                              relative <= self.rtol and incompatible <= self.rtol, incompatible)
+
+    def _pcg(self, hierarchy: _Hierarchy3D, operator: Operator7Point,
+             threshold: float) -> tuple[int, float]:
+        """CG on ``hierarchy.x`` from its warm start; return ``(iterations, |b - A x|^2)``
+        with the true residual. Restarts from the true residual if the recursive one has
+        drifted below the tolerance before the true one did."""
+        a = (operator.diagonal, operator.weights_x, operator.weights_y, operator.weights_z)
+        x, b, r, p, q, z = (hierarchy.x, hierarchy.b, hierarchy.r, hierarchy.p, hierarchy.q,
+                            hierarchy.z)
+        iterations = 0
+        pq = 1.0
+        squared = residual_kernel_3d(*a, x, b, r)
+        while squared > threshold and iterations < self.max_iterations:
+            hierarchy.v_cycle(r, z, self.smoothing_sweeps)
+            rz = dot_kernel_3d(r, z)
+            p[...] = z
+            recursive = squared
+            while recursive > threshold and iterations < self.max_iterations:
+                pq = apply_dot_kernel_3d(*a, p, q)
+                if not (pq > 0.0):
+                    break
+                alpha = rz / pq
+                recursive = step_kernel_3d(x, r, p, q, alpha)
+                iterations += 1
+                if recursive <= threshold:
+                    break
+                hierarchy.v_cycle(r, z, self.smoothing_sweeps)
+                rz_next = dot_kernel_3d(r, z)
+                direction_kernel_3d(z, p, rz_next / rz)
+                rz = rz_next
+            squared = residual_kernel_3d(*a, x, b, r)
+            if not (pq > 0.0):
+                break
+        return iterations, squared

@@ -1,0 +1,197 @@
+"""The 7-point operator and PoissonSolverMGPCG3D: the 2D solvers' contract in 3D, checked
+against a direct sparse solve."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy import sparse
+from scipy.sparse.linalg import spsolve
+
+from elastoflow.linalg import (
+    Operator7Point,
+    PoissonSolverMGPCG3D,
+    SolveReport,
+    apply_operator_3d,
+)
+
+
+def laplacian(n: int, outflow: bool = False, shape: tuple[int, int, int] | None = None,
+              diagonal: float = 0.0) -> Operator7Point:
+    """Unit weights on an (m, n, l) box; ``outflow`` adds the Dirichlet term 2 on the last
+    x plane (p = 0 on that side)."""
+    m, n_, l = shape if shape is not None else (n, n, n)
+    d = np.full((m, n_, l), diagonal)
+    if outflow:
+        d[-1] += 2.0
+    return Operator7Point(d, np.ones((m - 1, n_, l)), np.ones((m, n_ - 1, l)),
+                          np.ones((m, n_, l - 1)))
+
+
+def random_operator(shape: tuple[int, int, int], seed: int) -> Operator7Point:
+    rng = np.random.default_rng(seed)
+    m, n, l = shape
+    return Operator7Point(
+        rng.uniform(0.0, 0.2, shape) * (rng.random(shape) < 0.1),
+        rng.uniform(0.1, 2.0, (m - 1, n, l)), rng.uniform(0.1, 2.0, (m, n - 1, l)),
+        rng.uniform(0.1, 2.0, (m, n, l - 1)))
+
+
+def sparse_matrix(operator: Operator7Point) -> sparse.csr_matrix:
+    """The operator assembled face by face (row-major numbering)."""
+    m, n, l = operator.shape
+    index = np.arange(m * n * l).reshape(m, n, l)
+    rows, cols, values = [index.ravel()], [index.ravel()], [operator.diagonal.ravel()]
+    for weights, first, second in (
+        (operator.weights_x, index[:-1], index[1:]),
+        (operator.weights_y, index[:, :-1], index[:, 1:]),
+        (operator.weights_z, index[:, :, :-1], index[:, :, 1:]),
+    ):
+        a, b, w = first.ravel(), second.ravel(), weights.ravel()
+        rows += [a, b, a, b]
+        cols += [a, b, b, a]
+        values += [w, w, -w, -w]
+    size = m * n * l
+    return sparse.csr_matrix(
+        (np.concatenate(values), (np.concatenate(rows), np.concatenate(cols))), shape=(size, size))
+
+
+def test_apply_matches_the_assembled_matrix_and_is_symmetric() -> None:
+    operator = random_operator((5, 4, 6), seed=1)
+    rng = np.random.default_rng(2)
+    x, y = rng.standard_normal((2, 5, 4, 6))
+    ax = apply_operator_3d(operator, x)
+    np.testing.assert_allclose(ax.ravel(), sparse_matrix(operator) @ x.ravel(), atol=1e-12)
+    assert np.dot(y.ravel(), ax.ravel()) == pytest.approx(
+        np.dot(x.ravel(), apply_operator_3d(operator, y).ravel()), rel=1e-12)
+
+
+def test_solution_matches_a_direct_solve() -> None:
+    operator = random_operator((12, 9, 10), seed=3)
+    operator.diagonal[0, 0, 0] = 1.0  # at least one Dirichlet point: non-singular
+    rhs = np.random.default_rng(4).standard_normal(operator.shape)
+    x, report = PoissonSolverMGPCG3D(rtol=1e-10).solve(operator, rhs)
+    reference = spsolve(sparse_matrix(operator).tocsc(), rhs.ravel()).reshape(operator.shape)
+    assert report.converged and report.residual <= 1e-10
+    np.testing.assert_allclose(x, reference, atol=1e-7 * np.abs(reference).max())
+
+
+def test_report_gives_the_true_residual() -> None:
+    operator = laplacian(16, outflow=True)
+    rhs = np.random.default_rng(5).standard_normal(operator.shape)
+    x, report = PoissonSolverMGPCG3D(rtol=1e-6).solve(operator, rhs)
+    true = np.linalg.norm(rhs - apply_operator_3d(operator, x)) / np.linalg.norm(rhs)
+    assert report.residual == pytest.approx(true, rel=1e-6)
+    assert true <= 1e-6 and report.converged and report.incompatibility == 0.0
+
+
+def test_closed_box_is_made_compatible_and_answers_zero_mean() -> None:
+    operator = laplacian(16)
+    rng = np.random.default_rng(6)
+    rhs = rng.standard_normal(operator.shape)
+    rhs -= rhs.mean()
+    x, report = PoissonSolverMGPCG3D().solve(operator, rhs)
+    assert report.converged and report.incompatibility < 1e-12
+    assert abs(x.mean()) < 1e-12
+    # Net inflow into a closed box: solved for its compatible part, never reported converged.
+    x, report = PoissonSolverMGPCG3D().solve(operator, rhs + 1.0)
+    assert not report.converged and report.incompatibility > 0.5
+    assert report.residual <= 1e-6
+
+
+def test_inactive_points_get_zero_and_components_are_separate() -> None:
+    # A wall plane of inactive points splits the box into a closed part (singular) and a part
+    # with a Dirichlet point.
+    operator = random_operator((10, 8, 8), seed=7)
+    for array in (operator.diagonal, operator.weights_y, operator.weights_z):
+        array[5] = 0.0
+    operator.weights_x[4:6] = 0.0
+    operator.diagonal[:5] = 0.0
+    operator.diagonal[9, 0, 0] = 1.0
+    rhs = np.random.default_rng(8).standard_normal(operator.shape)
+    x, report = PoissonSolverMGPCG3D().solve(operator, rhs)
+    assert np.all(x[5] == 0.0)
+    assert abs(x[:5].mean()) < 1e-12
+    compatible = rhs.copy()
+    compatible[5] = 0.0
+    compatible[:5] -= compatible[:5].mean()
+    residual = compatible - apply_operator_3d(operator, x)
+    assert np.linalg.norm(residual) <= 1e-6 * np.linalg.norm(compatible)
+    assert report.residual <= 1e-6 and 0.0 < report.incompatibility < 1.0
+
+
+def test_warm_start_from_the_solution_takes_no_iteration_and_out_may_be_x0() -> None:
+    operator = laplacian(16, outflow=True)
+    rhs = np.random.default_rng(9).standard_normal(operator.shape)
+    solver = PoissonSolverMGPCG3D(rtol=1e-8)
+    x, _ = solver.solve(operator, rhs)
+    again = x.copy()
+    result, report = PoissonSolverMGPCG3D(rtol=1e-6).solve(operator, rhs, x0=again, out=again)
+    assert result is again and report.iterations == 0
+    np.testing.assert_allclose(again, x)
+
+
+def test_strongly_diagonal_operator_is_solved_without_coarse_levels() -> None:
+    # Implicit viscosity, I - c lap with c = nu dt / h^2 = 0.5.
+    base = laplacian(16)
+    operator = Operator7Point(np.ones(base.shape), 0.5 * base.weights_x, 0.5 * base.weights_y,
+                              0.5 * base.weights_z)
+    rhs = np.random.default_rng(10).standard_normal(operator.shape)
+    solver = PoissonSolverMGPCG3D()
+    x, report = solver.solve(operator, rhs)
+    assert not solver._hierarchies[operator.shape].coarse
+    assert report.converged and report.iterations <= 12
+    assert np.linalg.norm(rhs - apply_operator_3d(operator, x)) <= 1e-6 * np.linalg.norm(rhs)
+
+
+@pytest.mark.parametrize("outflow", [False, True])
+def test_iteration_count_is_flat_in_grid_size(outflow: bool) -> None:
+    counts = []
+    for n in (16, 32):
+        operator = laplacian(n, outflow=outflow)
+        grid = (np.arange(n) + 0.5) / n
+        x, y, z = np.meshgrid(grid, grid, grid, indexing="ij")
+        rhs = np.sin(3 * x) * np.cos(5 * y) * np.cos(2 * np.pi * z) + 0.1 * x * y
+        if not outflow:
+            rhs -= rhs.mean()
+        _, report = PoissonSolverMGPCG3D().solve(operator, rhs)
+        assert report.converged
+        counts.append(report.iterations)
+    assert counts[1] <= counts[0] + 1 and counts[1] <= 8
+
+
+def test_odd_and_flat_shapes() -> None:
+    operator = laplacian(0, outflow=True, shape=(3, 17, 40))
+    rhs = np.random.default_rng(11).standard_normal(operator.shape)
+    x, report = PoissonSolverMGPCG3D().solve(operator, rhs)
+    assert report.converged
+    assert np.linalg.norm(rhs - apply_operator_3d(operator, x)) <= 1e-6 * np.linalg.norm(rhs)
+
+
+def test_zero_rhs_returns_zero() -> None:
+    operator = laplacian(8, outflow=True)
+    x, report = PoissonSolverMGPCG3D().solve(operator, np.zeros(operator.shape))
+    assert report == SolveReport(0, 0.0, True, 0.0) and not x.any()
+
+
+def test_invalid_input_is_refused() -> None:
+    operator = laplacian(4)
+    solver = PoissonSolverMGPCG3D()
+    with pytest.raises(ValueError, match="rhs"):
+        solver.solve(operator, np.zeros((4, 4, 5)))
+    bad = np.zeros(operator.shape)
+    bad[1, 1, 1] = np.nan
+    with pytest.raises(ValueError, match="rhs"):
+        solver.solve(operator, bad)
+    with pytest.raises(ValueError, match="x0"):
+        solver.solve(operator, np.zeros(operator.shape), x0=bad)
+    with pytest.raises(ValueError, match="out"):
+        solver.solve(operator, np.zeros(operator.shape), out=np.zeros((4, 4)))
+    with pytest.raises(ValueError, match="weights_z"):
+        Operator7Point(np.zeros((4, 4, 4)), np.ones((3, 4, 4)), np.ones((4, 3, 4)),
+                       np.ones((4, 4, 4)))
+    with pytest.raises(ValueError, match="weights_x"):
+        Operator7Point(np.zeros((4, 4, 4)), -np.ones((3, 4, 4)), np.ones((4, 3, 4)),
+                       np.ones((4, 4, 3)))
+    with pytest.raises(ValueError, match="rtol"):
+        PoissonSolverMGPCG3D(rtol=0.0)
