@@ -1,0 +1,567 @@
+"""Free-surface validation (issue 15): water at rest, standing waves, the dam break.
+
+Each case is built through the fluid's Python API (`FreeSurfaceSolver`), run, and measured:
+
+* `run_tank_at_rest`: a flat surface between cell centres, 1000 steps; the largest velocity
+  on the liquid's faces and the pressure against rho g (D - y).
+* `run_standing_wave`: the first sloshing mode of the air-water-vv case (tank 0.1 m, depth
+  0.05 m, amplitude 5 mm, inviscid, free-slip walls); frequency from the zero crossings of the
+  mode's amplitude against the linear dispersion relation ``omega^2 = g k tanh(k D)`` (and
+  Tadjbakhsh & Keller's third-order correction). With ``viscous=True``: the set-up of
+  Prosperetti's viscous gravity wave from ../shared/reference/free_surface.json (wavelength 1,
+  a0 = 0.01, g = 50, mu = 0.0182571749236, rho = 1) with the light phase replaced by the void
+  of this model; damping and frequency against Lamb's normal mode of a viscous free surface
+  on deep water (`lamb_viscous_mode`), whose damping is 2 nu k^2 to first order.
+* `run_dam_break`: Martin & Moyce's n^2 = 2 column (width a = 2.25 in, height 2 a) collapsing
+  along a dry floor; the surge front Z/a against T = t sqrt(2 g / a) and the liquid area over
+  the run, with and without the global volume correction.
+
+`write_free_surface_report` writes docs/validation/free_surface.md's tables and the PNG plots.
+"""
+
+from __future__ import annotations
+
+import cmath
+import json
+import math
+import time as _time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+from elastoflow.fluid import (
+    DomainBoundaries,
+    FluidSolver,
+    FreeSurfaceSolver,
+    FreeSurfaceState,
+    GhostFluidProjection,
+    LevelSetTransport,
+    RedistanceFastSweeping,
+    WallFreeSlip,
+    level_set_below,
+    level_set_box,
+    liquid_area,
+)
+from elastoflow.grid import Grid2D
+from elastoflow.io import atomic_path, write_text_atomic
+
+FloatArray = NDArray[np.float64]
+# Martin & Moyce (1952) Fig. 3, n^2 = 2, a = 2.25 in: (T = t sqrt(2 g / a), Z / a), as digitised
+# in pysph's db_exp_data.py (../shared/reference/free_surface.json,
+# "martin_moyce_1952_dam_break"); copied here so that the runs need no file outside the package.
+MARTIN_MOYCE_ROWS = np.array([
+    [0.832, 1.217], [1.219, 1.474], [1.997, 2.292], [2.547, 2.995], [3.345, 4.134],
+    [4.034, 4.944], [4.418, 5.881], [5.091, 6.98], [5.685, 7.945], [6.306, 8.966],
+    [6.822, 9.986], [7.439, 10.963], [8.031, 11.977], [8.633, 13.005], [9.237, 13.97],
+])
+GRAVITY = 9.81
+WATER_DENSITY = 1000.0
+WATER_VISCOSITY = 1e-6
+MARTIN_MOYCE_A = 2.25 * 0.0254  # column width a [m], 2.25 in
+
+
+def surface_heights(state: FreeSurfaceState, grid: Grid2D) -> FloatArray:
+    """Height [m] of the surface above the domain's bottom in each column, shape (nx,): the
+    zero of phi between the topmost liquid cell and the air cell above it (linear)."""
+    phi = state.level_set
+    air = phi >= 0.0
+    first_air = np.argmax(air, axis=1)
+    first_air = np.where(air.any(axis=1), first_air, phi.shape[1])
+    top = np.clip(first_air - 1, 0, phi.shape[1] - 2)
+    columns = np.arange(phi.shape[0])
+    below, above = phi[columns, top], phi[columns, top + 1]
+    fraction = below / (below - above)
+    return grid.origin[1] + (top + 0.5 + fraction) * grid.h
+
+
+def _wave_solver(grid: Grid2D, viscosity: float, gravity: float) -> FreeSurfaceSolver:
+    wall = WallFreeSlip()
+    fluid = FluidSolver(grid, density=WATER_DENSITY if viscosity == 0.0 else 1.0,
+                        viscosity=viscosity, boundaries=DomainBoundaries(wall, wall, wall, wall),
+                        gravity=(0.0, -gravity), advection="maccormack")
+    return FreeSurfaceSolver(fluid)
+
+
+def _redistanced(level_set: FloatArray, h: float) -> FloatArray:
+    out = np.empty_like(level_set)
+    RedistanceFastSweeping().redistance(level_set, h, out,
+                                        np.zeros(level_set.shape, dtype=np.bool_))
+    return out
+
+
+# -- water at rest ---------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class TankAtRest:
+    """Water at rest in a closed tank.
+
+    Attributes:
+        cells: Grid (nx, ny).
+        h: Cell side [m].
+        depth: Water depth D [m].
+        steps: Steps run; dt [s] each.
+        dt: Step [s].
+        max_speed: Largest |velocity| [m/s] on faces with liquid on a side after the run.
+        pressure_error: max |p - rho g (D - y)| over the liquid cells / (rho g D).
+        pressure_iterations: Largest pressure iteration count after the first step.
+        area_change: Relative change of the liquid area over the run.
+        seconds: Wall time of the run [s].
+    """
+
+    cells: tuple[int, int]
+    h: float
+    depth: float
+    steps: int
+    dt: float
+    max_speed: float
+    pressure_error: float
+    pressure_iterations: int
+    area_change: float
+    seconds: float
+
+
+def run_tank_at_rest(cells_per_depth: int, steps: int = 1000, dt: float = 2e-3) -> TankAtRest:
+    """Water 0.5 m deep in a 1 m wide, 0.75 m tall closed tank (no-slip walls, water's
+    viscosity), the surface 0.3 h above a cell centre, ``steps`` steps of ``dt`` [s]."""
+    depth = 0.5
+    h = depth / (cells_per_depth + 0.3 - 0.5)  # surface 0.3 h above a centre
+    nx, ny = int(round(1.0 / h)), int(round(1.5 * depth / h))
+    grid = Grid2D(nx, ny, h)
+    fluid = FluidSolver(grid, density=WATER_DENSITY, viscosity=WATER_VISCOSITY,
+                        boundaries=DomainBoundaries.closed_box(), gravity=(0.0, -GRAVITY),
+                        advection="maccormack")
+    solver = FreeSurfaceSolver(fluid)
+    state = solver.state(level_set_below(grid, depth))
+    start = _time.perf_counter()
+    iterations = 0
+    for index in range(steps):
+        report = solver.step(state, dt, index * dt)
+        if index > 0:
+            iterations = max(iterations, report.pressure_iterations)
+    seconds = _time.perf_counter() - start
+    liquid = state.level_set < 0.0
+    speed_x = np.abs(state.fluid.velocity_x)
+    speed_y = np.abs(state.fluid.velocity_y)
+    wet_x = np.zeros(grid.shape_faces_x, dtype=bool)
+    wet_x[1:] |= liquid
+    wet_x[:-1] |= liquid
+    wet_y = np.zeros(grid.shape_faces_y, dtype=bool)
+    wet_y[:, 1:] |= liquid
+    wet_y[:, :-1] |= liquid
+    _, y = grid.cell_centers()
+    hydrostatic = WATER_DENSITY * GRAVITY * (depth - y)
+    error = np.max(np.abs(state.fluid.pressure - hydrostatic)[liquid])
+    return TankAtRest(
+        cells=(nx, ny), h=h, depth=depth, steps=steps, dt=dt,
+        max_speed=float(max(speed_x[wet_x].max(), speed_y[wet_y].max())),
+        pressure_error=float(error / (WATER_DENSITY * GRAVITY * depth)),
+        pressure_iterations=iterations,
+        area_change=float(liquid_area(state.level_set, h) / state.liquid_area - 1.0),
+        seconds=seconds,
+    )
+
+
+# -- standing waves --------------------------------------------------------------------------
+
+def lamb_viscous_mode(gravity: float, wavenumber: float, viscosity: float) -> complex:
+    """Growth rate s [1/s] of the free-surface mode e^{s t} of wavenumber k on deep water
+    with kinematic viscosity nu (no upper fluid): the root of Lamb's (1932, §349) relation
+    ``(s + 2 nu k^2)^2 + g k = 4 nu^2 k^3 sqrt(k^2 + s / nu)`` near ``-2 nu k^2 + i sqrt(g k)``.
+    ``-s.real`` is the amplitude's damping rate, ``s.imag`` its angular frequency."""
+    k, nu = wavenumber, viscosity
+    s = complex(-2.0 * nu * k * k, math.sqrt(gravity * k))
+
+    def residual(value: complex) -> complex:
+        return ((value + 2 * nu * k * k) ** 2 + gravity * k
+                - 4 * nu * nu * k ** 3 * cmath.sqrt(k * k + value / nu))
+
+    for _ in range(50):
+        f = residual(s)
+        derivative = (residual(s + 1e-7) - f) / 1e-7
+        step = f / derivative
+        s -= step
+        if abs(step) < 1e-13 * abs(s):
+            break
+    return s
+
+
+def tadjbakhsh_keller_frequency(gravity: float, wavenumber: float, depth: float,
+                                amplitude: float) -> float:
+    """Third-order standing-wave frequency [rad/s] (Tadjbakhsh & Keller 1960), in the form of
+    the air-water-vv sloshing case: ``omega = (w0 + eps^2 w2 / 2) sqrt(g k)``, ``eps = k a``."""
+    w0 = math.sqrt(math.tanh(wavenumber * depth))
+    w2 = (9 * w0 ** -7 - 12 * w0 ** -3 - 3 * w0 - 2 * w0 ** 5) / 32.0
+    eps = wavenumber * amplitude
+    return (w0 + 0.5 * eps * eps * w2) * math.sqrt(gravity * wavenumber)
+
+
+@dataclass(frozen=True)
+class StandingWave:
+    """A standing wave's mode amplitude over time and what was measured from it.
+
+    Attributes:
+        label: Which set-up.
+        cells: Grid (nx, ny).
+        h: Cell side [m].
+        dt: Step [s].
+        time: Sample times [s].
+        amplitude: Mode amplitude a(t) [m] (projection of the surface height on cos(k x)).
+        omega: Measured angular frequency [rad/s] (zero crossings).
+        omega_linear: Linear dispersion relation's (inviscid) or Lamb's mode's (viscous).
+        omega_nonlinear: Tadjbakhsh & Keller's third order (inviscid case; nan otherwise).
+        damping: Measured damping rate [1/s] (fit of the log of the peaks; nan if inviscid).
+        damping_reference: Lamb's mode's damping rate [1/s] (2 nu k^2 to first order).
+        area_change: Relative change of the liquid area over the run.
+        pressure_iterations: Mean and largest pressure iterations per step.
+        seconds: Wall time [s].
+    """
+
+    label: str
+    cells: tuple[int, int]
+    h: float
+    dt: float
+    time: FloatArray
+    amplitude: FloatArray
+    omega: float
+    omega_linear: float
+    omega_nonlinear: float
+    damping: float
+    damping_reference: float
+    area_change: float
+    pressure_iterations: tuple[float, int]
+    seconds: float
+
+
+def _zero_crossings(time: FloatArray, signal: FloatArray) -> FloatArray:
+    sign = np.signbit(signal)
+    index = np.nonzero(sign[1:] != sign[:-1])[0]
+    t0, t1 = time[index], time[index + 1]
+    s0, s1 = signal[index], signal[index + 1]
+    return t0 + (t1 - t0) * s0 / (s0 - s1)
+
+
+def _peaks(time: FloatArray, signal: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """Times and values of the local maxima of |signal| (parabola through three samples)."""
+    magnitude = np.abs(signal)
+    index = np.nonzero((magnitude[1:-1] > magnitude[:-2]) & (magnitude[1:-1] >= magnitude[2:]))[0] + 1
+    left, middle, right = magnitude[index - 1], magnitude[index], magnitude[index + 1]
+    curvature = left - 2 * middle + right
+    offset = np.where(curvature != 0.0, 0.5 * (left - right) / np.where(curvature != 0.0, curvature, 1.0), 0.0)
+    dt = time[1] - time[0]
+    return time[index] + offset * dt, middle - 0.25 * (left - right) * offset
+
+
+def run_standing_wave(cells_per_length: int, *, viscous: bool = False,
+                      periods: float = 3.0, cfl: float = 0.5) -> StandingWave:
+    """Run one standing wave (module docstring) with ``cells_per_length`` cells along the
+    tank, for ``periods`` periods."""
+    if viscous:
+        length, depth, height, amplitude = 1.0, 1.0, 1.25, 0.01
+        gravity, viscosity = 50.0, 0.0182571749236
+        wavenumber = 2.0 * math.pi / length  # cos(2 pi x): one wavelength across the box
+    else:
+        length, depth, height, amplitude = 0.1, 0.05, 0.1, 0.005
+        gravity, viscosity = GRAVITY, 0.0
+        wavenumber = math.pi / length
+    h = length / cells_per_length
+    grid = Grid2D(cells_per_length, int(round(height / h)), h)
+    solver = _wave_solver(grid, viscosity, gravity)
+    phi = level_set_below(grid, lambda x: depth + amplitude * np.cos(wavenumber * x))
+    state = solver.state(_redistanced(phi, h))
+    if viscous:
+        mode = lamb_viscous_mode(gravity, wavenumber, viscosity)
+        omega_linear, damping_reference = mode.imag, -mode.real
+        omega_nonlinear = math.nan
+    else:
+        omega_linear = math.sqrt(gravity * wavenumber * math.tanh(wavenumber * depth))
+        damping_reference = 0.0
+        omega_nonlinear = tadjbakhsh_keller_frequency(gravity, wavenumber, depth, amplitude)
+    period = 2.0 * math.pi / omega_linear
+    # The wave's speed is a omega; a fixed step from the CFL number of the gravity wave's
+    # orbital speed and from sqrt(h / g), so that every step samples the same.
+    dt = min(cfl * h / max(amplitude * omega_linear, 1e-12), 0.5 * math.sqrt(h / gravity),
+             period / 200.0)
+    steps = int(math.ceil(periods * period / dt))
+    x, _ = grid.cell_centers()
+    weights = np.cos(wavenumber * x[:, 0])
+    weights *= 2.0 / grid.nx
+
+    def mode_amplitude() -> float:
+        return float(np.dot(surface_heights(state, grid) - depth, weights))
+
+    times = [0.0]
+    amplitudes = [mode_amplitude()]
+    iterations = []
+    start = _time.perf_counter()
+    for index in range(steps):
+        report = solver.step(state, dt, index * dt)
+        iterations.append(report.pressure_iterations)
+        times.append((index + 1) * dt)
+        amplitudes.append(mode_amplitude())
+    seconds = _time.perf_counter() - start
+    time = np.array(times)
+    amplitude_series = np.array(amplitudes)
+    crossings = _zero_crossings(time, amplitude_series)
+    omega = math.pi / float(np.mean(np.diff(crossings))) if len(crossings) > 1 else math.nan
+    damping = math.nan
+    if viscous:
+        peak_times, peak_values = _peaks(time, amplitude_series)
+        if len(peak_times) > 2:
+            slope = np.polyfit(peak_times, np.log(peak_values), 1)[0]
+            damping = -float(slope)
+    return StandingWave(
+        label="viscous (Prosperetti set-up, no air)" if viscous else "inviscid (air-water-vv)",
+        cells=(grid.nx, grid.ny), h=h, dt=dt, time=time, amplitude=amplitude_series,
+        omega=omega, omega_linear=omega_linear, omega_nonlinear=omega_nonlinear,
+        damping=damping, damping_reference=damping_reference,
+        area_change=float(liquid_area(state.level_set, h) / state.liquid_area - 1.0),
+        pressure_iterations=(float(np.mean(iterations)), int(np.max(iterations))),
+        seconds=seconds,
+    )
+
+
+# -- dam break -------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class DamBreak:
+    """Martin & Moyce's dam break (n^2 = 2).
+
+    Attributes:
+        cells: Grid (nx, ny).
+        h: Cell side [m].
+        volume_correction: Whether the level set's area was corrected each step.
+        time: Sample times [s] (every step).
+        front: Surge-front position Z [m] from the left wall (the zero of phi along the
+            bottom row of cells).
+        area: Liquid area [m^2] over time.
+        pressure_iterations: Per step.
+        reference: Martin & Moyce's (T, Z/a) rows.
+        front_error: Z/a measured minus Z/a measured at the reference's times (interpolated),
+            over the rows before the front reaches the far wall.
+        seconds: Wall time [s].
+    """
+
+    cells: tuple[int, int]
+    h: float
+    volume_correction: bool
+    time: FloatArray
+    front: FloatArray
+    area: FloatArray
+    pressure_iterations: NDArray[np.int64]
+    reference: FloatArray
+    front_error: FloatArray
+    seconds: float
+    theta_min: float = GhostFluidProjection().theta_min
+    step_seconds: list[float] = field(default_factory=list)
+
+
+def martin_moyce_reference(path: Path | None = None) -> FloatArray:
+    """Martin & Moyce (1952) n^2 = 2, a = 2.25 in: rows (T, Z/a), shape (k, 2); from the
+    reference file ``path`` when given, else the copy in this module."""
+    if path is None:
+        return MARTIN_MOYCE_ROWS.copy()
+    data = json.loads(Path(path).read_text())
+    return np.array(data["martin_moyce_1952_dam_break"]["n2_eq_2_a_2.25in"]["data"]["rows"])
+
+
+def surge_front(state: FreeSurfaceState, grid: Grid2D) -> float:
+    """The rightmost zero of phi along the bottom row of cells [m] from the domain's left."""
+    row = state.level_set[:, 0]
+    liquid = np.nonzero(row < 0.0)[0]
+    if len(liquid) == 0:
+        return 0.0
+    i = int(liquid[-1])
+    if i + 1 >= grid.nx:
+        return grid.nx * grid.h
+    fraction = row[i] / (row[i] - row[i + 1])
+    return (i + 0.5 + fraction) * grid.h
+
+
+def run_dam_break(cells_per_width: int, *, tank_widths: float = 16.0, end_time: float = 9.5,
+                  volume_correction: bool = True, cfl: float = 0.8,
+                  theta_min: float = GhostFluidProjection().theta_min,
+                  reference_path: Path | None = None) -> DamBreak:
+    """The column a wide and 2 a tall in the corner of a tank ``tank_widths`` a long and
+    2.5 a tall (no-slip walls, water), with ``cells_per_width`` cells across a, run to
+    T = ``end_time``."""
+    a = MARTIN_MOYCE_A
+    h = a / cells_per_width
+    grid = Grid2D(int(round(tank_widths * cells_per_width)), int(round(2.5 * cells_per_width)), h)
+    fluid = FluidSolver(grid, density=WATER_DENSITY, viscosity=WATER_VISCOSITY,
+                        boundaries=DomainBoundaries.closed_box(), gravity=(0.0, -GRAVITY),
+                        advection="maccormack")
+    solver = FreeSurfaceSolver(fluid, projection=GhostFluidProjection(theta_min=theta_min),
+                               transport=LevelSetTransport(volume_correction=volume_correction))
+    state = solver.state(level_set_box(grid, (0.0, 0.0, a, 2.0 * a)))
+    time_scale = math.sqrt(a / (2.0 * GRAVITY))  # t = T time_scale
+    t_end = end_time * time_scale
+    times, fronts, areas, iterations, step_seconds = [0.0], [a], [state.liquid_area], [], []
+    t = 0.0
+    start = _time.perf_counter()
+    while t < t_end - 1e-12:
+        dt = min(solver.stable_dt(state, cfl, dt_max=t_end - t), t_end - t)
+        before = _time.perf_counter()
+        report = solver.step(state, dt, t)
+        step_seconds.append(_time.perf_counter() - before)
+        t += dt
+        times.append(t)
+        fronts.append(surge_front(state, grid))
+        areas.append(liquid_area(state.level_set, h))
+        iterations.append(report.pressure_iterations)
+    seconds = _time.perf_counter() - start
+    reference = martin_moyce_reference(reference_path)
+    time = np.array(times)
+    front = np.array(fronts)
+    usable = reference[:, 1] < tank_widths - 1.0
+    measured = np.interp(reference[usable, 0] * time_scale, time, front) / a
+    return DamBreak(
+        cells=(grid.nx, grid.ny), h=h, volume_correction=volume_correction, time=time,
+        front=front, area=np.array(areas), pressure_iterations=np.array(iterations),
+        reference=reference, front_error=measured - reference[usable, 1], seconds=seconds,
+        theta_min=theta_min, step_seconds=step_seconds,
+    )
+
+
+# -- report ----------------------------------------------------------------------------------
+
+def _save(figure: object, path: Path) -> None:
+    import matplotlib.pyplot as plt
+
+    with atomic_path(path) as temporary:
+        figure.savefig(temporary, dpi=110, format="png")  # type: ignore[attr-defined]
+    plt.close(figure)  # type: ignore[arg-type]
+
+
+def plot_standing_waves(waves: list[StandingWave], path: Path) -> None:
+    """a(t) / a0 of each run, with the reference's envelope for the viscous ones."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    figure, axis = plt.subplots(figsize=(8, 3.6))
+    for wave in waves:
+        a0 = wave.amplitude[0]
+        axis.plot(wave.time * wave.omega_linear / (2 * math.pi), wave.amplitude / a0, lw=0.9,
+                  label=f"{wave.label}, {wave.cells[0]}x{wave.cells[1]}")
+        if wave.damping_reference > 0.0:
+            envelope = np.exp(-wave.damping_reference * wave.time)
+            axis.plot(wave.time * wave.omega_linear / (2 * math.pi), envelope, "k--", lw=0.7)
+    axis.set_xlabel("t / reference period")
+    axis.set_ylabel("mode amplitude a(t) / a(0)")
+    axis.grid(alpha=0.3)
+    axis.legend(fontsize=7)
+    figure.tight_layout()
+    _save(figure, path)
+
+
+def plot_dam_break(runs: list[DamBreak], path: Path) -> None:
+    """Surge front Z/a against T with Martin & Moyce's points, and the area change."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    a = MARTIN_MOYCE_A
+    scale = math.sqrt(2.0 * GRAVITY / a)
+    figure, axes = plt.subplots(1, 2, figsize=(10, 3.8))
+    for run in runs:
+        label = (f"{run.cells[0]}x{run.cells[1]}"
+                 + ("" if run.volume_correction else ", no volume correction"))
+        axes[0].plot(run.time * scale, run.front / a, lw=0.9, label=label)
+        axes[1].plot(run.time * scale, 100 * (run.area / run.area[0] - 1.0), lw=0.9, label=label)
+    reference = runs[0].reference
+    axes[0].plot(reference[:, 0], reference[:, 1], "ko", ms=4, label="Martin & Moyce 1952")
+    axes[0].set_xlabel("T = t sqrt(2 g / a)")
+    axes[0].set_ylabel("Z / a")
+    axes[1].set_xlabel("T")
+    axes[1].set_ylabel("liquid area change [%]")
+    for axis in axes:
+        axis.grid(alpha=0.3)
+        axis.legend(fontsize=7)
+    figure.tight_layout()
+    _save(figure, path)
+
+
+def write_free_surface_report(path: Path, tanks: list[TankAtRest], waves: list[StandingWave],
+                              dams: list[DamBreak], notes: str = "") -> list[Path]:
+    """Write the Markdown page ``path`` and its plots beside it; returns the paths."""
+    folder = path.parent
+    folder.mkdir(parents=True, exist_ok=True)
+    written = [path]
+    lines = ["# Free surface (issue 15): validation", "",
+             "Generated by `elastoflow.validation._free_surface` "
+             "(`python -m elastoflow.validation._free_surface`).", ""]
+    lines += ["## Water at rest", "",
+              "| grid | h [m] | steps x dt | max speed [m/s] | pressure error (of rho g D) "
+              "| max CG iterations | area change | wall [s] |",
+              "|---|---|---|---|---|---|---|---|"]
+    for tank in tanks:
+        lines.append(
+            f"| {tank.cells[0]}x{tank.cells[1]} | {tank.h:.4g} | {tank.steps} x {tank.dt:g} s "
+            f"| {tank.max_speed:.2e} | {tank.pressure_error:.2e} | {tank.pressure_iterations} "
+            f"| {tank.area_change:.1e} | {tank.seconds:.1f} |")
+    lines += ["", "## Standing waves", "",
+              "| case | grid | dt [s] | omega [rad/s] | reference | error | T&K 3rd order "
+              "| damping [1/s] | reference | error | area change | CG its mean/max | wall [s] |",
+              "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    for wave in waves:
+        error = wave.omega / wave.omega_linear - 1.0
+        nonlinear = (f"{wave.omega_nonlinear:.4f} ({100 * (wave.omega / wave.omega_nonlinear - 1):+.2f} %)"
+                     if math.isfinite(wave.omega_nonlinear) else "-")
+        if math.isfinite(wave.damping):
+            damping = (f"{wave.damping:.4f} | {wave.damping_reference:.4f} | "
+                       f"{100 * (wave.damping / wave.damping_reference - 1):+.1f} %")
+        else:
+            damping = "- | - | -"
+        lines.append(
+            f"| {wave.label} | {wave.cells[0]}x{wave.cells[1]} | {wave.dt:.3g} | {wave.omega:.4f} "
+            f"| {wave.omega_linear:.4f} | {100 * error:+.2f} % | {nonlinear} | {damping} "
+            f"| {wave.area_change:.1e} | {wave.pressure_iterations[0]:.1f}/"
+            f"{wave.pressure_iterations[1]} | {wave.seconds:.1f} |")
+    if waves:
+        plot = folder / "free_surface_standing_wave.png"
+        plot_standing_waves(waves, plot)
+        written.append(plot)
+        lines += ["", f"![standing waves]({plot.name})"]
+    lines += ["", "## Dam break (Martin & Moyce 1952, n^2 = 2)", "",
+              "| grid | volume correction | theta_min | front error Z/a: mean / max abs "
+              "| area change at end | CG its mean/max | ms/step | wall [s] |",
+              "|---|---|---|---|---|---|---|---|"]
+    for dam in dams:
+        lines.append(
+            f"| {dam.cells[0]}x{dam.cells[1]} | {'yes' if dam.volume_correction else 'no'} "
+            f"| {dam.theta_min:g} | {np.mean(dam.front_error):+.2f} / "
+            f"{np.max(np.abs(dam.front_error)):.2f} "
+            f"| {100 * (dam.area[-1] / dam.area[0] - 1):+.3f} % "
+            f"| {np.mean(dam.pressure_iterations):.1f}/{np.max(dam.pressure_iterations)} "
+            f"| {1000 * np.median(dam.step_seconds):.2f} | {dam.seconds:.1f} |")
+    if dams:
+        plot = folder / "free_surface_dam_break.png"
+        plot_dam_break(dams, plot)
+        written.append(plot)
+        lines += ["", f"![dam break]({plot.name})"]
+    if notes:
+        lines += ["", notes.strip()]
+    write_text_atomic(path, "\n".join(lines) + "\n")
+    return written
+
+
+def main() -> None:
+    """Run every case at two resolutions and write docs/validation/free_surface.md."""
+    root = Path(__file__).resolve().parents[3]
+    tanks = [run_tank_at_rest(n) for n in (16, 32)]
+    waves = [run_standing_wave(n) for n in (32, 64, 128)]
+    waves += [run_standing_wave(n, viscous=True) for n in (32, 64, 128)]
+    dams = [run_dam_break(16), run_dam_break(32), run_dam_break(32, volume_correction=False),
+            run_dam_break(16, volume_correction=False), run_dam_break(16, theta_min=1e-2)]
+    write_free_surface_report(root / "docs" / "validation" / "free_surface.md", tanks, waves,
+                              dams, notes=NOTES)
+
+
+NOTES = ""
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,68 @@
+"""Short, coarse versions of the free-surface validation (docs/validation/free_surface.md)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from elastoflow.validation._free_surface import (
+    lamb_viscous_mode,
+    run_dam_break,
+    run_standing_wave,
+    run_tank_at_rest,
+    tadjbakhsh_keller_frequency,
+)
+
+
+def test_water_at_rest_stays_at_rest() -> None:
+    """The issue's bounds (1e-6 m/s, 0.1 % of rho g D), on a coarse grid over 300 steps."""
+    tank = run_tank_at_rest(8, steps=300)
+    assert tank.max_speed < 1e-6
+    assert tank.pressure_error < 1e-3
+    assert tank.pressure_iterations <= 2
+    assert abs(tank.area_change) < 1e-12
+
+
+def test_standing_wave_frequency() -> None:
+    """The first sloshing mode of the air-water-vv tank at 32 cells along it, two periods:
+    within 2 % of the linear dispersion relation (1.2 % measured at this resolution, 0.3 %
+    at 128 cells; the page's table)."""
+    wave = run_standing_wave(32, periods=2.0)
+    assert wave.omega == pytest.approx(wave.omega_linear, rel=0.02)
+    assert abs(wave.area_change) < 1e-12
+    assert wave.pressure_iterations[1] <= 10
+
+
+def test_viscous_wave_decays_at_the_frequency_of_lambs_mode() -> None:
+    """Prosperetti's set-up without the light phase, 32 cells per wavelength: frequency within
+    1 % of Lamb's viscous mode; it decays, more slowly than the mode (see the page: the
+    extrapolated velocity acts as a zero-gradient condition, not a stress-free one)."""
+    wave = run_standing_wave(32, viscous=True, periods=3.0)
+    assert wave.omega == pytest.approx(wave.omega_linear, rel=0.01)
+    assert 0.2 * wave.damping_reference < wave.damping < 1.2 * wave.damping_reference
+
+
+def test_dam_break_front_and_volume() -> None:
+    """Martin & Moyce's column at a / 8 up to T = 3.5: the front ahead of the experiment by
+    less than 0.8 a, and the liquid area kept by the volume correction."""
+    dam = run_dam_break(8, tank_widths=6.0, end_time=3.5)
+    assert len(dam.front_error) >= 4
+    assert np.all(dam.front_error > -0.3)
+    assert np.max(np.abs(dam.front_error)) < 0.8
+    assert abs(dam.area[-1] / dam.area[0] - 1.0) < 1e-12
+    assert np.max(dam.pressure_iterations) <= 12
+
+
+def test_reference_formulas() -> None:
+    """Lamb's mode tends to (-2 nu k^2, sqrt(g k)) for small nu; Tadjbakhsh & Keller's
+    frequency of the air-water-vv case is 0.24 % below the linear one."""
+    k = 2 * math.pi
+    mode = lamb_viscous_mode(50.0, k, 1e-6)
+    assert -mode.real == pytest.approx(2e-6 * k * k, rel=1e-2)
+    assert mode.imag == pytest.approx(math.sqrt(50.0 * k), rel=1e-6)
+    linear = math.sqrt(9.81 * math.pi / 0.1 * math.tanh(math.pi / 0.1 * 0.05))
+    assert linear == pytest.approx(16.8124, rel=1e-5)  # the reference file's value
+    third = tadjbakhsh_keller_frequency(9.81, math.pi / 0.1, 0.05, 0.005)
+    assert third / linear - 1.0 == pytest.approx(-0.0024, abs=2e-4)
