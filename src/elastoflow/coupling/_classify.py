@@ -7,7 +7,6 @@ import numpy as np
 
 from elastoflow.coupling import _kernels
 from elastoflow.coupling._map import BoundaryMap
-from elastoflow.coupling._thin import thin_cuts
 from elastoflow.fluid import InteriorBoundary
 from elastoflow.grid import Grid2D
 
@@ -271,7 +270,7 @@ def interior_boundary_from_map(
                               boxes)
     _kernels.reconcile_cuts_y(out.solid_faces_y, out.velocity_faces_y, theta_y, cut_velocity_y,
                               boxes)
-    cuts = thin_cuts(grid, bmap)
+    cuts = bmap.thin_cuts
     if cuts.count:
         # After the reconciliation, which reads the classification's face velocities.
         velocity = cuts.velocities(bmap)

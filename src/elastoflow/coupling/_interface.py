@@ -39,7 +39,7 @@ from numba import njit
 from scipy import sparse
 
 from elastoflow.coupling._map import BoundaryMap
-from elastoflow.coupling._thin import ThinCuts, thin_cuts
+from elastoflow.coupling._thin import ThinCuts
 from elastoflow.fluid import OPEN_MIN, InteriorBoundary
 from elastoflow.grid import Grid2D
 from elastoflow.linalg import BandedInverse, LowRankTerm
@@ -191,16 +191,261 @@ def _sample_weights(
                 weights[s, 0], weights[s, 1], weights[s, 2] = 1.0 - t, t, 0.0
 
 
+@njit(cache=True)
+def _is_active(open_x: np.ndarray, open_y: np.ndarray, i: int, j: int) -> bool:
+    """Whether cell (i, j) has an interior face open by ``OPEN_MIN`` (the pressure equation
+    has it); False outside the grid."""
+    nx, ny = open_y.shape[0], open_x.shape[1]
+    if i < 0 or i >= nx or j < 0 or j >= ny:
+        return False
+    return ((i >= 1 and open_x[i, j] >= OPEN_MIN)
+            or (i <= nx - 2 and open_x[i + 1, j] >= OPEN_MIN)
+            or (j >= 1 and open_y[i, j] >= OPEN_MIN)
+            or (j <= ny - 2 and open_y[i, j + 1] >= OPEN_MIN))
+
+
+@njit(cache=True)
+def _active_cells(open_x: np.ndarray, open_y: np.ndarray, out: np.ndarray) -> None:
+    for i in range(out.shape[0]):
+        for j in range(out.shape[1]):
+            out[i, j] = _is_active(open_x, open_y, i, j)
+
+
+@njit(cache=True)
+def _next_to_active(faces: np.ndarray, open_x: np.ndarray, open_y: np.ndarray) -> np.ndarray:
+    """For each flat face index (u faces, then v faces), whether a cell on either side is
+    active (`_is_active`)."""
+    nx, ny = open_y.shape[0], open_x.shape[1]
+    u_faces = (nx + 1) * ny
+    near = np.empty(faces.shape[0], np.bool_)
+    for k in range(faces.shape[0]):
+        face = faces[k]
+        if face < u_faces:
+            # u face (i, j) joins cells (i - 1, j) and (i, j).
+            i, j = face // ny, face % ny
+            near[k] = _is_active(open_x, open_y, i - 1, j) or _is_active(open_x, open_y, i, j)
+        else:
+            # v face (i, j) joins cells (i, j - 1) and (i, j).
+            i, j = (face - u_faces) // (ny + 1), (face - u_faces) % (ny + 1)
+            near[k] = _is_active(open_x, open_y, i, j - 1) or _is_active(open_x, open_y, i, j)
+    return near
+
+
+@njit(cache=True)
+def _merge_segments(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Each row's entries sorted by column, equal columns summed (in their given order, so the
+    sums do not depend on anything but the input): CSR ``(indptr, indices, data)``."""
+    rows = indptr.shape[0] - 1
+    out_ptr = np.zeros(rows + 1, np.int64)
+    out_indices = np.empty(indices.shape[0], np.int64)
+    out_data = np.empty(indices.shape[0])
+    kept = 0
+    for r in range(rows):
+        begin = kept
+        for e in range(indptr[r], indptr[r + 1]):
+            column = indices[e]
+            value = data[e]
+            # Rows are short (a few nodes per face or cell): insertion keeps them sorted.
+            k = kept
+            while k > begin and out_indices[k - 1] > column:
+                k -= 1
+            if k > begin and out_indices[k - 1] == column:
+                out_data[k - 1] += value
+                continue
+            for m in range(kept, k, -1):
+                out_indices[m] = out_indices[m - 1]
+                out_data[m] = out_data[m - 1]
+            out_indices[k] = column
+            out_data[k] = value
+            kept += 1
+        out_ptr[r + 1] = kept
+    return out_ptr, out_indices[:kept].copy(), out_data[:kept].copy()
+
+
+@njit(cache=True)
+def _csr_by_rows(rows: np.ndarray, cols: np.ndarray, values: np.ndarray
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Triplets to CSR over the rows that occur: ``(rows ascending, indptr, indices,
+    data)``, duplicates summed."""
+    order = np.argsort(rows, kind="mergesort")
+    count = 0
+    for k in range(order.shape[0]):
+        if k == 0 or rows[order[k]] != rows[order[k - 1]]:
+            count += 1
+    unique = np.empty(count, np.int64)
+    indptr = np.zeros(count + 1, np.int64)
+    indices = np.empty(order.shape[0], np.int64)
+    data = np.empty(order.shape[0])
+    r = -1
+    for k in range(order.shape[0]):
+        e = order[k]
+        if k == 0 or rows[e] != rows[order[k - 1]]:
+            r += 1
+            unique[r] = rows[e]
+        indptr[r + 1] = k + 1
+        indices[k] = cols[e]
+        data[k] = values[e]
+    indptr, indices, data = _merge_segments(indptr, indices, data)
+    return unique, indptr, indices, data
+
+
+@njit(cache=True)
+def _cell_rows(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray, low: np.ndarray,
+               high: np.ndarray, active: np.ndarray
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """``D W`` on the active cells next to ``W``'s faces (a face's row counts + in its low
+    cell and - in its high one): ``(cells ascending, indptr, indices, data)``."""
+    size = active.shape[0]
+    slot = np.full(size, -1, np.int64)
+    faces = low.shape[0]
+    listed = np.empty(2 * faces, np.int64)
+    count = 0
+    for r in range(faces):
+        for side in range(2):
+            cell = low[r] if side == 0 else high[r]
+            if cell >= 0 and active[cell] and slot[cell] < 0:
+                slot[cell] = 0
+                listed[count] = cell
+                count += 1
+    cells = np.sort(listed[:count])
+    length = np.zeros(count + 1, np.int64)
+    for k in range(count):
+        slot[cells[k]] = k
+    for r in range(faces):
+        for side in range(2):
+            cell = low[r] if side == 0 else high[r]
+            if cell >= 0 and active[cell]:
+                length[slot[cell] + 1] += indptr[r + 1] - indptr[r]
+    for k in range(count):
+        length[k + 1] += length[k]
+    fill = length[:-1].copy()
+    gathered = np.empty(length[count], np.int64)
+    values = np.empty(length[count])
+    for r in range(faces):
+        for side in range(2):
+            cell = low[r] if side == 0 else high[r]
+            if cell < 0 or not active[cell]:
+                continue
+            sign = 1.0 if side == 0 else -1.0
+            k = slot[cell]
+            for e in range(indptr[r], indptr[r + 1]):
+                gathered[fill[k]] = indices[e]
+                values[fill[k]] = sign * data[e]
+                fill[k] += 1
+    out_ptr, out_indices, out_data = _merge_segments(length, gathered, values)
+    return cells, out_ptr, out_indices, out_data
+
+
+@njit(cache=True)
+def _columns_below(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray,
+                   row_ids: np.ndarray, limit: int
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The transpose of a CSR matrix restricted to its nonzero columns below ``limit``:
+    ``(columns ascending, offsets, row ids, values)``, each column's entries by row."""
+    count = np.zeros(limit + 1, np.int64)
+    for e in range(indptr[-1]):
+        if indices[e] < limit:
+            count[indices[e] + 1] += 1
+    touched = 0
+    for c in range(limit):
+        if count[c + 1] > 0:
+            touched += 1
+    columns = np.empty(touched, np.int64)
+    offsets = np.zeros(touched + 1, np.int64)
+    where = np.full(limit, -1, np.int64)
+    t = 0
+    for c in range(limit):
+        if count[c + 1] > 0:
+            columns[t] = c
+            where[c] = t
+            offsets[t + 1] = offsets[t] + count[c + 1]
+            t += 1
+    fill = offsets[:-1].copy()
+    points = np.empty(offsets[touched], np.int64)
+    weights = np.empty(offsets[touched])
+    for r in range(indptr.shape[0] - 1):
+        for e in range(indptr[r], indptr[r + 1]):
+            c = indices[e]
+            if c < limit:
+                k = where[c]
+                points[fill[k]] = row_ids[r]
+                weights[fill[k]] = data[e]
+                fill[k] += 1
+    return columns, offsets, points, weights
+
+
+@njit(cache=True)
+def _rows_times(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray, vector: np.ndarray,
+                out: np.ndarray) -> None:
+    for r in range(indptr.shape[0] - 1):
+        total = 0.0
+        for e in range(indptr[r], indptr[r + 1]):
+            total += data[e] * vector[indices[e]]
+        out[r] = total
+
+
+@njit(cache=True)
+def _rows_transpose_times(indptr: np.ndarray, indices: np.ndarray, data: np.ndarray,
+                          vector: np.ndarray, out: np.ndarray) -> None:
+    out[:] = 0.0
+    for r in range(indptr.shape[0] - 1):
+        for e in range(indptr[r], indptr[r + 1]):
+            out[indices[e]] += data[e] * vector[r]
+
+
+@dataclass(frozen=True)
+class SparseRows:
+    """A small CSR matrix applied by compiled loops: SciPy's constructors and products cost
+    0.2-0.7 ms each on matrices of a few hundred rows, as much as the arithmetic of the
+    whole coupled set-up.
+
+    Attributes:
+        indptr: Row offsets, int64, (rows + 1,).
+        indices: Column of each entry, int64, ascending within a row.
+        data: Value of each entry, float64.
+        columns: Number of columns.
+    """
+
+    indptr: np.ndarray
+    indices: np.ndarray
+    data: np.ndarray
+    columns: int
+
+    @property
+    def rows(self) -> int:
+        return int(self.indptr.shape[0] - 1)
+
+    def to_scipy(self) -> sparse.csr_matrix:
+        return sparse.csr_matrix((self.data, self.indices, self.indptr),
+                                 shape=(self.rows, self.columns))
+
+    def times(self, vector: np.ndarray) -> np.ndarray:
+        """``M v`` for ``v`` of ``columns`` values (any shape, flat order)."""
+        out = np.empty(self.rows)
+        _rows_times(self.indptr, self.indices, self.data,
+                    np.ascontiguousarray(vector, dtype=np.float64).reshape(-1), out)
+        return out
+
+    def transpose_times(self, vector: np.ndarray) -> np.ndarray:
+        """``M^T v`` for ``v`` of ``rows`` values."""
+        out = np.empty(self.columns)
+        _rows_transpose_times(self.indptr, self.indices, self.data,
+                              np.ascontiguousarray(vector, dtype=np.float64).reshape(-1), out)
+        return out
+
+
 @dataclass(frozen=True)
 class InterfaceFlux:
     """``W`` restricted to the faces it touches, with each face's two cells.
 
     Attributes:
         grid: The grid.
-        matrix: ``W`` as CSR, shape (F, 2P): row r is face ``faces[r]``'s body flux per unit
-            face length [m/s] from the nodal velocity components (``2 point + component``);
-            faces that the fluid treats as closed (open fraction below ``OPEN_MIN``) carry
-            their whole flux, so their row sums the body velocity.
+        rows: ``W``, shape (F, 2P): row r is face ``faces[r]``'s body flux per unit face
+            length [m/s] from the nodal velocity components (``2 point + component``); faces
+            that the fluid treats as closed (open fraction below ``OPEN_MIN``) carry their
+            whole flux, so their row sums the body velocity. ``matrix`` gives it as SciPy
+            CSR.
         faces: Flat face index of each row: u faces ``i * ny + j``, then v faces
             ``(nx + 1) ny + i * (ny + 1) + j``, int64, shape (F,).
         low_cell: Flat index ``i * ny + j`` of the cell on the face's low side (west or
@@ -210,15 +455,20 @@ class InterfaceFlux:
     """
 
     grid: Grid2D
-    matrix: sparse.csr_matrix
+    rows: SparseRows
     faces: np.ndarray
     low_cell: np.ndarray
     high_cell: np.ndarray
     axis: np.ndarray
 
+    @property
+    def matrix(self) -> sparse.csr_matrix:
+        """``W`` as SciPy CSR, shape (F, 2P)."""
+        return self.rows.to_scipy()
+
     def face_flux(self, velocities: np.ndarray) -> np.ndarray:
         """Body flux per unit length of each row's face [m/s] for nodal ``velocities`` (P, 2)."""
-        return self.matrix @ np.ascontiguousarray(velocities, dtype=np.float64).reshape(-1)
+        return self.rows.times(velocities)
 
 
 def interface_flux(grid: Grid2D, bmap: BoundaryMap, interior: InteriorBoundary,
@@ -236,7 +486,7 @@ def interface_flux(grid: Grid2D, bmap: BoundaryMap, interior: InteriorBoundary,
         triangle_offsets: Body b's triangles are ``triangles[offsets[b]:offsets[b+1]]``; body
             indices are those of ``bmap.edge_body`` (bodies first, then obstacles).
     """
-    if bmap.grid != grid:
+    if bmap.grid is not grid and bmap.grid != grid:
         raise ValueError(f"boundary map grid {bmap.grid!r}: must be the grid {grid!r}")
     if triangles is None or triangle_offsets is None:
         triangles = np.zeros((0, 3), dtype=np.int64)
@@ -284,22 +534,7 @@ def interface_flux(grid: Grid2D, bmap: BoundaryMap, interior: InteriorBoundary,
                                 sample_faces, fractions, samples, bodies, slot)
     # Only faces next to a cell the pressure equation has (one with an interior face open by
     # OPEN_MIN) enter it; the faces deep inside bodies are dropped before the point location.
-    open_x = interior.open_fraction_x >= OPEN_MIN
-    open_y = interior.open_fraction_y >= OPEN_MIN
-    active = np.zeros((nx + 2, ny + 2), dtype=bool)
-    inner = active[1:-1, 1:-1]
-    inner[1:, :] |= open_x[1:-1, :]
-    inner[:-1, :] |= open_x[1:-1, :]
-    inner[:, 1:] |= open_y[:, 1:-1]
-    inner[:, :-1] |= open_y[:, 1:-1]
-    is_u_sample = sample_faces < u_faces
-    u_index = np.minimum(sample_faces, u_faces - 1)
-    v_index = np.maximum(sample_faces - u_faces, 0)
-    ui, uj = u_index // ny, u_index % ny
-    vi, vj = v_index // (ny + 1), v_index % (ny + 1)
-    # Padded cell indices on both sides: u face (i, j) joins cells (i-1, j) and (i, j).
-    near = np.where(is_u_sample, active[ui, uj + 1] | active[ui + 1, uj + 1],
-                    active[vi + 1, vj] | active[vi + 1, vj + 1])
+    near = _next_to_active(sample_faces, interior.open_fraction_x, interior.open_fraction_y)
     sample_faces, fractions, samples, bodies = (sample_faces[near], fractions[near],
                                                 np.ascontiguousarray(samples[near]), bodies[near])
     total = int(sample_faces.shape[0])
@@ -312,13 +547,12 @@ def interface_flux(grid: Grid2D, bmap: BoundaryMap, interior: InteriorBoundary,
     rows = np.repeat(sample_faces, 3)
     cols = (2 * nodes + component[:, None]).ravel()
     values = (weights * fractions[:, None]).ravel()
-    cuts = thin_cuts(grid, bmap)
+    cuts = bmap.thin_cuts
     if cuts.count:
+        active = np.zeros((nx + 2, ny + 2), dtype=np.bool_)
+        _active_cells(interior.open_fraction_x, interior.open_fraction_y, active[1:-1, 1:-1])
         rows, cols, values = _with_thin_cuts(grid, bmap, cuts, active, rows, cols, values)
-    faces, row_of = np.unique(rows, return_inverse=True)
-    matrix = sparse.csr_matrix(
-        (values, (row_of, cols)), shape=(faces.shape[0], 2 * bmap.point_count)
-    )
+    faces, indptr, indices, data = _csr_by_rows(rows, cols, values)
     is_u = faces < u_faces
     open_fraction = np.where(
         is_u,
@@ -331,8 +565,8 @@ def interface_flux(grid: Grid2D, bmap: BoundaryMap, interior: InteriorBoundary,
     if closed.any():
         scale = np.ones(faces.shape[0])
         scale[closed] = 1.0 / (1.0 - open_fraction[closed])
-        matrix = sparse.diags(scale) @ matrix
-    matrix = matrix.tocsr()
+        data *= np.repeat(scale, np.diff(indptr))
+    matrix = SparseRows(indptr, indices, data, 2 * bmap.point_count)
     # Cells on either side of each face.
     u_index = faces
     v_index = faces - u_faces
@@ -380,6 +614,18 @@ def _with_thin_cuts(grid: Grid2D, bmap: BoundaryMap, cuts: ThinCuts, active: np.
             extra_values += [weight * (1.0 - t), weight * t]
     return (np.concatenate(extra_rows), np.concatenate(extra_cols),
             np.concatenate(extra_values))
+
+
+@dataclass(frozen=True)
+class _CellRows:
+    """A matrix over few cells: row k belongs to the flat cell index ``ids[k]``."""
+
+    ids: np.ndarray
+    matrix: SparseRows
+
+    def transpose_times(self, field: np.ndarray) -> np.ndarray:
+        """``M^T`` applied to a cell field (any shape, flat cell order)."""
+        return self.matrix.transpose_times(field.reshape(-1)[self.ids])
 
 
 class BodyResponse(Protocol):
@@ -441,31 +687,20 @@ class PressureCoupledBodies:
         self.velocities = self.predicted.copy()
         self.pressure_forces = np.zeros_like(self.predicted)
         self._correction = np.zeros_like(self.predicted)
-        self._cell_matrix: sparse.csr_matrix | None = None
+        self._cell_rows: _CellRows | None = None
 
-    def _cells(self, active: np.ndarray) -> sparse.csr_matrix:
-        """``D W``: net body outflow of each active cell per unit nodal velocity."""
-        if self._cell_matrix is not None:
-            return self._cell_matrix
+    def _cells(self, active: np.ndarray) -> _CellRows:
+        """``D W`` on the active cells next to ``W``'s faces: each row a cell's net body
+        outflow per unit nodal velocity."""
+        if self._cell_rows is not None:
+            return self._cell_rows
         flux = self.flux
-        size = flux.grid.nx * flux.grid.ny
-        mask = active.reshape(-1)
-        rows = []
-        signs = []
-        faces = []
-        for cells, sign in ((flux.low_cell, 1.0), (flux.high_cell, -1.0)):
-            keep = cells >= 0
-            keep[keep] = mask[cells[keep]]
-            index = np.flatnonzero(keep)
-            rows.append(cells[index])
-            faces.append(index)
-            signs.append(np.full(index.shape[0], sign))
-        scatter = sparse.csr_matrix(
-            (np.concatenate(signs), (np.concatenate(rows), np.concatenate(faces))),
-            shape=(size, flux.faces.shape[0]),
-        )
-        self._cell_matrix = (scatter @ flux.matrix).tocsr()
-        return self._cell_matrix
+        rows = flux.rows
+        cells, indptr, indices, data = _cell_rows(
+            rows.indptr, rows.indices, rows.data, flux.low_cell, flux.high_cell,
+            np.ascontiguousarray(active).reshape(-1))
+        self._cell_rows = _CellRows(cells, SparseRows(indptr, indices, data, rows.columns))
+        return self._cell_rows
 
     def velocity_change(self, forces: np.ndarray) -> np.ndarray:
         change = np.zeros_like(forces)
@@ -502,7 +737,7 @@ class PressureCoupledBodies:
             normal = np.column_stack((edge[:, 1], -edge[:, 0]))
             np.add.at(nodal, a, -normal * (pa / 3.0 + pb / 6.0)[:, None])
             np.add.at(nodal, b, -normal * (pa / 6.0 + pb / 3.0)[:, None])
-            discrete = self.face_length * (cells.T @ field.reshape(-1)).reshape(-1, 2)
+            discrete = self.face_length * cells.transpose_times(field).reshape(-1, 2)
             correction[lo:hi] = nodal - discrete[lo:hi]
         return correction
 
@@ -511,7 +746,8 @@ class PressureCoupledBodies:
         self._correction = self._hydrostatic_correction(active)
         if np.any(self._correction):
             self.predicted = self.predicted + self.velocity_change(self._correction)
-        rhs.reshape(-1)[:] -= scale * (cells @ self.predicted.reshape(-1))
+        flat = rhs.reshape(-1)
+        flat[cells.ids] -= scale * cells.matrix.times(self.predicted)
 
     def coupling_term(self, active: np.ndarray) -> LowRankTerm:
         """``rho h^2 / dt (DW) Phi (DW)^T`` with ``Phi`` the bodies' compliance on the
@@ -519,10 +755,11 @@ class PressureCoupledBodies:
         the bodies whose response is a dense inverse, and the banded factors of the others
         (never formed: applied by sweeps inside the solve)."""
         cells = self._cells(active)
-        by_dof = cells.T.tocsr()
-        touched = np.flatnonzero(np.diff(by_dof.indptr) > 0)
-        last = 2 * self.offsets[-1]
-        touched = touched[touched < last]
+        # B^T restricted to the bodies' touched degrees of freedom (obstacles' columns, past
+        # the last body's points, have no response).
+        touched, offsets, points, weights = _columns_below(
+            cells.matrix.indptr, cells.matrix.indices, cells.matrix.data, cells.ids,
+            2 * self.offsets[-1])
         dense_slots = np.full(touched.shape[0], -1, np.int64)
         band_slots = np.full(touched.shape[0], -1, np.int64)
         dense_parts: list[tuple[np.ndarray, np.ndarray]] = []
@@ -550,10 +787,8 @@ class PressureCoupledBodies:
             size = block.shape[0]
             matrix[start:start + size, start:start + size] = block
             start += size
-        restricted = by_dof[touched]
         return LowRankTerm(
-            offsets=restricted.indptr.astype(np.int64), points=restricted.indices.astype(np.int64),
-            weights=restricted.data.astype(np.float64), matrix=matrix,
+            offsets=offsets, points=points, weights=weights, matrix=matrix,
             scale=self.density * self.face_length**2 / self.dt, dense_slots=dense_slots,
             banded=_stacked_factors(factors, band_slots) if factors else None,
         )
@@ -561,7 +796,7 @@ class PressureCoupledBodies:
     def respond(self, pressure: np.ndarray, active: np.ndarray, closed_u: np.ndarray,
                 closed_v: np.ndarray) -> None:
         cells = self._cells(active)
-        forces = self.face_length * (cells.T @ pressure.reshape(-1))
+        forces = self.face_length * cells.transpose_times(pressure)
         dynamic = forces.reshape(-1, 2)
         self.velocities = self.predicted + self.velocity_change(dynamic)
         self.pressure_forces = dynamic + self._correction

@@ -1,11 +1,16 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from elastoflow.coupling import _kernels
 from elastoflow.grid import Grid2D
+
+if TYPE_CHECKING:
+    from elastoflow.coupling._thin import ThinCuts
 
 
 @dataclass(frozen=True, eq=False)
@@ -65,6 +70,15 @@ class BoundaryMap:
     y_parameter: np.ndarray
     y_velocity: np.ndarray
     y_sign: np.ndarray
+
+    @cached_property
+    def thin_cuts(self) -> ThinCuts:
+        """The connections that bodies thinner than a cell cut (`elastoflow.coupling.thin_cuts`
+        on this map's grid), found once: the classification and the coupled step's flux both
+        need them."""
+        from elastoflow.coupling._thin import thin_cuts
+
+        return thin_cuts(self.grid, self)
 
     @property
     def crossing_count(self) -> int:

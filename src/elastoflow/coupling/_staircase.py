@@ -30,7 +30,6 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 from numba import njit
-from scipy import sparse
 
 from elastoflow.coupling import _kernels
 from elastoflow.coupling._classify import _check_grid, _check_reused, _reset, _touched_boxes
@@ -181,7 +180,12 @@ def interface_flux_staircase(grid: Grid2D, bmap: BoundaryMap, interior: Interior
     still exerts no net force and no torque: the closed faces form closed staircase loops,
     and moving each face's point of application along its own normal changes no torque.
     """
-    from elastoflow.coupling._interface import InterfaceFlux, _sample_weights
+    from elastoflow.coupling._interface import (
+        InterfaceFlux,
+        SparseRows,
+        _csr_by_rows,
+        _sample_weights,
+    )
 
     _check_grid(grid, bmap)
     nx, ny, h = grid.nx, grid.ny, grid.h
@@ -227,11 +231,9 @@ def interface_flux_staircase(grid: Grid2D, bmap: BoundaryMap, interior: Interior
                     np.ascontiguousarray(triangles, dtype=np.int64),
                     np.ascontiguousarray(triangle_offsets, dtype=np.int64), nodes, weights)
     component = (sample_faces >= u_faces).astype(np.int64)
-    faces, row_of = np.unique(np.repeat(sample_faces, 3), return_inverse=True)
-    matrix = sparse.csr_matrix(
-        (weights.ravel(), (row_of, (2 * nodes + component[:, None]).ravel())),
-        shape=(faces.shape[0], 2 * bmap.point_count),
-    )
+    faces, indptr, indices, data = _csr_by_rows(
+        np.repeat(sample_faces, 3), (2 * nodes + component[:, None]).ravel(), weights.ravel())
+    flux_rows = SparseRows(indptr, indices, data, 2 * bmap.point_count)
     is_u = faces < u_faces
     v_index = faces - u_faces
     i = np.where(is_u, faces // ny, v_index // (ny + 1))
@@ -240,5 +242,5 @@ def interface_flux_staircase(grid: Grid2D, bmap: BoundaryMap, interior: Interior
     high = i * ny + j
     low = np.where(np.where(is_u, i >= 1, j >= 1), low, -1).astype(np.int64)
     high = np.where(np.where(is_u, i <= nx - 1, j <= ny - 1), high, -1).astype(np.int64)
-    return InterfaceFlux(grid, matrix.tocsr(), faces.astype(np.int64), low, high,
+    return InterfaceFlux(grid, flux_rows, faces.astype(np.int64), low, high,
                          np.where(is_u, 0, 1).astype(np.int8))
