@@ -1,0 +1,335 @@
+"""Incompressible Navier-Stokes on the 3D MAC grid: the phases of one step, acting on a
+`FluidState3D`."""
+
+from __future__ import annotations
+
+import math
+import time as _time
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from elastoflow.fluid import _kernels3d as kernels
+from elastoflow.fluid._boundaries import Inflow, Outflow, WallNoSlip
+from elastoflow.fluid._boundaries3d import DomainBoundaries3D, inflow_profile_3d
+from elastoflow.fluid._solver import FluidStepReport
+from elastoflow.fluid._state3d import FluidState3D
+from elastoflow.grid import Grid3D
+from elastoflow.linalg import Operator7Point, PoissonSolverMGPCG3D, SolveReport
+
+Array = NDArray[np.float64]
+_ADVECTION_SCHEMES = ("semi_lagrangian", "maccormack")
+# Where the point [i, j, k] of each field sits, in cells: u, v, w, then cell fields.
+_OFFSETS = ((0.0, 0.5, 0.5), (0.5, 0.0, 0.5), (0.5, 0.5, 0.0), (0.5, 0.5, 0.5))
+_CELLS = 3
+
+
+@dataclass(frozen=True)
+class _InflowSide:
+    """An inflow side's normal velocity at full ramp, signed along its axis, on its face
+    plane (shape of the component's array without its own axis)."""
+
+    side: int
+    inflow: Inflow
+    velocity: Array
+
+
+def _check_finite_positive(name: str, value: float) -> float:
+    if not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0.0:
+        raise ValueError(f"FluidSolver3D {name} = {value!r}: must be a finite number > 0")
+    return float(value)
+
+
+def _check_dt(dt: float) -> None:
+    if not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0.0):
+        raise ValueError(f"time step dt = {dt!r}: must be a finite number > 0")
+
+
+def _side_plane(array: Array, side: int, inside: bool = False) -> Array:
+    """The plane of ``array`` on ``side`` (a view), or the one just inside it."""
+    axis, high = divmod(side, 2)
+    index = (-2 if inside else -1) if high else (1 if inside else 0)
+    return array[(slice(None),) * axis + (index,)]
+
+
+class FluidSolver3D:
+    """Incompressible Navier-Stokes on the 3D MAC grid by stable fluids (METHOD.md §3).
+
+    The model (grid, density, viscosity, sides, gravity) and the numerical choices live
+    here; the fields live in a `FluidState3D` that the phases update in place. One step is:
+    advect (semi-Lagrangian, midpoint back-trace, trilinear sampling with side ghosts;
+    or MacCormack), diffuse (implicit, one 7-point solve per velocity component), apply
+    forces (gravity, side values), project (7-point pressure Poisson equation).
+
+    Guarantees: after `project`, the divergence ``h * div u`` of every cell is zero up to the
+    pressure solver's tolerance relative to its value before (for a closed box, when the
+    side fluxes balance); wall and inflow sides keep their normal velocity.
+
+    Args:
+        grid: The MAC grid.
+        density: Fluid density rho [kg/m^3], > 0.
+        viscosity: Kinematic viscosity nu [m^2/s], >= 0 (0 skips the viscosity solves).
+        boundaries: The condition on each of the six sides.
+        gravity: Gravitational acceleration (gx, gy, gz) [m/s^2].
+        pressure_solver: Solver of the pressure equation (`PoissonSolverMGPCG3D(rtol=1e-6)`
+            by default); any object with ``solve(operator, rhs, x0=None, out=None)``.
+        viscosity_solver: Solver of the viscosity systems (same default).
+        advection: "semi_lagrangian" (first order in time per step, diffusive) or
+            "maccormack" (forward and backward semi-Lagrangian steps with Selle et al.'s
+            clamped correction, second order in smooth regions).
+    """
+
+    def __init__(
+        self,
+        grid: Grid3D,
+        *,
+        density: float,
+        viscosity: float,
+        boundaries: DomainBoundaries3D,
+        gravity: tuple[float, float, float] = (0.0, 0.0, 0.0),
+        pressure_solver: PoissonSolverMGPCG3D | None = None,
+        viscosity_solver: PoissonSolverMGPCG3D | None = None,
+        advection: str = "semi_lagrangian",
+    ) -> None:
+        if not isinstance(grid, Grid3D):
+            raise ValueError(f"FluidSolver3D grid = {grid!r}: must be an elastoflow.grid.Grid3D")
+        self.grid = grid
+        self.density = _check_finite_positive("density", density)
+        if not isinstance(viscosity, (int, float)) or not math.isfinite(viscosity) or viscosity < 0:
+            raise ValueError(
+                f"FluidSolver3D viscosity = {viscosity!r}: must be a finite number >= 0")
+        self.viscosity = float(viscosity)
+        if not isinstance(boundaries, DomainBoundaries3D):
+            raise ValueError(
+                f"FluidSolver3D boundaries = {boundaries!r}: must be a DomainBoundaries3D")
+        self.boundaries = boundaries
+        try:
+            gx, gy, gz = (float(c) for c in gravity)
+        except (TypeError, ValueError):
+            raise ValueError(
+                f"FluidSolver3D gravity = {gravity!r}: must be three finite numbers") from None
+        if not all(math.isfinite(c) for c in (gx, gy, gz)):
+            raise ValueError(f"FluidSolver3D gravity = {gravity!r}: must be three finite numbers")
+        self.gravity = (gx, gy, gz)
+        if advection not in _ADVECTION_SCHEMES:
+            raise ValueError(
+                f"FluidSolver3D advection = {advection!r}: must be one of {_ADVECTION_SCHEMES}")
+        self.advection = advection
+        self.pressure_solver = pressure_solver or PoissonSolverMGPCG3D(rtol=1e-6)
+        self.viscosity_solver = viscosity_solver or PoissonSolverMGPCG3D(rtol=1e-6)
+        for name, solver in (("pressure_solver", self.pressure_solver),
+                             ("viscosity_solver", self.viscosity_solver)):
+            if not callable(getattr(solver, "solve", None)):
+                raise ValueError(f"FluidSolver3D {name} = {solver!r}: must have a solve method")
+        self._setup_sides()
+        self._allocate()
+
+    # -- set-up ------------------------------------------------------------------------------
+
+    def _setup_sides(self) -> None:
+        grid = self.grid
+        sides = self.boundaries.sides()
+        self._outflow = np.array([isinstance(s, Outflow) for s in sides], dtype=np.bool_)
+        # Tangential velocity beyond a side: held at 0 by a no-slip wall or an inflow (its
+        # velocity is normal), copied from inside (zero gradient) by free slip and outflow.
+        tangential = np.array(
+            [kernels.GHOST_DIRICHLET if isinstance(s, (WallNoSlip, Inflow))
+             else kernels.GHOST_COPY for s in sides], dtype=np.int64)
+        self._tangential_modes = tangential
+        # Each velocity component samples with the tangential ghosts on the four sides along
+        # the other axes; along its own axis its samples stay within the stored faces.
+        self._velocity_modes = np.tile(tangential, (3, 1))
+        for axis in range(3):
+            self._velocity_modes[axis, 2 * axis:2 * axis + 2] = kernels.GHOST_COPY
+        self._velocity_values = np.zeros((3, 6))
+        self._dye_modes = np.array(
+            [kernels.GHOST_VALUE if isinstance(s, Inflow) else kernels.GHOST_COPY
+             for s in sides], dtype=np.int64)
+        self._dye_values = np.array([s.dye if isinstance(s, Inflow) else 0.0 for s in sides])
+        self._inflows: list[_InflowSide] = []
+        lengths = (grid.lx, grid.ly, grid.lz)
+        counts = grid.shape_cells
+        for index, side in enumerate(sides):
+            if not isinstance(side, Inflow):
+                continue
+            axis, high = divmod(index, 2)
+            first, second = (a for a in range(3) if a != axis)
+            s = (np.arange(counts[first]) + 0.5) * grid.h / lengths[first]
+            t = (np.arange(counts[second]) + 0.5) * grid.h / lengths[second]
+            profile = inflow_profile_3d(side, s[:, None], t[None, :])
+            self._inflows.append(_InflowSide(index, side, (-1.0 if high else 1.0) * profile))
+
+    def _allocate(self) -> None:
+        grid = self.grid
+        shapes = (grid.shape_faces_x, grid.shape_faces_y, grid.shape_faces_z, grid.shape_cells)
+        # The fields at the start of the phase: advection reads them while writing the state.
+        self._sources = tuple(np.zeros(shape) for shape in shapes)
+        if self.advection == "maccormack":
+            self._forward = tuple(np.zeros(shape) for shape in shapes)
+            self._backward = tuple(np.zeros(shape) for shape in shapes)
+        self._rhs_pressure = np.zeros(grid.shape_cells)
+        self._pressure_operator: Operator7Point | None = None
+        self._viscosity_operators: dict[tuple[int, float], Operator7Point] = {}
+        self._viscosity_rhs = tuple(np.zeros(shape) for shape in shapes[:3])
+
+    # -- operators ---------------------------------------------------------------------------
+
+    def pressure_operator(self) -> Operator7Point:
+        """The operator ``A p = -h^2 lap p`` of the pressure equation (assembled once)."""
+        if self._pressure_operator is None:
+            nx, ny, nz = self.grid.shape_cells
+            diagonal = np.empty((nx, ny, nz))
+            weights = (np.empty((nx - 1, ny, nz)), np.empty((nx, ny - 1, nz)),
+                       np.empty((nx, ny, nz - 1)))
+            kernels.build_pressure_operator_3d(self._outflow, diagonal, *weights)
+            self._pressure_operator = Operator7Point(diagonal, *weights)
+        return self._pressure_operator
+
+    def _fixed_ends(self, axis: int) -> tuple[bool, bool]:
+        """Whether the boundary faces of component ``axis`` are held (not outflow)."""
+        return (not bool(self._outflow[2 * axis]), not bool(self._outflow[2 * axis + 1]))
+
+    def viscosity_system(self, field: Array, axis: int, dt: float) -> tuple[Operator7Point, Array]:
+        """``(I - nu dt lap)`` for component ``axis`` (0 u, 1 v, 2 w) and its right-hand
+        side for the values ``field``; the operator depends on dt only and is kept."""
+        c = self.viscosity * dt / self.grid.h**2
+        fixed_low, fixed_high = self._fixed_ends(axis)
+        rhs = self._viscosity_rhs[axis]
+        operator = self._viscosity_operators.get((axis, dt))
+        if operator is not None:
+            kernels.viscosity_rhs_3d(field, c, axis, fixed_low, fixed_high, rhs)
+            return operator, rhs
+        m, n, l = field.shape
+        diagonal = np.empty((m, n, l))
+        weights = (np.empty((m - 1, n, l)), np.empty((m, n - 1, l)), np.empty((m, n, l - 1)))
+        kernels.build_viscosity_system_3d(field, c, axis, fixed_low, fixed_high,
+                                          self._tangential_modes, diagonal, *weights, rhs)
+        operator = Operator7Point(diagonal, *weights)
+        # One dt at a time in practice; a changing dt must not grow the cache without end.
+        if len(self._viscosity_operators) >= 6:
+            self._viscosity_operators.clear()
+        self._viscosity_operators[(axis, dt)] = operator
+        return operator, rhs
+
+    # -- phases ------------------------------------------------------------------------------
+
+    def _check(self, state: FluidState3D, dt: float) -> None:
+        _check_dt(dt)
+        if not isinstance(state, FluidState3D):
+            raise ValueError(f"state = {state!r}: must be a FluidState3D")
+        state.check(self.grid)
+
+    def advect(self, state: FluidState3D, dt: float) -> None:
+        """Transport velocity and dye by the current velocity over ``dt`` [s], in place."""
+        self._check(state, dt)
+        fields = (*state.velocity(), state.dye)
+        for field, source in zip(fields, self._sources, strict=True):
+            kernels.copy_into_3d(field, source)
+        u, v, w = self._sources[:3]
+        h = self.grid.h
+        for index, (field, source) in enumerate(zip(fields, self._sources, strict=True)):
+            if index == _CELLS:
+                modes, values = self._dye_modes, self._dye_values
+            else:
+                modes, values = self._velocity_modes[index], self._velocity_values[index]
+            ox, oy, oz = _OFFSETS[index]
+            common = (ox, oy, oz)
+            if self.advection == "semi_lagrangian":
+                kernels.advect_kernel_3d(u, v, w, source, field, *common, dt, h,
+                                         self._velocity_modes, self._velocity_values, modes,
+                                         values)
+                continue
+            forward, backward = self._forward[index], self._backward[index]
+            kernels.advect_kernel_3d(u, v, w, source, forward, *common, dt, h,
+                                     self._velocity_modes, self._velocity_values, modes, values)
+            kernels.advect_kernel_3d(u, v, w, forward, backward, *common, -dt, h,
+                                     self._velocity_modes, self._velocity_values, modes, values)
+            kernels.maccormack_kernel_3d(u, v, w, source, forward, backward, field, *common, dt,
+                                         h, self._velocity_modes, self._velocity_values, modes,
+                                         values)
+
+    def diffuse(self, state: FluidState3D, dt: float) -> int:
+        """Implicit viscosity ``(I - nu dt lap) u = u*`` for the three components, in place.
+
+        Wall and inflow sides hold their normal velocity; tangential conditions enter through
+        ghosts (no slip: the mirror, zero at the wall; free slip and outflow: zero gradient).
+
+        Returns:
+            Iterations of the three solves together.
+        """
+        self._check(state, dt)
+        if self.viscosity == 0.0:
+            return 0
+        iterations = 0
+        for axis, field in enumerate(state.velocity()):
+            operator, rhs = self.viscosity_system(field, axis, dt)
+            _, report = self.viscosity_solver.solve(operator, rhs, x0=field, out=field)
+            iterations += int(report.iterations)
+        return iterations
+
+    def apply_forces(self, state: FluidState3D, dt: float, time: float) -> None:
+        """Gravity over ``dt`` [s] and the side values at ``time + dt`` [s], in place."""
+        _check_dt(dt)
+        for field, g in zip(state.velocity(), self.gravity, strict=True):
+            if g != 0.0:
+                kernels.add_constant_3d(field, g * dt)
+        self.apply_side_values(state, time + dt)
+
+    def apply_side_values(self, state: FluidState3D, time: float) -> None:
+        """Set the normal velocity on the six sides at ``time`` [s]: 0 on walls, the ramped
+        profile on inflow sides, the adjacent interior face's value on outflow sides (zero
+        normal gradient)."""
+        velocity = state.velocity()
+        for side in range(6):
+            field = velocity[side // 2]
+            target = _side_plane(field, side)
+            if self._outflow[side]:
+                target[...] = _side_plane(field, side, inside=True)
+            else:
+                target[...] = 0.0
+        for inflow in self._inflows:
+            target = _side_plane(velocity[inflow.side // 2], inflow.side)
+            np.multiply(inflow.velocity, inflow.inflow.ramp(time), out=target)
+
+    def project(self, state: FluidState3D, dt: float) -> SolveReport:
+        """Make the velocity divergence-free: ``lap p = (rho / dt) div u*``,
+        ``u = u* - (dt / rho) grad p``; the previous pressure is the initial guess, the new
+        one [Pa] is kept in ``state.pressure``."""
+        self._check(state, dt)
+        h = self.grid.h
+        u, v, w = state.velocity()
+        kernels.pressure_rhs_3d(u, v, w, self.density * h / dt, self._rhs_pressure)
+        _, report = self.pressure_solver.solve(self.pressure_operator(), self._rhs_pressure,
+                                               x0=state.pressure, out=state.pressure)
+        kernels.subtract_pressure_gradient_3d(u, v, w, state.pressure, dt / (self.density * h),
+                                              self._outflow)
+        return report
+
+    def step(self, state: FluidState3D, dt: float, time: float = 0.0) -> FluidStepReport:
+        """Advect, diffuse, apply forces and project: one step of ``dt`` [s] from ``time``."""
+        clock = _time.perf_counter
+        t0 = clock()
+        self.advect(state, dt)
+        t1 = clock()
+        viscosity_iterations = self.diffuse(state, dt)
+        t2 = clock()
+        self.apply_forces(state, dt, time)
+        t3 = clock()
+        report = self.project(state, dt)
+        t4 = clock()
+        return FluidStepReport(
+            pressure_iterations=int(report.iterations),
+            pressure_residual=float(report.residual),
+            pressure_converged=bool(report.converged),
+            viscosity_iterations=viscosity_iterations,
+            seconds_by_phase={"advection": t1 - t0, "viscosity": t2 - t1,
+                              "forces": t3 - t2, "pressure": t4 - t3},
+        )
+
+    def divergence(self, state: FluidState3D) -> Array:
+        """Cell divergence [1/s] of the state's velocity, shape (nx, ny, nz)."""
+        state.check(self.grid)
+        out = np.empty(self.grid.shape_cells)
+        kernels.divergence_3d(*state.velocity(), 1.0 / self.grid.h, out)
+        return out

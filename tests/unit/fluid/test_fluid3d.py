@@ -1,0 +1,169 @@
+"""The 3D fluid's exact discrete identities on small grids (16^3 and below)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from elastoflow.fluid import _kernels3d as kernels
+from elastoflow.fluid._boundaries import Inflow, Outflow, WallFreeSlip, WallMoving, WallNoSlip
+from elastoflow.fluid._boundaries3d import DomainBoundaries3D
+from elastoflow.fluid._solver3d import FluidSolver3D
+from elastoflow.fluid._state3d import FluidState3D
+from elastoflow.grid import Grid3D
+from elastoflow.linalg import PoissonSolverMGPCG3D, apply_operator_3d
+
+GRID = Grid3D(nx=12, ny=10, nz=8, h=0.1)
+OPEN_BOX = DomainBoundaries3D(left=Inflow(0.5), right=Outflow(), bottom=WallNoSlip(),
+                              top=WallFreeSlip(), back=WallNoSlip(), front=Outflow())
+
+
+def random_state(grid: Grid3D, seed: int) -> FluidState3D:
+    state = FluidState3D.zeros(grid)
+    rng = np.random.default_rng(seed)
+    for field in state.velocity():
+        field[...] = rng.standard_normal(field.shape)
+    return state
+
+
+def flux_sums(state: FluidState3D) -> np.ndarray:
+    """``h div u`` per cell: the sum of the six signed face velocities."""
+    u, v, w = state.velocity()
+    return (np.diff(u, axis=0) + np.diff(v, axis=1) + np.diff(w, axis=2))
+
+
+@pytest.mark.parametrize("boundaries", [DomainBoundaries3D.closed_box(), OPEN_BOX])
+def test_projection_leaves_divergence_under_the_tolerance(boundaries: DomainBoundaries3D) -> None:
+    solver = FluidSolver3D(GRID, density=2.0, viscosity=0.0, boundaries=boundaries,
+                           pressure_solver=PoissonSolverMGPCG3D(rtol=1e-8))
+    state = random_state(GRID, seed=1)
+    solver.apply_side_values(state, time=1.0)
+    before = flux_sums(state)
+    report = solver.project(state, dt=0.05)
+    after = flux_sums(state)
+    assert report.converged
+    # The new flux sums are the solve's residual divided by rho h / dt: bounded by rtol.
+    assert np.linalg.norm(after) <= 1e-8 * np.linalg.norm(before) * (1 + 1e-6)
+    np.testing.assert_allclose(solver.divergence(state), after / GRID.h, atol=1e-12)
+
+
+@pytest.mark.parametrize("boundaries", [DomainBoundaries3D.closed_box(), OPEN_BOX])
+def test_divergence_of_gradient_is_the_seven_point_operator(
+        boundaries: DomainBoundaries3D) -> None:
+    solver = FluidSolver3D(GRID, density=1.0, viscosity=0.0, boundaries=boundaries)
+    state = FluidState3D.zeros(GRID)
+    p = np.random.default_rng(2).standard_normal(GRID.shape_cells)
+    kernels.subtract_pressure_gradient_3d(*state.velocity(), p, 1.0, solver._outflow)
+    # u = -grad p (times h), so the flux sums are -h^2 div grad p = A p exactly.
+    np.testing.assert_allclose(flux_sums(state), apply_operator_3d(solver.pressure_operator(), p),
+                               atol=1e-12)
+
+
+def test_viscosity_operator_stencils() -> None:
+    solver = FluidSolver3D(GRID, density=1.0, viscosity=0.3, boundaries=OPEN_BOX)
+    dt = 0.01
+    c = 0.3 * dt / GRID.h**2
+    state = random_state(GRID, seed=3)
+    u = state.velocity_x
+    operator, rhs = solver.viscosity_system(u, axis=0, dt=dt)
+    # (A x)_P = diagonal_P x_P + sum w (x_P - x_nb): the diagonal holds 1 plus the boundary
+    # terms. An interior point couples to its six neighbours with c.
+    assert operator.diagonal[5, 5, 4] == 1.0
+    assert operator.weights_x[5, 5, 4] == operator.weights_y[5, 5, 4] == c
+    assert operator.weights_z[5, 5, 3] == operator.weights_x[4, 5, 4] == c
+    assert rhs[5, 5, 4] == u[5, 5, 4]
+    # Next to the no-slip bottom (j = 0): the mirror ghost (wall velocity 0) adds 2c.
+    assert operator.diagonal[5, 0, 4] == pytest.approx(1 + 2 * c)
+    # Next to the free-slip top: zero gradient, nothing added.
+    assert operator.diagonal[5, -1, 4] == 1.0
+    # The inflow face (i = 0) is held: an identity row; its neighbour gets c on the diagonal
+    # and c u_0 on the right-hand side instead of a coupling.
+    assert operator.diagonal[0, 5, 4] == 1.0 and operator.weights_x[0, 5, 4] == 0.0
+    assert operator.weights_y[0, 5, 4] == 0.0 and operator.weights_z[0, 5, 4] == 0.0
+    assert operator.diagonal[1, 5, 4] == pytest.approx(1 + c)
+    assert rhs[1, 5, 4] == pytest.approx(u[1, 5, 4] + c * u[0, 5, 4])
+    # The outflow face (i = nx) is an unknown with a zero-gradient end.
+    assert operator.diagonal[-1, 5, 4] == 1.0 and operator.weights_x[-1, 5, 4] == c
+    # The cached operator's right-hand side is the freshly assembled one.
+    again, rhs_again = solver.viscosity_system(u, axis=0, dt=dt)
+    assert again is operator
+    fresh = FluidSolver3D(GRID, density=1.0, viscosity=0.3, boundaries=OPEN_BOX)
+    np.testing.assert_array_equal(rhs_again, fresh.viscosity_system(u, axis=0, dt=dt)[1])
+
+
+@pytest.mark.parametrize("advection", ["semi_lagrangian", "maccormack"])
+def test_advecting_a_constant_changes_nothing(advection: str) -> None:
+    solver = FluidSolver3D(GRID, density=1.0, viscosity=0.0,
+                           boundaries=DomainBoundaries3D.closed_box(), advection=advection)
+    state = random_state(GRID, seed=4)
+    solver.apply_side_values(state, 0.0)
+    solver.project(state, 0.1)
+    state.dye[...] = 0.75
+    solver.advect(state, 0.05)
+    assert np.all(state.dye == 0.75)
+
+
+def test_maccormack_makes_no_new_extrema() -> None:
+    solver = FluidSolver3D(GRID, density=1.0, viscosity=0.0,
+                           boundaries=DomainBoundaries3D.closed_box(), advection="maccormack")
+    state = random_state(GRID, seed=5)
+    solver.apply_side_values(state, 0.0)
+    solver.project(state, 0.1)
+    state.dye[...] = (np.random.default_rng(6).random(GRID.shape_cells) > 0.5)
+    solver.advect(state, 0.05)
+    assert state.dye.min() >= 0.0 and state.dye.max() <= 1.0
+
+
+def test_uniform_flow_in_a_free_slip_channel_stays_uniform() -> None:
+    boundaries = DomainBoundaries3D.channel(Inflow(0.8), walls=WallFreeSlip())
+    solver = FluidSolver3D(GRID, density=1.0, viscosity=0.01, boundaries=boundaries)
+    state = FluidState3D.zeros(GRID)
+    state.velocity_x[...] = 0.8
+    for step in range(3):
+        report = solver.step(state, 0.02, time=0.02 * step)
+        assert report.pressure_converged
+    np.testing.assert_allclose(state.velocity_x, 0.8, atol=1e-12)
+    assert np.abs(state.velocity_y).max() < 1e-12 and np.abs(state.velocity_z).max() < 1e-12
+
+
+def test_fluid_at_rest_under_gravity_stays_at_rest() -> None:
+    solver = FluidSolver3D(GRID, density=1000.0, viscosity=1e-3,
+                           boundaries=DomainBoundaries3D.closed_box(), gravity=(0.0, -9.81, 0.0),
+                           pressure_solver=PoissonSolverMGPCG3D(rtol=1e-10))
+    state = FluidState3D.zeros(GRID)
+    solver.step(state, 0.01)
+    solver.step(state, 0.01)
+    assert max(np.abs(f).max() for f in state.velocity()) < 1e-8
+    # Hydrostatic: dp/dy = rho g between cell centres.
+    np.testing.assert_allclose(np.diff(state.pressure, axis=1) / GRID.h, -9810.0, rtol=1e-6)
+
+
+def test_inflow_profile_and_outflow_side_values() -> None:
+    boundaries = DomainBoundaries3D(
+        left=Inflow(2.0, profile="parabolic", ramp_time=1.0), right=WallNoSlip(),
+        bottom=WallNoSlip(), top=WallNoSlip(), back=WallNoSlip(), front=Outflow())
+    solver = FluidSolver3D(GRID, density=1.0, viscosity=0.0, boundaries=boundaries)
+    state = random_state(GRID, seed=7)
+    solver.apply_side_values(state, time=0.5)
+    inflow = state.velocity_x[0]
+    # Half the ramp at t = T/2; peak 2 at the centre, zero at the edges.
+    assert inflow.max() <= 1.0 and inflow.max() > 0.9 and inflow.min() > 0.0
+    np.testing.assert_allclose(inflow, inflow[::-1, :])
+    assert not state.velocity_x[-1].any() and not state.velocity_y[:, 0].any()
+    np.testing.assert_array_equal(state.velocity_z[:, :, -1], state.velocity_z[:, :, -2])
+
+
+def test_invalid_input_is_refused() -> None:
+    with pytest.raises(ValueError, match="moving wall"):
+        DomainBoundaries3D(left=WallMoving(1.0), right=WallNoSlip(), bottom=WallNoSlip(),
+                           top=WallNoSlip(), back=WallNoSlip(), front=WallNoSlip())
+    box = DomainBoundaries3D.closed_box()
+    with pytest.raises(ValueError, match="Grid3D"):
+        FluidSolver3D(None, density=1.0, viscosity=0.0, boundaries=box)  # type: ignore[arg-type]
+    with pytest.raises(ValueError, match="advection"):
+        FluidSolver3D(GRID, density=1.0, viscosity=0.0, boundaries=box, advection="upwind")
+    solver = FluidSolver3D(GRID, density=1.0, viscosity=0.0, boundaries=box)
+    with pytest.raises(ValueError, match="dt"):
+        solver.step(FluidState3D.zeros(GRID), 0.0)
+    with pytest.raises(ValueError, match="shape"):
+        solver.step(FluidState3D.zeros(Grid3D(nx=12, ny=10, nz=9, h=0.1)), 0.1)
