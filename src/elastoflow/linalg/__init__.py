@@ -34,7 +34,7 @@ with the same ``solve`` contract and `SolveReport`.
 """
 
 
-from elastoflow.linalg._banded import banded_sweep_layouts
+from elastoflow.linalg._banded import banded_solve_in_place, banded_sweep_layouts
 from elastoflow.linalg._jacobi import PoissonSolverJacobi
 from elastoflow.linalg._mgpcg import BandedInverse, LowRankTerm, PoissonSolverMGPCG
 from elastoflow.linalg._mgpcg3d import PoissonSolverMGPCG3D
@@ -52,5 +52,6 @@ __all__ = [
     "SolveReport",
     "apply_operator",
     "apply_operator_3d",
+    "banded_solve_in_place",
     "banded_sweep_layouts",
 ]
