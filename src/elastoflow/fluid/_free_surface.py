@@ -195,6 +195,8 @@ class FreeSurfaceWorkspace:
         self.no_values = np.zeros((1, 1))
         self.valid_u = np.zeros(grid.shape_faces_x, dtype=np.int32)
         self.valid_v = np.zeros(grid.shape_faces_y, dtype=np.int32)
+        faces = max((nx + 1) * ny, nx * (ny + 1))
+        self.frontier = (np.zeros((faces, 2), dtype=np.int64), np.zeros((faces, 2), dtype=np.int64))
         self.level_set = LevelSetWorkspace(grid)
 
 
@@ -304,8 +306,11 @@ class FreeSurfaceSolver:
         if not solved:
             kernels.mark_liquid_faces(state.level_set, workspace.valid_u, workspace.valid_v)
         layers = self.extrapolation_layers
-        kernels.extrapolate_faces(state.fluid.velocity_x, workspace.valid_u, layers, 0)
-        kernels.extrapolate_faces(state.fluid.velocity_y, workspace.valid_v, layers, 1)
+        frontier, previous = workspace.frontier
+        kernels.extrapolate_faces(state.fluid.velocity_x, workspace.valid_u, layers, 0,
+                                  frontier, previous)
+        kernels.extrapolate_faces(state.fluid.velocity_y, workspace.valid_v, layers, 1,
+                                  frontier, previous)
 
     def stable_dt(self, state: FreeSurfaceState, cfl: float, dt_max: float) -> float:
         """``min(dt_max, cfl h / max|u|)`` [s] over the faces, and at most the time in which

@@ -151,15 +151,56 @@ def mark_liquid_faces(phi, valid_u, valid_v):
             valid_v[i, j] = 1 if (low or high) else 0
 
 
+@njit(cache=True, inline="always")
+def _is_side(i, j, m, n, side_axis):
+    if side_axis == 0:
+        return i == 0 or i == m - 1
+    return j == 0 or j == n - 1
+
+
+@njit(cache=True, inline="always")
+def _try_reach(f, valid, i, j, layer, side_axis, frontier, count):
+    """Give the point (i, j), if not valid and not on a side, the mean of its neighbours
+    valid before ``layer``; append it to ``frontier``; return the new count."""
+    m, n = f.shape
+    if valid[i, j] != 0 or _is_side(i, j, m, n, side_axis):
+        return count
+    total = 0.0
+    reached = 0
+    if i > 0 and 0 < valid[i - 1, j] <= layer:
+        total += f[i - 1, j]
+        reached += 1
+    if i + 1 < m and 0 < valid[i + 1, j] <= layer:
+        total += f[i + 1, j]
+        reached += 1
+    if j > 0 and 0 < valid[i, j - 1] <= layer:
+        total += f[i, j - 1]
+        reached += 1
+    if j + 1 < n and 0 < valid[i, j + 1] <= layer:
+        total += f[i, j + 1]
+        reached += 1
+    if reached == 0:
+        return count
+    f[i, j] = total / reached
+    # Marked at once, so that a point is appended once; neighbours of this layer read only
+    # points valid at earlier layers (<= layer), not this one's (layer + 1).
+    valid[i, j] = layer + 1
+    frontier[count, 0] = i
+    frontier[count, 1] = j
+    return count + 1
+
+
 @njit(cache=True)
-def extrapolate_faces(f, valid, layers, side_axis):
+def extrapolate_faces(f, valid, layers, side_axis, frontier, previous):
     """Extend ``f`` from its valid points into the others, one layer at a time.
 
     A point not valid that has valid 4-neighbours (valid before this layer) takes their mean
     and becomes valid at this layer; after ``layers`` layers the points still not reached are
     set to 0 (air far from the liquid, never sampled by a back-trace shorter than ``layers``
     cells). Points on the domain sides normal to ``side_axis`` (0: the first index's ends, for
-    u; 1: the second's, for v) hold wall values and are never written.
+    u; 1: the second's, for v) hold wall values and are never written. After the first layer
+    only the neighbours of the last layer are visited (a breadth-first front), so the cost is
+    one pass over the grid plus the band.
 
     Args:
         f: Face values, shape (m, n), in place.
@@ -167,43 +208,36 @@ def extrapolate_faces(f, valid, layers, side_axis):
             each point was reached (``layers + 1`` for the unreached ones).
         layers: Number of layers to extend.
         side_axis: Which index's ends are domain sides.
+        frontier: int64 scratch, shape (m n, 2).
+        previous: int64 scratch, shape (m n, 2).
     """
     m, n = f.shape
-    for layer in range(1, layers + 1):
-        changed = 0
-        for i in range(m):
-            for j in range(n):
-                if valid[i, j] != 0:
-                    continue
-                if (side_axis == 0 and (i == 0 or i == m - 1)) or (
-                        side_axis == 1 and (j == 0 or j == n - 1)):
-                    continue
-                total = 0.0
-                count = 0
-                if i > 0 and 0 < valid[i - 1, j] <= layer:
-                    total += f[i - 1, j]
-                    count += 1
-                if i + 1 < m and 0 < valid[i + 1, j] <= layer:
-                    total += f[i + 1, j]
-                    count += 1
-                if j > 0 and 0 < valid[i, j - 1] <= layer:
-                    total += f[i, j - 1]
-                    count += 1
-                if j + 1 < n and 0 < valid[i, j + 1] <= layer:
-                    total += f[i, j + 1]
-                    count += 1
-                if count > 0:
-                    f[i, j] = total / count
-                    valid[i, j] = layer + 1
-                    changed += 1
-        if changed == 0:
-            break
+    count = 0
     for i in range(m):
         for j in range(n):
-            if valid[i, j] == 0:
-                if (side_axis == 0 and (i == 0 or i == m - 1)) or (
-                        side_axis == 1 and (j == 0 or j == n - 1)):
-                    continue
+            count = _try_reach(f, valid, i, j, 1, side_axis, frontier, count)
+    for layer in range(2, layers + 1):
+        if count == 0:
+            break
+        last = count
+        for k in range(last):
+            previous[k, 0] = frontier[k, 0]
+            previous[k, 1] = frontier[k, 1]
+        count = 0
+        for k in range(last):
+            i = previous[k, 0]
+            j = previous[k, 1]
+            if i > 0:
+                count = _try_reach(f, valid, i - 1, j, layer, side_axis, frontier, count)
+            if i + 1 < m:
+                count = _try_reach(f, valid, i + 1, j, layer, side_axis, frontier, count)
+            if j > 0:
+                count = _try_reach(f, valid, i, j - 1, layer, side_axis, frontier, count)
+            if j + 1 < n:
+                count = _try_reach(f, valid, i, j + 1, layer, side_axis, frontier, count)
+    for i in range(m):
+        for j in range(n):
+            if valid[i, j] == 0 and not _is_side(i, j, m, n, side_axis):
                 f[i, j] = 0.0
                 valid[i, j] = layers + 1
 
@@ -296,7 +330,14 @@ def _is_interface(phi, i, j):
 
 @njit(cache=True, inline="always")
 def _gradient_norm(phi, i, j, h):
-    """|grad phi| by central differences (one-sided on the domain's edge)."""
+    """|grad phi| by central differences (one-sided on the domain's edge).
+
+    Measured alternatives, in the dam break at a / 16 without volume correction (area change
+    at T = 9.5, after the surge has run up the far wall): these central differences +8.5 %;
+    with |grad phi| floored at 0.5 +20 %; per axis the largest of the central and one-sided
+    differences (Russo & Smereka 2000) +318 %. Thin sheets, one or two cells thick, decide
+    it; the global volume correction removes the drift whichever is used.
+    """
     nx, ny = phi.shape
     i0, i1 = max(i - 1, 0), min(i + 1, nx - 1)
     j0, j1 = max(j - 1, 0), min(j + 1, ny - 1)
@@ -346,7 +387,10 @@ def redistance_fast_sweeping(phi, h, rounds, out, fixed):
     they become ``phi / |grad phi|`` (central differences), which leaves a signed distance
     unchanged to round-off. The others take the first-order upwind distance from them, by
     Gauss-Seidel sweeps in the four diagonal orders, ``rounds`` times (one round is exact for
-    a straight interface); signs are those of ``phi``.
+    a straight interface); signs are those of ``phi``. The whole grid is swept: leaving
+    the cells farther than 8 h from the surface at their advected values (a narrow band,
+    5.2 -> 1.2 ms at 256x128) let stale values far from the surface turn into liquid in the
+    dam break's splash (+720 % of the liquid area without volume correction, against +8.5 %).
 
     Args:
         phi: Level set [m], shape (nx, ny).

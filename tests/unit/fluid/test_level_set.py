@@ -113,7 +113,7 @@ def test_redistancing_an_oblique_surface(angle: float) -> None:
 
 def test_redistancing_rescales_a_stretched_level_set() -> None:
     """3 x (signed distance of a circle) becomes that distance again: exactly at the cells
-    next to the surface up to the central difference's error (2 % of h here), to first order elsewhere."""
+    next to the surface up to the central differences' error, to first order elsewhere."""
     grid = Grid2D(40, 40, 1.0 / 40)
     distance = level_set_from_function(grid, lambda x, y: np.hypot(x - 0.5, y - 0.5) - 0.3)
     out = np.empty_like(distance)
@@ -179,7 +179,8 @@ def test_extrapolation_extends_a_constant() -> None:
     state.fluid.velocity_x[-1, :] = 0.0
     valid_u = np.zeros(grid.shape_faces_x, dtype=np.int32)
     valid_u[1:-1, :4] = 1
-    kernels.extrapolate_faces(state.fluid.velocity_x, valid_u, 3, 0)
+    scratch = np.zeros((valid_u.size, 2), dtype=np.int64)
+    kernels.extrapolate_faces(state.fluid.velocity_x, valid_u, 3, 0, scratch, scratch.copy())
     assert np.all(state.fluid.velocity_x[1:-1, :7] == 0.25)
     assert np.all(state.fluid.velocity_x[1:-1, 7:] == 0.0)  # beyond the layers
     assert np.all(state.fluid.velocity_x[[0, -1], :] == 0.0)  # walls untouched
