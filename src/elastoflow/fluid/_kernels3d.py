@@ -44,27 +44,29 @@ def _ghost(mode, value, inside):
 
 
 @njit(cache=True)
-def _field_value(f, i, j, k, modes, values):
-    """``f[i, j, k]``, or a ghost made from the nearest inside value beyond a side."""
+def _field_value(f, i, j, k, modes, values, row):
+    """``f[i, j, k]``, or a ghost made from the nearest inside value beyond a side, with the
+    modes and values of ``modes[row]`` / ``values[row]`` (read in place: a row view would
+    cost a reference count per sample)."""
     m, n, l = f.shape
     value = f[min(max(i, 0), m - 1), min(max(j, 0), n - 1), min(max(k, 0), l - 1)]
     if i < 0:
-        value = _ghost(modes[SIDE_LEFT], values[SIDE_LEFT], value)
+        value = _ghost(modes[row, SIDE_LEFT], values[row, SIDE_LEFT], value)
     elif i >= m:
-        value = _ghost(modes[SIDE_RIGHT], values[SIDE_RIGHT], value)
+        value = _ghost(modes[row, SIDE_RIGHT], values[row, SIDE_RIGHT], value)
     if j < 0:
-        value = _ghost(modes[SIDE_BOTTOM], values[SIDE_BOTTOM], value)
+        value = _ghost(modes[row, SIDE_BOTTOM], values[row, SIDE_BOTTOM], value)
     elif j >= n:
-        value = _ghost(modes[SIDE_TOP], values[SIDE_TOP], value)
+        value = _ghost(modes[row, SIDE_TOP], values[row, SIDE_TOP], value)
     if k < 0:
-        value = _ghost(modes[SIDE_BACK], values[SIDE_BACK], value)
+        value = _ghost(modes[row, SIDE_BACK], values[row, SIDE_BACK], value)
     elif k >= l:
-        value = _ghost(modes[SIDE_FRONT], values[SIDE_FRONT], value)
+        value = _ghost(modes[row, SIDE_FRONT], values[row, SIDE_FRONT], value)
     return value
 
 
 @njit(cache=True, inline="always")
-def _sample(f, fx, fy, fz, modes, values):
+def _sample(f, fx, fy, fz, modes, values, row):
     """Trilinear sample of ``f`` at index coordinates ``(fx, fy, fz)`` with side ghosts."""
     i0 = int(math.floor(fx))
     j0 = int(math.floor(fy))
@@ -80,20 +82,20 @@ def _sample(f, fx, fy, fz, modes, values):
                      _lerp(f[i0, j0 + 1, k0 + 1], f[i0 + 1, j0 + 1, k0 + 1], a), b)
         return _lerp(low, high, c)
     low = _lerp(
-        _lerp(_field_value(f, i0, j0, k0, modes, values),
-              _field_value(f, i0 + 1, j0, k0, modes, values), a),
-        _lerp(_field_value(f, i0, j0 + 1, k0, modes, values),
-              _field_value(f, i0 + 1, j0 + 1, k0, modes, values), a), b)
+        _lerp(_field_value(f, i0, j0, k0, modes, values, row),
+              _field_value(f, i0 + 1, j0, k0, modes, values, row), a),
+        _lerp(_field_value(f, i0, j0 + 1, k0, modes, values, row),
+              _field_value(f, i0 + 1, j0 + 1, k0, modes, values, row), a), b)
     high = _lerp(
-        _lerp(_field_value(f, i0, j0, k0 + 1, modes, values),
-              _field_value(f, i0 + 1, j0, k0 + 1, modes, values), a),
-        _lerp(_field_value(f, i0, j0 + 1, k0 + 1, modes, values),
-              _field_value(f, i0 + 1, j0 + 1, k0 + 1, modes, values), a), b)
+        _lerp(_field_value(f, i0, j0, k0 + 1, modes, values, row),
+              _field_value(f, i0 + 1, j0, k0 + 1, modes, values, row), a),
+        _lerp(_field_value(f, i0, j0 + 1, k0 + 1, modes, values, row),
+              _field_value(f, i0 + 1, j0 + 1, k0 + 1, modes, values, row), a), b)
     return _lerp(low, high, c)
 
 
 @njit(cache=True, inline="always")
-def _corner_range(f, fx, fy, fz, modes, values):
+def _corner_range(f, fx, fy, fz, modes, values, row):
     """Smallest and largest of the eight values around index coordinates ``(fx, fy, fz)``."""
     i0 = int(math.floor(fx))
     j0 = int(math.floor(fy))
@@ -102,7 +104,7 @@ def _corner_range(f, fx, fy, fz, modes, values):
     high = -math.inf
     for corner in range(8):
         value = _field_value(f, i0 + (corner & 1), j0 + ((corner >> 1) & 1),
-                             k0 + (corner >> 2), modes, values)
+                             k0 + (corner >> 2), modes, values, row)
         low = min(low, value)
         high = max(high, value)
     return low, high
@@ -113,9 +115,9 @@ def _velocity_at(u, v, w, x, y, z, inv_h, modes, values):
     """Velocity [m/s] at position ``(x, y, z)`` [m] (relative to the origin); ``modes`` and
     ``values`` are (3, 6): the side ghosts of u, v and w."""
     return (
-        _sample(u, x * inv_h, y * inv_h - 0.5, z * inv_h - 0.5, modes[0], values[0]),
-        _sample(v, x * inv_h - 0.5, y * inv_h, z * inv_h - 0.5, modes[1], values[1]),
-        _sample(w, x * inv_h - 0.5, y * inv_h - 0.5, z * inv_h, modes[2], values[2]),
+        _sample(u, x * inv_h, y * inv_h - 0.5, z * inv_h - 0.5, modes, values, 0),
+        _sample(v, x * inv_h - 0.5, y * inv_h, z * inv_h - 0.5, modes, values, 1),
+        _sample(w, x * inv_h - 0.5, y * inv_h - 0.5, z * inv_h, modes, values, 2),
     )
 
 
@@ -152,7 +154,7 @@ def _make_advect(loop):
                                          (k + offset_z) * h, dt, inv_h, lx, ly, lz,
                                          velocity_modes, velocity_values)
                     out[i, j, k] = _sample(source, x * inv_h - offset_x, y * inv_h - offset_y,
-                                           z * inv_h - offset_z, modes, values)
+                                           z * inv_h - offset_z, modes, values, 0)
     return kernel
 
 
@@ -167,7 +169,7 @@ def advect_kernel_3d(u, v, w, source, out, offset_x, offset_y, offset_z, dt, h,
     ``source`` and ``out`` have the same shape; the point ``[i, j, k]`` sits at
     ``((i + offset_x) h, (j + offset_y) h, (k + offset_z) h)`` (offsets 0 or 0.5: u
     (0, .5, .5), v (.5, 0, .5), w (.5, .5, 0), cells (.5, .5, .5)). ``modes`` / ``values``
-    (6,) are ``source``'s side ghosts, ``velocity_modes`` / ``velocity_values`` (3, 6) those
+    (1, 6) are ``source``'s side ghosts, ``velocity_modes`` / ``velocity_values`` (3, 6) those
     of u, v, w. A negative ``dt`` traces forwards (MacCormack's backward step).
     """
     if out.size > PARALLEL_MINIMUM_3D:
@@ -197,7 +199,7 @@ def _make_maccormack(loop):
                                          velocity_modes, velocity_values)
                     low, high = _corner_range(source, x * inv_h - offset_x,
                                               y * inv_h - offset_y, z * inv_h - offset_z,
-                                              modes, values)
+                                              modes, values, 0)
                     out[i, j, k] = _clamp(corrected, low, high)
     return kernel
 

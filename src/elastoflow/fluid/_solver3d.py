@@ -156,10 +156,11 @@ class FluidSolver3D:
         for axis in range(3):
             self._velocity_modes[axis, 2 * axis:2 * axis + 2] = kernels.GHOST_COPY
         self._velocity_values = np.zeros((3, 6))
+        # (1, 6): the kernels read one row of a ghost table.
         self._dye_modes = np.array(
-            [kernels.GHOST_VALUE if isinstance(s, Inflow) else kernels.GHOST_COPY
-             for s in sides], dtype=np.int64)
-        self._dye_values = np.array([s.dye if isinstance(s, Inflow) else 0.0 for s in sides])
+            [[kernels.GHOST_VALUE if isinstance(s, Inflow) else kernels.GHOST_COPY
+              for s in sides]], dtype=np.int64)
+        self._dye_values = np.array([[s.dye if isinstance(s, Inflow) else 0.0 for s in sides]])
         self._inflows: list[_InflowSide] = []
         lengths = (grid.lx, grid.ly, grid.lz)
         counts = grid.shape_cells
@@ -268,7 +269,8 @@ class FluidSolver3D:
             if index == _CELLS:
                 modes, values = self._dye_modes, self._dye_values
             else:
-                modes, values = self._velocity_modes[index], self._velocity_values[index]
+                modes = self._velocity_modes[index:index + 1]
+                values = self._velocity_values[index:index + 1]
             ox, oy, oz = _OFFSETS[index]
             common = (ox, oy, oz)
             if self.advection == "semi_lagrangian":

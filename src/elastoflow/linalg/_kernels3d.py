@@ -615,3 +615,124 @@ def masked_copy_kernel_3d(values, active, out):
     if values.size > PARALLEL_MINIMUM_3D:
         return _masked_copy_parallel(values, active, out)
     return _masked_copy_serial(values, active, out)
+
+
+# Operators whose face weights are all equal (the pressure operator without bodies, and its
+# coarse levels) are applied with that one number: the weight arrays are half the memory
+# traffic of a Gauss-Seidel sweep, and the sweeps are memory-bound.
+NOT_UNIFORM = -1.0
+
+
+@njit(cache=True)
+def uniform_weight_kernel(weights_x, weights_y, weights_z):
+    """The common value of all weights when they are equal and positive, else `NOT_UNIFORM`."""
+    value = NOT_UNIFORM
+    for weights in (weights_x, weights_y, weights_z):
+        for w in weights.ravel():
+            if value == NOT_UNIFORM:
+                value = w
+            if w != value or w <= 0.0:
+                return NOT_UNIFORM
+    return value
+
+
+@njit(cache=True, inline="always")
+def _neighbour_values(x, i, j, k, m, n, l):
+    """Sum of ``x`` over the in-range neighbours of ``[i, j, k]``."""
+    summed = 0.0
+    if i > 0:
+        summed += x[i - 1, j, k]
+    if i < m - 1:
+        summed += x[i + 1, j, k]
+    if j > 0:
+        summed += x[i, j - 1, k]
+    if j < n - 1:
+        summed += x[i, j + 1, k]
+    if k > 0:
+        summed += x[i, j, k - 1]
+    if k < l - 1:
+        summed += x[i, j, k + 1]
+    return summed
+
+
+def _make_smooth_uniform(loop):
+    def kernel(x, b, inverse, weight, colour):
+        m, n, l = x.shape
+        for i in loop(m):
+            for j in range(n):
+                for k in range((colour + i + j) & 1, l, 2):
+                    x[i, j, k] = (b[i, j, k] + weight * _neighbour_values(x, i, j, k, m, n, l)
+                                  ) * inverse[i, j, k]
+    return kernel
+
+
+_smooth_uniform_serial, _smooth_uniform_parallel = serial_and_parallel(_make_smooth_uniform)
+
+
+@njit(cache=True)
+def smooth_uniform_kernel_3d(x, b, inverse, weight, colour):
+    """`smooth_kernel_3d` for an operator whose weights all equal ``weight`` (every point
+    active)."""
+    if x.size > PARALLEL_MINIMUM_3D:
+        return _smooth_uniform_parallel(x, b, inverse, weight, colour)
+    return _smooth_uniform_serial(x, b, inverse, weight, colour)
+
+
+def _make_restrict_uniform(loop):
+    def kernel(x, b, total, weight, coarse_b):
+        m, n, l = x.shape
+        mc, nc, lc = coarse_b.shape
+        for ic in loop(mc):
+            for jc in range(nc):
+                for kc in range(lc):
+                    coarse_b[ic, jc, kc] = 0.0
+            for i in range(2 * ic, min(2 * ic + 2, m)):
+                for j in range(n):
+                    jc = j >> 1
+                    for k in range(l):
+                        coarse_b[ic, jc, k >> 1] += (
+                            b[i, j, k] - total[i, j, k] * x[i, j, k]
+                            + weight * _neighbour_values(x, i, j, k, m, n, l))
+    return kernel
+
+
+_restrict_uniform_serial, _restrict_uniform_parallel = serial_and_parallel(
+    _make_restrict_uniform)
+
+
+@njit(cache=True)
+def restrict_residual_uniform_kernel_3d(x, b, total, weight, coarse_b):
+    """`restrict_residual_kernel_3d` for an operator whose weights all equal ``weight``."""
+    if x.size > PARALLEL_MINIMUM_3D:
+        return _restrict_uniform_parallel(x, b, total, weight, coarse_b)
+    return _restrict_uniform_serial(x, b, total, weight, coarse_b)
+
+
+def _make_apply_dot_uniform(loop):
+    def kernel(total, weight, p, q):
+        m, n, l = p.shape
+        dot = 0.0
+        for i in loop(m):
+            plane = 0.0
+            for j in range(n):
+                for k in range(l):
+                    value = (total[i, j, k] * p[i, j, k]
+                             - weight * _neighbour_values(p, i, j, k, m, n, l))
+                    q[i, j, k] = value
+                    plane += value * p[i, j, k]
+            dot += plane
+        return dot
+    return kernel
+
+
+_apply_dot_uniform_serial, _apply_dot_uniform_parallel = serial_and_parallel(
+    _make_apply_dot_uniform, fastmath=_REDUCTION_MATH)
+
+
+@njit(cache=True)
+def apply_dot_uniform_kernel_3d(total, weight, p, q):
+    """`apply_dot_kernel_3d` for an operator whose weights all equal ``weight``, with its
+    ``total = diagonal + sum of weights``."""
+    if p.size > PARALLEL_MINIMUM_3D:
+        return _apply_dot_uniform_parallel(total, weight, p, q)
+    return _apply_dot_uniform_serial(total, weight, p, q)

@@ -20,8 +20,10 @@ from elastoflow.linalg._kernels import (
 )
 from elastoflow.linalg._kernels3d import (
     BLACK,
+    NOT_UNIFORM,
     RED,
     apply_dot_kernel_3d,
+    apply_dot_uniform_kernel_3d,
     coarsen_kernel_3d,
     dense_matrix_kernel_3d,
     dense_solve_kernel,
@@ -34,8 +36,11 @@ from elastoflow.linalg._kernels3d import (
     prolong_add_kernel_3d,
     residual_kernel_3d,
     restrict_residual_kernel_3d,
+    restrict_residual_uniform_kernel_3d,
     smooth_kernel_3d,
+    smooth_uniform_kernel_3d,
     step_kernel_3d,
+    uniform_weight_kernel,
 )
 from elastoflow.linalg._operator import SolveReport
 from elastoflow.linalg._operator3d import Operator7Point
@@ -87,7 +92,8 @@ class _NullSpace3D:
 @dataclass
 class _Level:
     """One level's operator (``total = diagonal + sum of weights``, its inverse, 0 at inactive
-    points) and its correction ``x`` and right-hand side ``b``."""
+    points; ``uniform``: the one value of all its weights, or `NOT_UNIFORM`) and its
+    correction ``x`` and right-hand side ``b``."""
 
     diagonal: NDArray[np.float64]
     weights_x: NDArray[np.float64]
@@ -97,6 +103,7 @@ class _Level:
     inverse: NDArray[np.float64]
     x: NDArray[np.float64]
     b: NDArray[np.float64]
+    uniform: float = NOT_UNIFORM
 
     @classmethod
     def zeros(cls, shape: Shape3) -> _Level:
@@ -104,6 +111,23 @@ class _Level:
         return cls(np.zeros(shape), np.zeros((m - 1, n, l)), np.zeros((m, n - 1, l)),
                    np.zeros((m, n, l - 1)), np.zeros(shape), np.zeros(shape), np.zeros(shape),
                    np.zeros(shape))
+
+    def smooth(self, x: NDArray[np.float64], b: NDArray[np.float64], colour: int) -> None:
+        """One red or black half sweep of Gauss-Seidel on this level."""
+        if self.uniform != NOT_UNIFORM:
+            smooth_uniform_kernel_3d(x, b, self.inverse, self.uniform, colour)
+        else:
+            smooth_kernel_3d(x, b, self.inverse, self.weights_x, self.weights_y,
+                             self.weights_z, colour)
+
+    def restrict(self, x: NDArray[np.float64], b: NDArray[np.float64],
+                 coarse_b: NDArray[np.float64]) -> None:
+        """``coarse_b`` = the residual of this level summed over each coarse point."""
+        if self.uniform != NOT_UNIFORM:
+            restrict_residual_uniform_kernel_3d(x, b, self.total, self.uniform, coarse_b)
+        else:
+            restrict_residual_kernel_3d(x, b, self.total, self.weights_x, self.weights_y,
+                                        self.weights_z, coarse_b)
 
 
 def _level_shapes(shape: Shape3) -> list[Shape3]:
@@ -148,6 +172,8 @@ class _Hierarchy3D:
             fine.inverse, active,
         )
         self.active = active
+        fine.uniform = float(uniform_weight_kernel(fine.weights_x, fine.weights_y,
+                                                   fine.weights_z))
         # A strongly diagonal operator (implicit viscosity) needs no coarse correction.
         self.coarse = len(self.levels) == 1 or dominance < _SMOOTHER_ONLY_DOMINANCE
         if self.coarse:
@@ -165,6 +191,8 @@ class _Hierarchy3D:
             load_operator_kernel_3d(coarse.diagonal, coarse.weights_x, coarse.weights_y,
                                     coarse.weights_z, coarse.total, coarse.inverse,
                                     np.empty(coarse.total.shape, dtype=np.bool_))
+            coarse.uniform = float(uniform_weight_kernel(coarse.weights_x, coarse.weights_y,
+                                                         coarse.weights_z))
         last = self.levels[-1]
         dense_matrix_kernel_3d(last.diagonal, last.weights_x, last.weights_y, last.weights_z,
                                self.dense)
@@ -195,14 +223,10 @@ class _Hierarchy3D:
                 break
             fill_kernel_3d(x, 0.0)
             for _ in range(sweeps):
-                smooth_kernel_3d(x, b, level.inverse, level.weights_x, level.weights_y,
-                                 level.weights_z, RED)
-                smooth_kernel_3d(x, b, level.inverse, level.weights_x, level.weights_y,
-                                 level.weights_z, BLACK)
+                level.smooth(x, b, RED)
+                level.smooth(x, b, BLACK)
             if index < count - 1:
-                restrict_residual_kernel_3d(x, b, level.total, level.weights_x,
-                                            level.weights_y, level.weights_z,
-                                            levels[index + 1].b)
+                level.restrict(x, b, levels[index + 1].b)
         start = count - 2 if self.coarse else 0
         for index in range(start, -1, -1):
             level = levels[index]
@@ -211,10 +235,8 @@ class _Hierarchy3D:
             if self.coarse:
                 prolong_add_kernel_3d(levels[index + 1].x, level.inverse, x)
             for _ in range(sweeps):
-                smooth_kernel_3d(x, b, level.inverse, level.weights_x, level.weights_y,
-                                 level.weights_z, BLACK)
-                smooth_kernel_3d(x, b, level.inverse, level.weights_x, level.weights_y,
-                                 level.weights_z, RED)
+                level.smooth(x, b, BLACK)
+                level.smooth(x, b, RED)
 
 
 @dataclass(frozen=True)
@@ -337,6 +359,7 @@ class PoissonSolverMGPCG3D:
         a = (operator.diagonal, operator.weights_x, operator.weights_y, operator.weights_z)
         x, b, r, p, q, z = (hierarchy.x, hierarchy.b, hierarchy.r, hierarchy.p, hierarchy.q,
                             hierarchy.z)
+        fine = hierarchy.levels[0]
         iterations = 0
         pq = 1.0
         squared = residual_kernel_3d(*a, x, b, r)
@@ -346,7 +369,10 @@ class PoissonSolverMGPCG3D:
             p[...] = z
             recursive = squared
             while recursive > threshold and iterations < self.max_iterations:
-                pq = apply_dot_kernel_3d(*a, p, q)
+                if fine.uniform != NOT_UNIFORM:
+                    pq = apply_dot_uniform_kernel_3d(fine.total, fine.uniform, p, q)
+                else:
+                    pq = apply_dot_kernel_3d(*a, p, q)
                 if not (pq > 0.0):
                     break
                 alpha = rz / pq
