@@ -81,8 +81,7 @@ def test_level_set_transport_is_second_order() -> None:
 
 
 def test_dam_break_example_runs(tmp_path) -> None:
-    """examples/free_surface_dam_break.py, a few steps: the picture is written and the
-    liquid area is kept."""
+    """examples/free_surface_dam_break.py runs a few steps and writes its picture."""
     import importlib.util
     from pathlib import Path
 

@@ -694,15 +694,22 @@ not done. The reference set-up is two-phase (density ratio 10); here the light p
 void, so Prosperetti's tables (withheld anyway) would not apply directly; Lamb's mode is the
 matching single-phase theory.
 
-**Dam break: the front runs ahead of Martin & Moyce.** It leaves the experiment's scatter
-after T ~ 1 and is 0.7 a ahead at T = 3.3; the two resolutions agree with each other to
-0.02 a, so this is not a resolution effect. Its speed between T = 3 and 7 is 2.0-2.1 a per
-unit of T, which is Ritter's inviscid shallow-water front (2 sqrt(g H), H = 2 a), while the
-experiment's front moves at about 1.6. The model here is inviscid in effect (water's
-viscosity, no turbulence, no wall friction at this resolution: the no-slip floor acts only
-through nu = 1e-6 m^2/s), and the experiment's front is slowed by the floor's friction and
-the thin tip; inviscid codes are known to run ahead of this data in the same way. The front
-reaches the far wall (16 a) at T ~ 7.9, so the rows after it are not compared.
+**Dam break: the front runs ahead of Martin & Moyce, and of Ritter.** The front (the zero
+of phi along the bottom row of cells) leaves the experiment's scatter after T ~ 1 and is
+0.57 a ahead at T = 3.3; a / 16 and a / 32 agree to 0.02 a, so this is not a resolution
+effect. Between T = 3 and 7 it moves at 2.30 a per unit of T, above even Ritter's inviscid
+shallow-water front (2 sqrt(g H), H = 2 a, i.e. 2 in these units), while the experiment's
+moves at about 1.6. What runs ahead is a film thinner than a cell: measured at a / 16, the
+point where the liquid is 0.02 a or 0.05 a deep (about a third to four fifths of a cell)
+moves at 2.30 too, but the point where it is 0.1 a deep moves at 1.45, near Ritter's 1.33
+for that depth (h / H = (2 - x / (c t))^2 / 9). So the bulk behind the tip follows shallow-
+water theory, and the sub-cell tip is carried too fast: its pressure is ~0 and its velocity
+comes from the faces around it and the extrapolation, a numerical film rather than
+physics. The experiment's front is further slowed by the floor's friction (here nu = 1e-6
+m^2/s, no turbulence or wall model, so effectively inviscid). Not fixed: a minimum film
+thickness (cells thinner than a fraction of h dropped into the air) or marker particles
+would be the next things to try. The front reaches the far wall (16 a) at T ~ 7.9, so the
+rows after it are not meaningful.
 
 **Volume.** With the global correction the liquid area is kept to round-off at every step
 (this is the measure the correction keeps: the cell fractions clamp(1/2 - phi / h, 0, 1)).
