@@ -736,3 +736,31 @@ def apply_dot_uniform_kernel_3d(total, weight, p, q):
     if p.size > PARALLEL_MINIMUM_3D:
         return _apply_dot_uniform_parallel(total, weight, p, q)
     return _apply_dot_uniform_serial(total, weight, p, q)
+
+
+def _make_jacobi(loop):
+    def kernel(r, inverse, z):
+        m, n, l = r.shape
+        dot = 0.0
+        for i in loop(m):
+            plane = 0.0
+            for j in range(n):
+                for k in range(l):
+                    value = r[i, j, k] * inverse[i, j, k]
+                    z[i, j, k] = value
+                    plane += value * r[i, j, k]
+            dot += plane
+        return dot
+    return kernel
+
+
+_jacobi_serial, _jacobi_parallel = serial_and_parallel(_make_jacobi, fastmath=_REDUCTION_MATH)
+
+
+@njit(cache=True)
+def jacobi_kernel_3d(r, inverse, z):
+    """``z = r / D`` (Jacobi preconditioner, ``inverse = 1 / D``, 0 at inactive points);
+    returns ``r . z``."""
+    if r.size > PARALLEL_MINIMUM_3D:
+        return _jacobi_parallel(r, inverse, z)
+    return _jacobi_serial(r, inverse, z)

