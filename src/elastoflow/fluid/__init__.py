@@ -24,6 +24,8 @@ from elastoflow.fluid._free_surface import (
     FreeSurfaceState,
     FreeSurfaceStepReport,
     GhostFluidProjection,
+    ViscosityStressFree,
+    ViscosityWholeGrid,
 )
 from elastoflow.fluid._interior import InteriorBoundary
 from elastoflow.fluid._kernels import OPEN_MIN
@@ -57,6 +59,8 @@ __all__ = [
     "LevelSetTransport",
     "Outflow",
     "RedistanceFastSweeping",
+    "ViscosityStressFree",
+    "ViscosityWholeGrid",
     "WallFreeSlip",
     "WallMoving",
     "WallNoSlip",

@@ -184,6 +184,63 @@ class GhostFluidProjection:
         return report
 
 
+@dataclass(frozen=True)
+class ViscosityWholeGrid:
+    """The fluid's own implicit viscosity (`FluidSolver.diffuse`) over the whole grid, the
+    air holding the extrapolated velocity: at the surface this acts as a zero normal
+    gradient of each velocity component, not as a stress-free surface (a potential-flow
+    wave loses about half the energy it should; docs/validation/free_surface.md)."""
+
+    def diffuse(self, solver: FluidSolver, state: FluidState, level_set: FloatArray,
+                dt: float, workspace: FreeSurfaceWorkspace) -> int:
+        """Diffuse ``state``'s velocity over ``dt`` [s]; returns the solver's iterations."""
+        return solver.diffuse(state, dt)
+
+
+@dataclass(frozen=True)
+class ViscosityStressFree:
+    """Implicit viscosity (backward Euler) on the liquid's faces only, with a stress-free
+    surface: the air faces next to the liquid enter as fixed ghost values that make the
+    surface's shear stress zero (Harlow & Welch 1965; `stress_free_ghosts`), walls as in the
+    fluid (no-slip reflected, free-slip zero gradient, moving walls their velocity)."""
+
+    def diffuse(self, solver: FluidSolver, state: FluidState, level_set: FloatArray,
+                dt: float, workspace: FreeSurfaceWorkspace) -> int:
+        """Diffuse the liquid's velocity over ``dt`` [s]; air faces keep their values.
+        Returns the iterations of the two solves."""
+        if solver.viscosity == 0.0:
+            return 0
+        grid = solver.grid
+        c = solver.viscosity * dt / grid.h ** 2
+        u, v = state.velocity_x, state.velocity_y
+        kernels.mark_liquid_faces(level_set, workspace.valid_u, workspace.valid_v)
+        ghost_u, ghost_v = workspace.ghosts
+        kernels.stress_free_ghosts(u, v, workspace.valid_u, workspace.valid_v, ghost_u, ghost_v)
+        left, right, bottom, top = solver.boundaries.sides()
+        iterations = 0
+        for field_values, valid, ghost, axis, low, high, arrays in (
+                (u, workspace.valid_u, ghost_u, 0, bottom, top, workspace.viscosity_u),
+                (v, workspace.valid_v, ghost_v, 1, left, right, workspace.viscosity_v)):
+            diagonal, weights_x, weights_y, rhs = arrays
+            kernels.build_liquid_viscosity(
+                field_values, valid, ghost, c, axis, _wall_factor(low), _wall_factor(high),
+                _wall_velocity(low), _wall_velocity(high), diagonal, weights_x, weights_y, rhs)
+            operator = Operator5Point(diagonal, weights_x, weights_y)
+            solution, report = solver.viscosity_solver.solve(operator, rhs, x0=field_values)
+            np.copyto(field_values, solution, where=diagonal > 0.0)
+            iterations += int(report.iterations)
+        return iterations
+
+
+def _wall_factor(side: object) -> float:
+    """2 for a wall that holds the tangential velocity (the ghost reflects), 0 for free slip."""
+    return 0.0 if isinstance(side, WallFreeSlip) else 2.0
+
+
+def _wall_velocity(side: object) -> float:
+    return float(side.velocity) if isinstance(side, WallMoving) else 0.0
+
+
 class FreeSurfaceWorkspace:
     """Scratch arrays of a `FreeSurfaceSolver` on one grid (allocated once)."""
 
@@ -198,6 +255,10 @@ class FreeSurfaceWorkspace:
         faces = max((nx + 1) * ny, nx * (ny + 1))
         self.frontier = (np.zeros((faces, 2), dtype=np.int64), np.zeros((faces, 2), dtype=np.int64))
         self.level_set = LevelSetWorkspace(grid)
+        self.ghosts = (np.zeros(grid.shape_faces_x), np.zeros(grid.shape_faces_y))
+        self.viscosity_u, self.viscosity_v = (
+            (np.zeros((m, n)), np.zeros((m - 1, n)), np.zeros((m, n - 1)), np.zeros((m, n)))
+            for m, n in (grid.shape_faces_x, grid.shape_faces_y))
 
 
 @dataclass(frozen=True)
@@ -247,6 +308,9 @@ class FreeSurfaceSolver:
             pressure or BDF2 (they assume one pressure over the whole grid).
         projection: The free-surface pressure projection.
         transport: How the level set moves.
+        viscosity: How viscosity acts: `ViscosityStressFree` (default; on the liquid's faces,
+            zero shear stress at the surface) or `ViscosityWholeGrid` (the fluid's own
+            `diffuse` over the whole grid, air included).
         extrapolation_layers: Layers of faces the velocity is extended into the air; must
             exceed the CFL number of the step, since back-traces sample that far.
     """
@@ -257,6 +321,7 @@ class FreeSurfaceSolver:
         *,
         projection: GhostFluidProjection | None = None,
         transport: LevelSetTransport | None = None,
+        viscosity: ViscosityWholeGrid | ViscosityStressFree | None = None,
         extrapolation_layers: int = 5,
     ) -> None:
         if not isinstance(fluid, FluidSolver):
@@ -283,6 +348,7 @@ class FreeSurfaceSolver:
         self.grid = fluid.grid
         self.projection = projection if projection is not None else GhostFluidProjection()
         self.transport = transport if transport is not None else LevelSetTransport()
+        self.viscosity = viscosity if viscosity is not None else ViscosityStressFree()
         self.extrapolation_layers = extrapolation_layers
         self.workspace = FreeSurfaceWorkspace(self.grid)
 
@@ -341,7 +407,8 @@ class FreeSurfaceSolver:
         t1 = clock()
         fluid.advect(state.fluid, dt)
         t2 = clock()
-        viscosity_iterations = fluid.diffuse(state.fluid, dt)
+        viscosity_iterations = self.viscosity.diffuse(fluid, state.fluid, state.level_set, dt,
+                                                      workspace)
         t3 = clock()
         fluid.apply_forces(state.fluid, dt, time)
         t4 = clock()

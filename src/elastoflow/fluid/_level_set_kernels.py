@@ -444,3 +444,126 @@ def liquid_area(phi, h):
                 total += fraction
                 ramp += 1
     return total * h * h, ramp
+
+
+# -- viscosity with a stress-free surface ------------------------------------------------------
+
+@njit(cache=True)
+def stress_free_ghosts(u, v, valid_u, valid_v, ghost_u, ghost_v):
+    """Velocities of the air faces next to the liquid that make the surface's shear stress
+    ``du/dy + dv/dx`` zero (Harlow & Welch 1965's free-surface condition, one face at a time).
+
+    An air u-face above a liquid u-face takes ``u_below - (v_right - v_left)`` (the v faces
+    at the corner between them), below one ``u_above + (v_right - v_left)``; an air v-face
+    right of a liquid v-face ``v_left - (u_above - u_below)``, left of one
+    ``v_right + (u_above - u_below)``. Along the normal (an air u-face beside a liquid u-face)
+    the neighbour's value is taken. Several liquid neighbours: the mean. Other faces: their
+    own value.
+    """
+    m, n = u.shape
+    for i in range(m):
+        for j in range(n):
+            ghost_u[i, j] = u[i, j]
+            if valid_u[i, j] == 1 or i == 0 or i == m - 1:
+                continue
+            total = 0.0
+            count = 0
+            if j > 0 and valid_u[i, j - 1] == 1:
+                total += u[i, j - 1] - (v[i, j] - v[i - 1, j])
+                count += 1
+            if j + 1 < n and valid_u[i, j + 1] == 1:
+                total += u[i, j + 1] + (v[i, j + 1] - v[i - 1, j + 1])
+                count += 1
+            if valid_u[i - 1, j] == 1:
+                total += u[i - 1, j]
+                count += 1
+            if valid_u[i + 1, j] == 1:
+                total += u[i + 1, j]
+                count += 1
+            if count > 0:
+                ghost_u[i, j] = total / count
+    m, n = v.shape
+    for i in range(m):
+        for j in range(n):
+            ghost_v[i, j] = v[i, j]
+            if valid_v[i, j] == 1 or j == 0 or j == n - 1:
+                continue
+            total = 0.0
+            count = 0
+            if i > 0 and valid_v[i - 1, j] == 1:
+                total += v[i - 1, j] - (u[i, j] - u[i, j - 1])
+                count += 1
+            if i + 1 < m and valid_v[i + 1, j] == 1:
+                total += v[i + 1, j] + (u[i + 1, j] - u[i + 1, j - 1])
+                count += 1
+            if valid_v[i, j - 1] == 1:
+                total += v[i, j - 1]
+                count += 1
+            if valid_v[i, j + 1] == 1:
+                total += v[i, j + 1]
+                count += 1
+            if count > 0:
+                ghost_v[i, j] = total / count
+
+
+@njit(cache=True)
+def build_liquid_viscosity(f, valid, ghost, c, side_axis, wall_low, wall_high,
+                           wall_value_low, wall_value_high, diagonal, weights_x, weights_y,
+                           rhs):
+    """``(I - c lap) f_new = f`` on the liquid's faces of one velocity component (backward
+    Euler, ``c = nu dt / h^2``), as an `Operator5Point` over the face array.
+
+    Unknowns: faces with ``valid == 1`` that are not on the domain sides normal to
+    ``side_axis`` (those hold the wall's normal velocity). A neighbour that is an air face
+    enters with its ``ghost`` value (`stress_free_ghosts`), a side face with its value, and
+    beyond a tangential wall the reflection ``2 U - f`` where ``wall_* = 2`` (no slip, wall
+    velocity ``wall_value_*``) or nothing where ``wall_* = 0`` (free slip); low / high are
+    the ends of the other index. Air faces are inactive (the solver returns 0 there).
+    """
+    m, n = f.shape
+    diagonal[...] = 0.0
+    weights_x[...] = 0.0
+    weights_y[...] = 0.0
+    rhs[...] = 0.0
+    for i in range(m):
+        for j in range(n):
+            if valid[i, j] != 1:
+                continue
+            if (side_axis == 0 and (i == 0 or i == m - 1)) or (
+                    side_axis == 1 and (j == 0 or j == n - 1)):
+                continue
+            d = 1.0
+            r = f[i, j]
+            for direction in range(4):
+                ni, nj = i, j
+                if direction == 0:
+                    ni = i - 1
+                elif direction == 1:
+                    ni = i + 1
+                elif direction == 2:
+                    nj = j - 1
+                else:
+                    nj = j + 1
+                if ni < 0 or nj < 0 or ni >= m or nj >= n:
+                    # Beyond a tangential wall (the other index's ends).
+                    low = ni < 0 or nj < 0
+                    factor = wall_low if low else wall_high
+                    value = wall_value_low if low else wall_value_high
+                    d += factor * c
+                    r += factor * c * value
+                    continue
+                on_side = (side_axis == 0 and (ni == 0 or ni == m - 1)) or (
+                    side_axis == 1 and (nj == 0 or nj == n - 1))
+                if on_side:
+                    d += c
+                    r += c * f[ni, nj]
+                elif valid[ni, nj] == 1:
+                    if direction == 1:
+                        weights_x[i, j] = c
+                    elif direction == 3:
+                        weights_y[i, j] = c
+                else:
+                    d += c
+                    r += c * ghost[ni, nj]
+            diagonal[i, j] = d
+            rhs[i, j] = r

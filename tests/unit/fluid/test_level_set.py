@@ -249,3 +249,27 @@ def test_refuses_open_sides() -> None:
                                                     Outflow()))
     with pytest.raises(ValueError, match="top side"):
         FreeSurfaceSolver(fluid)
+
+
+def test_stress_free_ghosts_continue_a_shear_free_field() -> None:
+    """u = -b y, v = b x has zero shear stress (du/dy + dv/dx = 0): the ghosts of the air
+    faces above a flat surface continue it exactly; a pure shear u = a y is continued with
+    zero normal gradient (the stress-free condition removes its shear)."""
+    grid = Grid2D(6, 6, 0.1)
+    phi = level_set_below(grid, 0.33)
+    valid_u = np.zeros(grid.shape_faces_x, dtype=np.int32)
+    valid_v = np.zeros(grid.shape_faces_y, dtype=np.int32)
+    kernels.mark_liquid_faces(phi, valid_u, valid_v)
+    xu, yu = grid.faces_x()
+    xv, yv = grid.faces_y()
+    ghost_u, ghost_v = np.zeros(grid.shape_faces_x), np.zeros(grid.shape_faces_y)
+    u, v = -2.0 * yu, 2.0 * xv
+    kernels.stress_free_ghosts(u, v, valid_u, valid_v, ghost_u, ghost_v)
+    first_air = (valid_u == 0) & np.roll(valid_u == 1, 1, axis=1)
+    first_air[[0, -1], :] = False
+    assert first_air.sum() == 5
+    assert np.allclose(ghost_u[first_air], u[first_air], atol=1e-14)
+    shear = 3.0 * yu
+    kernels.stress_free_ghosts(shear, np.zeros_like(v), valid_u, valid_v, ghost_u, ghost_v)
+    below = np.roll(first_air, -1, axis=1)
+    assert np.array_equal(ghost_u[first_air], shear[below])
