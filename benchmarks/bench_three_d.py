@@ -3,8 +3,9 @@
 Case: a square channel of side 1 m along x, parabolic inflow of peak speed 1 m/s on the left,
 outflow on the right, no-slip walls, density 1000 kg/m³, viscosity 1e-4 m²/s, dt at CFL 1
 (dt = h / 1 m/s), started from `FluidSolver3D.rest_state()`. After warm-up steps each size is
-timed over a few steps; reported per step: total ms, ms per phase, ns per cell, pressure and
-viscosity iterations; and the process's peak resident memory above its level after a 16³
+timed over a few steps; reported per step: total ms, ms per phase, ns per cell, the process's
+CPU time (all threads: on shared cores the wall time measures the others' load too), the
+1-minute load average when timing started, pressure and viscosity iterations; and the process's peak resident memory above its level after a 16³
 warm-up run (Numba kernels loaded), per million cells. Each size runs in its own process, so
 that the peaks do not mix.
 
@@ -15,6 +16,7 @@ Run it with nothing else on the cores (see docs/benchmarks.md).
 from __future__ import annotations
 
 import json
+import os
 import resource
 import subprocess
 import sys
@@ -64,7 +66,9 @@ def measure(n: int, advection: str, warm_up: int, timed: int) -> dict[str, Any]:
         solver.step(state, dt, index * dt)
     totals = dict.fromkeys(PHASES, 0.0)
     pressure_iterations = viscosity_iterations = 0
+    load = os.getloadavg()[0]
     start = time.perf_counter()
+    cpu_start = time.process_time()
     for index in range(warm_up, warm_up + timed):
         report = solver.step(state, dt, index * dt)
         for phase in PHASES:
@@ -72,12 +76,16 @@ def measure(n: int, advection: str, warm_up: int, timed: int) -> dict[str, Any]:
         pressure_iterations += report.pressure_iterations
         viscosity_iterations += report.viscosity_iterations
     elapsed = time.perf_counter() - start
+    cpu = time.process_time() - cpu_start
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
     cells = n**3
     row: dict[str, Any] = {
         "case": "channel_3d", "advection": advection, "size": f"{n}^3", "cells": cells,
         "steps": timed, "ms_per_step": 1e3 * elapsed / timed,
         "ns_per_cell": 1e9 * elapsed / timed / cells,
+        # CPU time of all threads: on cores shared with other work the wall time measures
+        # the load as much as the code; this measures the work.
+        "cpu_ms_per_step": 1e3 * cpu / timed, "load_average_1min": load,
     }
     for phase in PHASES:
         row[f"ms_{phase}"] = 1e3 * totals[phase] / timed
@@ -104,7 +112,7 @@ def main(argv: list[str] | None = None) -> list[dict[str, Any]]:
         rows.append(row)
         print(f"{n}³: {row['ms_per_step']:.1f} ms/step, {row['ns_per_cell']:.0f} ns/cell, "
               f"{row['mb_per_million_cells']:.0f} MB per million cells", flush=True)
-    columns = ["size", "ms_per_step", "ns_per_cell", "ms_advection", "ms_viscosity",
+    columns = ["size", "ms_per_step", "cpu_ms_per_step", "load_average_1min", "ns_per_cell", "ms_advection", "ms_viscosity",
                "ms_pressure", "pressure_iterations", "viscosity_iterations", "peak_mb",
                "mb_per_million_cells"]
     print(markdown_table(rows, columns))

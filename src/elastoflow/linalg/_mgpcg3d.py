@@ -49,9 +49,11 @@ from elastoflow.linalg._problem import _output, incompatibility
 
 Shape3 = tuple[int, int, int]
 
-# The coarsest level is solved by a dense semi-definite Cholesky factor: up to 8^3 points
-# (factored once per operator in ~20 ms, 0.3 ms per solve).
-_COARSEST_SIZE = 512
+# The coarsest level is solved by a dense semi-definite Cholesky factor: up to 4^3 points.
+# With 8^3 the dense solve (0.3 ms) was a quarter of a V-cycle at 32^3; with 4^3 the
+# iteration counts are the same (5 to 1e-6 at 16^3-64^3) and a solve at 16^3 / 32^3 / 64^3
+# took 2 / 11-23 / 49-57 ms instead of 10 / 25-31 / 114-129 ms (load average ~3.5 on 2 cores).
+_COARSEST_SIZE = 64
 # Smallest ratio of diagonal to sum of weights at which the Jacobi preconditioner replaces
 # the V-cycle (implicit viscosity, I - nu dt lap with nu dt / h^2 <= 2/3): coarse levels
 # would cost more to build and run than the few extra iterations they save. At 128^3 with
@@ -253,7 +255,7 @@ class PoissonSolverMGPCG3D:
     """Conjugate gradient preconditioned by one geometric multigrid V-cycle per iteration, on
     a 7-point operator (`Operator7Point`).
 
-    The hierarchy halves each dimension (rounding up) down to at most 512 points, solved by a
+    The hierarchy halves each dimension (rounding up) down to at most 64 points, solved by a
     semi-definite Cholesky factorization (one unknown pinned per singular component). A coarse
     face weight is half the sum of the four fine faces it covers and the coarse diagonal sums
     the children's shared (volume) part and halves the sum of the rest (surface terms): the
