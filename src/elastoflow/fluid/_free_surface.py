@@ -161,7 +161,9 @@ class GhostFluidProjection:
     def project(self, solver: FluidSolver, state: FluidState, level_set: FloatArray, dt: float,
                 workspace: FreeSurfaceWorkspace) -> SolveReport:
         """Make the liquid's velocity divergence-free; pressure [Pa] into ``state.pressure``
-        (0 in the air); marks the solved faces in ``workspace.valid_u`` / ``valid_v``."""
+        (0 in the air); marks the solved faces in ``workspace.valid_u`` / ``valid_v``. The
+        surface holds the pressure ``workspace.surface`` [Pa] of each liquid cell next to
+        air (zeros: p = 0; a viscous surface's normal stress, `ViscosityStressFree`)."""
         grid = solver.grid
         h = grid.h
         operator = self.operator(level_set, workspace.operator_arrays)
@@ -171,6 +173,7 @@ class GhostFluidProjection:
             workspace.no_values, workspace.no_values, workspace.no_values, workspace.no_values,
             rhs,
         )
+        kernels.add_surface_pressure(level_set, workspace.surface, float(self.theta_min), rhs)
         pressure = state.pressure
         if takes_out(solver.pressure_solver) and writable_into(pressure):
             _, report = solver.pressure_solver.solve(operator, rhs, x0=pressure, out=pressure)
@@ -178,8 +181,9 @@ class GhostFluidProjection:
             solution, report = solver.pressure_solver.solve(operator, rhs, x0=pressure)
             fluid_kernels.copy_into(solution, pressure)
         kernels.subtract_free_surface_gradient(
-            state.velocity_x, state.velocity_y, pressure, level_set, dt / (solver.density * h),
-            float(self.theta_min), workspace.valid_u, workspace.valid_v,
+            state.velocity_x, state.velocity_y, pressure, level_set, workspace.surface,
+            dt / (solver.density * h), float(self.theta_min), workspace.valid_u,
+            workspace.valid_v,
         )
         return report
 
@@ -196,13 +200,40 @@ class ViscosityWholeGrid:
         """Diffuse ``state``'s velocity over ``dt`` [s]; returns the solver's iterations."""
         return solver.diffuse(state, dt)
 
+    def surface_pressure(self, solver: FluidSolver, state: FluidState, level_set: FloatArray,
+                         out: FloatArray) -> None:
+        """The pressure the surface holds [Pa] into ``out`` (nx, ny): 0 everywhere."""
+        out[...] = 0.0
+
 
 @dataclass(frozen=True)
 class ViscosityStressFree:
     """Implicit viscosity (backward Euler) on the liquid's faces only, with a stress-free
     surface: the air faces next to the liquid enter as fixed ghost values that make the
     surface's shear stress zero (Harlow & Welch 1965; `stress_free_ghosts`), walls as in the
-    fluid (no-slip reflected, free-slip zero gradient, moving walls their velocity)."""
+    fluid (no-slip reflected, free-slip zero gradient, moving walls their velocity).
+
+    Attributes:
+        normal_stress: Also balance the surface's normal stress: the projection's surface
+            pressure becomes ``2 mu du_n/dn`` of the step's starting velocity
+            (`surface_normal_stress`) instead of 0. Off by default: on the viscous standing
+            wave it brings the damping from 0.73 / 0.77 to 1.30 / 1.32 1/s (Lamb's mode:
+            1.23) at 32 / 64 cells per wavelength, but at 128 the run diverges within a
+            period, also with nu dt / h^2 lowered from 0.53 to 0.1: the explicit surface
+            pressure feeds back through the surface faces (1/theta), not a time-step limit.
+    """
+
+    normal_stress: bool = False
+
+    def surface_pressure(self, solver: FluidSolver, state: FluidState, level_set: FloatArray,
+                         out: FloatArray) -> None:
+        """The pressure the surface holds [Pa] into ``out`` (nx, ny), from ``state``'s
+        velocity: ``2 mu du_n/dn`` at the liquid cells next to air, 0 elsewhere."""
+        if not self.normal_stress or solver.viscosity == 0.0:
+            out[...] = 0.0
+            return
+        kernels.surface_normal_stress(state.velocity_x, state.velocity_y, level_set,
+                                      solver.grid.h, solver.density * solver.viscosity, out)
 
     def diffuse(self, solver: FluidSolver, state: FluidState, level_set: FloatArray,
                 dt: float, workspace: FreeSurfaceWorkspace) -> int:
@@ -256,6 +287,7 @@ class FreeSurfaceWorkspace:
         self.frontier = (np.zeros((faces, 2), dtype=np.int64), np.zeros((faces, 2), dtype=np.int64))
         self.level_set = LevelSetWorkspace(grid)
         self.ghosts = (np.zeros(grid.shape_faces_x), np.zeros(grid.shape_faces_y))
+        self.surface = np.zeros((nx, ny))
         self.viscosity_u, self.viscosity_v = (
             (np.zeros((m, n)), np.zeros((m - 1, n)), np.zeros((m, n - 1)), np.zeros((m, n)))
             for m, n in (grid.shape_faces_x, grid.shape_faces_y))
@@ -404,6 +436,8 @@ class FreeSurfaceSolver:
             state.fluid.velocity_y, dt, state.step_index, state.liquid_area,
             workspace.level_set,
         )
+        # The viscous surface's normal stress from the velocity the level set moved with.
+        self.viscosity.surface_pressure(fluid, state.fluid, state.level_set, workspace.surface)
         t1 = clock()
         fluid.advect(state.fluid, dt)
         t2 = clock()

@@ -78,24 +78,26 @@ def build_free_surface_operator(phi, theta_min, diagonal, weights_x, weights_y):
 
 
 @njit(cache=True, inline="always")
-def _face_gradient(p_low, p_high, phi_low, phi_high, theta_min):
-    """``(p_high - p_low)`` across one face with the ghost-fluid value on an air side; the
-    second result says whether the face has liquid on a side (is solved)."""
+def _face_gradient(p_low, p_high, phi_low, phi_high, surface_low, surface_high, theta_min):
+    """``(p_high - p_low)`` across one face, with the ghost-fluid value on an air side: the
+    surface a fraction theta away holds the liquid cell's ``surface_*`` pressure (0 for an
+    inviscid surface); the second result says whether the face has liquid on a side."""
     low_liquid = phi_low < 0.0
     high_liquid = phi_high < 0.0
     if low_liquid and high_liquid:
         return p_high - p_low, True
     if low_liquid:
-        return -p_low / interface_fraction(phi_low, phi_high, theta_min), True
+        return (surface_low - p_low) / interface_fraction(phi_low, phi_high, theta_min), True
     if high_liquid:
-        return p_high / interface_fraction(phi_high, phi_low, theta_min), True
+        return (p_high - surface_high) / interface_fraction(phi_high, phi_low, theta_min), True
     return 0.0, False
 
 
 @njit(cache=True, parallel=True)
-def subtract_free_surface_gradient(u, v, p, phi, k, theta_min, valid_u, valid_v):
+def subtract_free_surface_gradient(u, v, p, phi, surface, k, theta_min, valid_u, valid_v):
     """``u -= (dt / rho) grad p`` on faces with liquid on a side, with the ghost pressure of
-    ``build_free_surface_operator``; ``k = dt / (rho h)``.
+    ``build_free_surface_operator``; ``k = dt / (rho h)``; ``surface`` [Pa], shape (nx, ny):
+    the pressure the surface holds next to each liquid cell (zeros: p = 0).
 
     Marks ``valid_u`` / ``valid_v`` (int32, face shapes) 1 on the faces solved and on the wall
     faces of liquid cells, 0 elsewhere (the faces `extrapolate_faces` fills). Wall faces keep
@@ -111,7 +113,7 @@ def subtract_free_surface_gradient(u, v, p, phi, k, theta_min, valid_u, valid_v)
                 valid_u[i, j] = 1 if phi[nx - 1, j] < 0.0 else 0
                 continue
             gradient, solved = _face_gradient(p[i - 1, j], p[i, j], phi[i - 1, j], phi[i, j],
-                                              theta_min)
+                                              surface[i - 1, j], surface[i, j], theta_min)
             if solved:
                 u[i, j] -= k * gradient
                 valid_u[i, j] = 1
@@ -126,12 +128,64 @@ def subtract_free_surface_gradient(u, v, p, phi, k, theta_min, valid_u, valid_v)
                 valid_v[i, j] = 1 if phi[i, ny - 1] < 0.0 else 0
                 continue
             gradient, solved = _face_gradient(p[i, j - 1], p[i, j], phi[i, j - 1], phi[i, j],
-                                              theta_min)
+                                              surface[i, j - 1], surface[i, j], theta_min)
             if solved:
                 v[i, j] -= k * gradient
                 valid_v[i, j] = 1
             else:
                 valid_v[i, j] = 0
+
+
+@njit(cache=True)
+def add_surface_pressure(phi, surface, theta_min, rhs):
+    """``rhs += surface / theta`` for each air neighbour of a liquid cell: the Dirichlet value
+    ``surface`` [Pa] of the ghost-fluid condition moved to the right-hand side."""
+    nx, ny = phi.shape
+    for i in range(nx):
+        for j in range(ny):
+            here = phi[i, j]
+            value = surface[i, j]
+            if here >= 0.0 or value == 0.0:
+                continue
+            total = 0.0
+            if i + 1 < nx and phi[i + 1, j] >= 0.0:
+                total += 1.0 / interface_fraction(here, phi[i + 1, j], theta_min)
+            if i > 0 and phi[i - 1, j] >= 0.0:
+                total += 1.0 / interface_fraction(here, phi[i - 1, j], theta_min)
+            if j + 1 < ny and phi[i, j + 1] >= 0.0:
+                total += 1.0 / interface_fraction(here, phi[i, j + 1], theta_min)
+            if j > 0 and phi[i, j - 1] >= 0.0:
+                total += 1.0 / interface_fraction(here, phi[i, j - 1], theta_min)
+            rhs[i, j] += value * total
+
+
+@njit(cache=True)
+def surface_normal_stress(u, v, phi, h, dynamic_viscosity, out):
+    """``2 mu n . grad(u) . n`` [Pa] at each liquid cell next to air (0 elsewhere), shape
+    (nx, ny): the pressure a viscous free surface holds (its normal stress balance
+    ``-p + 2 mu du_n/dn = 0``), with n from central differences of phi and the velocity
+    gradient at the cell centre (u_x, v_y from the cell's faces; u_y, v_x from the face
+    averages of the neighbouring rows and columns)."""
+    nx, ny = phi.shape
+    for i in range(nx):
+        for j in range(ny):
+            out[i, j] = 0.0
+            if phi[i, j] >= 0.0 or not _is_interface(phi, i, j):
+                continue
+            i0, i1 = max(i - 1, 0), min(i + 1, nx - 1)
+            j0, j1 = max(j - 1, 0), min(j + 1, ny - 1)
+            gx = (phi[i1, j] - phi[i0, j]) / (i1 - i0)
+            gy = (phi[i, j1] - phi[i, j0]) / (j1 - j0)
+            norm = math.sqrt(gx * gx + gy * gy)
+            if norm == 0.0:
+                continue
+            nxv, nyv = gx / norm, gy / norm
+            ux = (u[i + 1, j] - u[i, j]) / h
+            vy = (v[i, j + 1] - v[i, j]) / h
+            uy = 0.5 * ((u[i, j1] + u[i + 1, j1]) - (u[i, j0] + u[i + 1, j0])) / ((j1 - j0) * h)
+            vx = 0.5 * ((v[i1, j] + v[i1, j + 1]) - (v[i0, j] + v[i0, j + 1])) / ((i1 - i0) * h)
+            out[i, j] = 2.0 * dynamic_viscosity * (
+                nxv * nxv * ux + nxv * nyv * (uy + vx) + nyv * nyv * vy)
 
 
 @njit(cache=True)

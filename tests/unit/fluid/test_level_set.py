@@ -273,3 +273,16 @@ def test_stress_free_ghosts_continue_a_shear_free_field() -> None:
     kernels.stress_free_ghosts(shear, np.zeros_like(v), valid_u, valid_v, ghost_u, ghost_v)
     below = np.roll(first_air, -1, axis=1)
     assert np.array_equal(ghost_u[first_air], shear[below])
+
+
+def test_surface_pressure_moves_to_the_right_hand_side_exactly() -> None:
+    """A uniform pressure P held by the surface and no flux: A p = (the Dirichlet terms of P)
+    is solved by p = P on every liquid cell (the operator's rows sum to their 1/theta terms)."""
+    grid = Grid2D(7, 6, 0.1)
+    phi = level_set_from_function(grid, lambda x, y: np.hypot(x - 0.33, y - 0.28) - 0.21)
+    operator = _solver(grid).pressure_operator(phi)
+    surface = np.where(phi < 0.0, 250.0, 0.0)
+    rhs = np.zeros(grid.shape_cells)
+    kernels.add_surface_pressure(phi, surface, 1e-3, rhs)
+    liquid = phi < 0.0
+    assert np.allclose(apply_operator(operator, surface)[liquid], rhs[liquid], rtol=1e-13)
