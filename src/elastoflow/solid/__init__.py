@@ -1,6 +1,7 @@
 """Elastic bodies: triangle meshes, St. Venant-Kirchhoff material with Voigt damping, explicit FEM.
 
-Linear triangles in 2D (METHOD §4). Model, state and what advances it are separate: a
+Linear triangles in 2D (METHOD §4), linear tetrahedra in 3D (:class:`TetrahedralMesh`,
+:class:`ElasticBody3D`, advanced by the same :class:`ExplicitFem`). Model, state and what advances it are separate: a
 :class:`TriangleMesh` is the rest shape, an :class:`ElasticBody` the static model (mesh,
 material, constraints, masses), a :class:`BodyState` the changing positions and velocities,
 and an integrator (:class:`ExplicitFem`, :class:`EnergyMomentumFem`, :class:`MidpointFem`, :class:`NewmarkFem`,
@@ -13,9 +14,15 @@ steps one state into another::
                        gravity=(0.0, -9.81))
     state = body.state()
     report = ExplicitFem("auto").advance(body, state, state, 0.013, fluid_force)
+
+    beam = mesh_box((0.2, 0.02, 0.02), counts=(20, 2, 2))
+    body3d = ElasticBody3D(beam, MaterialStVK(1000.0, 1e6, 0.3),
+                           fixed_nodes=nodes_in_box_3d(beam, (0, 0, 0, 0, 0.02, 0.02)),
+                           gravity=(0.0, -9.81, 0.0))
 """
 
 
+from elastoflow.solid._body3d import ElasticBody3D
 from elastoflow.solid._body import (
     DEFAULT_SAFETY,
     ElasticBody,
@@ -43,12 +50,23 @@ from elastoflow.solid._mesh import (
 from elastoflow.solid._response import StepResponse
 from elastoflow.solid._rod import BodyModel, MaterialRod, PolylineMesh, RodBody
 from elastoflow.solid._state import BodyState
+from elastoflow.solid._tet_mesh import (
+    TetrahedralMesh,
+    mesh_box,
+    mesh_cylinder,
+    mesh_sphere,
+    nodes_in_box_3d,
+    read_tetrahedral_mesh,
+    tetrahedralize_surface,
+    write_tetrahedral_mesh,
+)
 
 __all__ = [
     "DEFAULT_SAFETY",
     "BodyModel",
     "BodyState",
     "ElasticBody",
+    "ElasticBody3D",
     "ExplicitFem",
     "MaterialRod",
     "MaterialStVK",
@@ -60,13 +78,21 @@ __all__ = [
     "SolidInversionError",
     "SolidStepReport",
     "StepResponse",
+    "TetrahedralMesh",
     "TriangleMesh",
+    "mesh_box",
+    "mesh_cylinder",
     "mesh_from_polygon",
     "mesh_rectangle",
+    "mesh_sphere",
     "mesh_windmill",
     "nearest_node",
     "nodes_in_box",
+    "nodes_in_box_3d",
     "read_mesh",
+    "read_tetrahedral_mesh",
     "stable_substep",
     "static_equilibrium",
+    "tetrahedralize_surface",
+    "write_tetrahedral_mesh",
 ]

@@ -16,6 +16,7 @@ from elastoflow.solid._response import (
     step_response,
 )
 from elastoflow.solid._state import BodyState
+from elastoflow.solid._tet_mesh import TetrahedralMesh
 
 DEFAULT_SAFETY = 0.5
 """Fraction of the estimated critical substep that ``n_sub="auto"`` uses.
@@ -42,7 +43,7 @@ class SolidInversionError(ValueError):
             given was already bad).
         element: Index of the first bad element (-1 when only velocities were non-finite).
         determinant: Its det F (nan when non-finite).
-        positions: Node positions [m] of the bad state, shape (n, 2).
+        positions: Node positions [m] of the bad state, shape (n, 2) or (n, 3).
     """
 
     def __init__(self, message: str, *, step: int | None, substep: int, element: int,
@@ -73,11 +74,12 @@ class SolidStepReport:
     min_determinant: float
 
 
-def stable_substep(mesh: TriangleMesh, material: MaterialStVK,
+def stable_substep(mesh: TriangleMesh | TetrahedralMesh, material: MaterialStVK,
                    safety: float = DEFAULT_SAFETY) -> float:
     """Largest substep [s] that explicit symplectic Euler takes safely on this mesh.
 
-    ``safety * (h / c) * (sqrt(1 + zeta^2) - zeta)`` with ``h`` the smallest element altitude,
+    ``safety * (h / c) * (sqrt(1 + zeta^2) - zeta)`` with ``h`` the smallest element altitude
+    (triangle or tetrahedron),
     ``c`` the dilatational wave speed and ``zeta = c tau / h`` the damping ratio that Voigt
     damping (relaxation time ``tau``) gives the highest mode, ``omega_max ~ 2 c / h``. The last
     factor is the critical step of a damped oscillator under explicit time stepping relative to
@@ -238,6 +240,29 @@ class ElasticBody:
     def substeps_for(self, dt: float, safety: float = DEFAULT_SAFETY) -> int:
         """Smallest substep count ``n`` with ``dt / n <= stable_substep(safety)``."""
         return max(1, math.ceil(dt / self.stable_substep(safety) * (1.0 - 1e-12)))
+
+    def explicit_substeps(
+        self, positions: np.ndarray, velocities: np.ndarray, inverse_mass: np.ndarray,
+        external_forces: np.ndarray, dt: float, substeps: int, status: np.ndarray,
+        determinant: np.ndarray,
+    ) -> None:
+        """Run ``substeps`` symplectic Euler substeps of ``dt`` [s] in place on ``positions``
+        and ``velocities`` (n, 2) under ``external_forces`` (n, 2) [N/m] (gravity included);
+        the kernel's status convention (`elastoflow.solid._kernels`). `ExplicitFem` calls
+        this, so that it advances 2D and 3D bodies alike."""
+        m = self.material
+        arguments = (
+            positions, velocities, self.mesh.triangles, self.dm_inverse, self.rest_area,
+            inverse_mass, self.fixed_mask, external_forces, m.lame_lambda, m.lame_mu,
+            m.damping_lambda, m.damping_mu, self.velocity_damping, dt, substeps, status,
+            determinant,
+        )
+        if self.parallel:
+            _kernels.advance_parallel(
+                *arguments, self.node_offsets, self.node_elements, self.node_corners
+            )
+        else:
+            _kernels.advance_serial(*arguments)
 
     def response_at(self, positions: np.ndarray, dt: float,
                     stiffness_step: float | None = None,

@@ -20,13 +20,13 @@ from typing import Literal
 
 import numpy as np
 
-from elastoflow.solid import _kernels
 from elastoflow.solid._body import (
     DEFAULT_SAFETY,
     ElasticBody,
     SolidInversionError,
     SolidStepReport,
 )
+from elastoflow.solid._body3d import ElasticBody3D
 from elastoflow.solid._response import StepResponse
 from elastoflow.solid._rod import BodyModel
 from elastoflow.solid._state import BodyState
@@ -37,7 +37,8 @@ Substeps = int | Literal["auto"]
 class ExplicitFem:
     """Symplectic Euler substeps: ``v += dt_s (f_internal + f_external + m g) / (m +
     m_added)``; fixed nodes get ``v = 0``; ``x += dt_s v``. Gravity pulls on the body's own
-    mass ``m`` only.
+    mass ``m`` only. Advances 2D (`ElasticBody`) and 3D (`ElasticBody3D`) bodies: the body
+    runs its own substep kernel (``explicit_substeps``), the rest is shared.
 
     Args:
         substeps: Substeps per step, or ``"auto"`` for the fewest with ``dt / n`` below the
@@ -54,7 +55,7 @@ class ExplicitFem:
         self.substeps: Substeps = substeps if isinstance(substeps, str) else int(substeps)
         self.safety = float(safety)
 
-    def substeps_for(self, body: ElasticBody, dt: float) -> int:
+    def substeps_for(self, body: ElasticBody | ElasticBody3D, dt: float) -> int:
         """The substep count this integrator takes for ``body`` over ``dt``."""
         if isinstance(self.substeps, str):
             return body.substeps_for(dt, self.safety)
@@ -62,7 +63,7 @@ class ExplicitFem:
 
     def advance(
         self,
-        body: ElasticBody,
+        body: ElasticBody | ElasticBody3D,
         state_in: BodyState,
         state_out: BodyState,
         dt: float,
@@ -78,8 +79,8 @@ class ExplicitFem:
             state_in: State at the start of the step.
             state_out: Receives the state at the end.
             dt: Outer (fluid) step [s].
-            external_forces: Nodal forces [N/m], shape (n, 2), held constant over the
-                substeps (the fluid's force); default none.
+            external_forces: Nodal forces [N/m], shape (n, 2) (3D: [N], (n, 3)), held
+                constant over the substeps (the fluid's force); default none.
             step: Outer step index, only used to name the step in errors.
             added_mass: Extra nodal inertia ``m_added`` [kg/m], shape (n,), >= 0, for this call
                 only (an added-mass estimate of the surrounding fluid, whose matching force
@@ -93,12 +94,14 @@ class ExplicitFem:
             raise ValueError(f"dt = {dt!r}: must be finite and > 0 [s]")
         substeps = self.substeps_for(body, dt)
         n = body.point_count
+        dimension = body.gravity.shape[0]
         if external_forces is None:
-            forces = np.zeros((n, 2))
+            forces = np.zeros((n, dimension))
         else:
             forces = np.ascontiguousarray(external_forces, dtype=np.float64)
-            if forces.shape != (n, 2):
-                raise ValueError(f"external_forces shape {forces.shape}: must be ({n}, 2)")
+            if forces.shape != (n, dimension):
+                raise ValueError(f"external_forces shape {forces.shape}: must be ({n}, "
+                                 f"{dimension})")
             if not np.all(np.isfinite(forces)):
                 node = int(np.flatnonzero(~np.isfinite(forces).all(axis=1))[0])
                 raise ValueError(f"external_forces at node {node} is not finite"
@@ -117,19 +120,8 @@ class ExplicitFem:
         status = np.zeros(3, dtype=np.int64)
         determinant = np.zeros(1)
         sub_dt = dt / substeps
-        material = body.material
-        arguments = (
-            positions, velocities, body.mesh.triangles, body.dm_inverse, body.rest_area,
-            inverse_mass, body.fixed_mask, forces, material.lame_lambda, material.lame_mu,
-            material.damping_lambda, material.damping_mu, body.velocity_damping, sub_dt,
-            substeps, status, determinant,
-        )
-        if body.parallel:
-            _kernels.advance_parallel(
-                *arguments, body.node_offsets, body.node_elements, body.node_corners
-            )
-        else:
-            _kernels.advance_serial(*arguments)
+        body.explicit_substeps(positions, velocities, inverse_mass, forces, sub_dt, substeps,
+                               status, determinant)
         where = "" if step is None else f"step {step}, "
         stable = body.stable_substep()
         if status[0]:

@@ -9,7 +9,8 @@ import numpy as np
 
 @dataclass(eq=False)
 class BodyState:
-    """World node positions [m] and velocities [m/s] of one body, float64, shape (n, 2).
+    """World node positions [m] and velocities [m/s] of one body, float64, shape (n, 2)
+    (3D bodies: (n, 3)).
 
     Integrators read one state and write another (the same one for an in-place step); the
     arrays are updated in place, so references to them stay valid across steps.
