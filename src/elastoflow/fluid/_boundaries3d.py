@@ -7,6 +7,7 @@ The side conditions themselves are the 2D ones (`WallNoSlip`, `WallFreeSlip`, `I
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -77,3 +78,31 @@ def inflow_profile_3d(inflow: Inflow, s: NDArray[np.floating],
         return np.full(s.shape, float(inflow.speed))
     return np.asarray(16.0 * float(inflow.speed) * s * (1.0 - s) * t * (1.0 - t),
                       dtype=np.float64)
+
+
+@dataclass(frozen=True)
+class Jet3D:
+    """A box whose velocity faces are set to a prescribed velocity every step (3D `Jet`).
+
+    Attributes:
+        region: Box ``(x0, y0, z0, x1, y1, z1)`` [m] in domain coordinates, x0 < x1, y0 < y1,
+            z0 < z1; the u, v and w points inside it (boundary included) get the velocity.
+        velocity: Prescribed velocity ``(ux, uy, uz)`` [m/s].
+        dye: Dye concentration set in the cells whose centres lie in the box.
+    """
+
+    region: tuple[float, float, float, float, float, float]
+    velocity: tuple[float, float, float]
+    dye: float = 1.0
+
+    def __post_init__(self) -> None:
+        if len(self.region) != 6 or not all(math.isfinite(float(c)) for c in self.region):
+            raise ValueError(f"Jet3D.region = {self.region!r}: must be six finite numbers")
+        low, high = self.region[:3], self.region[3:]
+        if not all(a < b for a, b in zip(low, high, strict=True)):
+            raise ValueError(
+                f"Jet3D.region = {self.region!r}: must satisfy x0 < x1, y0 < y1 and z0 < z1")
+        if len(self.velocity) != 3 or not all(math.isfinite(float(c)) for c in self.velocity):
+            raise ValueError(f"Jet3D.velocity = {self.velocity!r}: must be three finite numbers")
+        if not math.isfinite(float(self.dye)):
+            raise ValueError(f"Jet3D.dye = {self.dye!r}: must be a finite number")

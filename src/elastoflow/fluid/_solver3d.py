@@ -12,7 +12,7 @@ from numpy.typing import NDArray
 
 from elastoflow.fluid import _kernels3d as kernels
 from elastoflow.fluid._boundaries import Inflow, Outflow, WallNoSlip
-from elastoflow.fluid._boundaries3d import DomainBoundaries3D, inflow_profile_3d
+from elastoflow.fluid._boundaries3d import DomainBoundaries3D, Jet3D, inflow_profile_3d
 from elastoflow.fluid._solver import FluidStepReport
 from elastoflow.fluid._state3d import FluidState3D
 from elastoflow.grid import Grid3D
@@ -33,6 +33,23 @@ class _InflowSide:
     side: int
     inflow: Inflow
     velocity: Array
+
+
+Box = tuple[slice, slice, slice]
+
+
+def _index_box(grid: Grid3D, region: tuple[float, ...], offsets: tuple[float, float, float],
+               shape: tuple[int, int, int]) -> Box:
+    """Index ranges of the points ``(i + ox, j + oy, k + oz) h`` inside ``region``
+    (``(x0, y0, z0, x1, y1, z1)`` [m], boundary included) of an array of ``shape``."""
+    ranges = []
+    for axis in range(3):
+        low = (region[axis] - grid.origin[axis]) / grid.h - offsets[axis]
+        high = (region[axis + 3] - grid.origin[axis]) / grid.h - offsets[axis]
+        start = max(math.ceil(low - 1e-12), 0)
+        stop = min(math.floor(high + 1e-12) + 1, shape[axis])
+        ranges.append(slice(start, max(start, stop)))
+    return (ranges[0], ranges[1], ranges[2])
 
 
 def _check_finite_positive(name: str, value: float) -> float:
@@ -72,6 +89,7 @@ class FluidSolver3D:
         viscosity: Kinematic viscosity nu [m^2/s], >= 0 (0 skips the viscosity solves).
         boundaries: The condition on each of the six sides.
         gravity: Gravitational acceleration (gx, gy, gz) [m/s^2].
+        jets: Boxes with prescribed velocity and dye, applied every step.
         pressure_solver: Solver of the pressure equation (`PoissonSolverMGPCG3D(rtol=1e-6)`
             by default); any object with ``solve(operator, rhs, x0=None, out=None)``.
         viscosity_solver: Solver of the viscosity systems (same default).
@@ -96,6 +114,7 @@ class FluidSolver3D:
         viscosity: float,
         boundaries: DomainBoundaries3D,
         gravity: tuple[float, float, float] = (0.0, 0.0, 0.0),
+        jets: tuple[Jet3D, ...] | list[Jet3D] = (),
         pressure_solver: PoissonSolverMGPCG3D | None = None,
         viscosity_solver: PoissonSolverMGPCG3D | None = None,
         advection: str = "semi_lagrangian",
@@ -121,6 +140,11 @@ class FluidSolver3D:
         if not all(math.isfinite(c) for c in (gx, gy, gz)):
             raise ValueError(f"FluidSolver3D gravity = {gravity!r}: must be three finite numbers")
         self.gravity = (gx, gy, gz)
+        jets = tuple(jets)
+        for jet in jets:
+            if not isinstance(jet, Jet3D):
+                raise ValueError(f"FluidSolver3D jets entry {jet!r}: must be a Jet3D")
+        self.jets = jets
         if advection not in _ADVECTION_SCHEMES:
             raise ValueError(
                 f"FluidSolver3D advection = {advection!r}: must be one of {_ADVECTION_SCHEMES}")
@@ -136,6 +160,11 @@ class FluidSolver3D:
             if not callable(getattr(solver, "solve", None)):
                 raise ValueError(f"FluidSolver3D {name} = {solver!r}: must have a solve method")
         self._setup_sides()
+        shapes = (grid.shape_faces_x, grid.shape_faces_y, grid.shape_faces_z, grid.shape_cells)
+        # Per jet, the index box of u, v, w and the cells inside its region.
+        self._jet_boxes = [tuple(_index_box(grid, jet.region, offsets, shape)
+                                 for offsets, shape in zip(_OFFSETS, shapes, strict=True))
+                           for jet in jets]
         self._allocate()
 
     # -- set-up ------------------------------------------------------------------------------
@@ -312,11 +341,17 @@ class FluidSolver3D:
         return iterations
 
     def apply_forces(self, state: FluidState3D, dt: float, time: float) -> None:
-        """Gravity over ``dt`` [s] and the side values at ``time + dt`` [s], in place."""
+        """Gravity over ``dt`` [s], jets, and the side values at ``time + dt`` [s], in
+        place."""
         _check_dt(dt)
         for field, g in zip(state.velocity(), self.gravity, strict=True):
             if g != 0.0:
                 kernels.add_constant_3d(field, g * dt)
+        fields = (*state.velocity(), state.dye)
+        for jet, boxes in zip(self.jets, self._jet_boxes, strict=True):
+            values = (*jet.velocity, jet.dye)
+            for field, box, value in zip(fields, boxes, values, strict=True):
+                field[box] = value
         self.apply_side_values(state, time + dt)
 
     def apply_side_values(self, state: FluidState3D, time: float) -> None:

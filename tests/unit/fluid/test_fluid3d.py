@@ -175,3 +175,23 @@ def test_invalid_input_is_refused() -> None:
         solver.step(FluidState3D.zeros(GRID), 0.0)
     with pytest.raises(ValueError, match="shape"):
         solver.step(FluidState3D.zeros(Grid3D(nx=12, ny=10, nz=9, h=0.1)), 0.1)
+
+
+def test_jet_sets_the_faces_and_cells_inside_its_box() -> None:
+    from elastoflow.fluid._boundaries3d import Jet3D
+
+    jet = Jet3D(region=(0.3, 0.0, 0.25, 0.5, 0.2, 0.55), velocity=(0.0, 2.0, -1.0), dye=0.5)
+    solver = FluidSolver3D(GRID, density=1.0, viscosity=0.0,
+                           boundaries=DomainBoundaries3D.closed_box(), jets=(jet,))
+    state = FluidState3D.zeros(GRID)
+    solver.apply_forces(state, 0.01, 0.0)
+    # v points (i + 1/2, j, k + 1/2) h inside: i = 3, 4; j = 1, 2 (j = 0 is the wall, set to
+    # 0 by the side values after the jet); k = 2 .. 5 (z = 0.25 and 0.55 on the box's faces).
+    expected = np.zeros(GRID.shape_faces_y)
+    expected[3:5, 1:3, 2:6] = 2.0
+    np.testing.assert_array_equal(state.velocity_y, expected)
+    # w points k h: k = 3, 4, 5; cell centres: k = 2 .. 5.
+    assert np.count_nonzero(state.velocity_z == -1.0) == 2 * 2 * 3
+    assert np.count_nonzero(state.dye == 0.5) == 2 * 2 * 4
+    with pytest.raises(ValueError, match="z0 < z1"):
+        Jet3D(region=(0.0, 0.0, 0.5, 1.0, 1.0, 0.5), velocity=(0.0, 0.0, 0.0))
