@@ -157,7 +157,7 @@ def run_cantilever_3d(across: int, *, periods: float = 2.2, relaxation_periods: 
     for k in range(count):
         integrator.advance(body, state, state, dt, step=k)
         tip_z[k] = state.positions[tip, 2].mean() - mesh.points[tip, 2].mean()
-    times = dt * np.arange(1, count + 1)
+    times = np.linspace(dt, count * dt, count)
     frequency = frequency_from_crossings(times, tip_z)
 
     omega = 2.0 * np.pi * f_reference
