@@ -71,14 +71,15 @@ def test_explicit_scheme_reproduces_its_results_before_the_redesign(name: str) -
             assert abs(got - want) <= 1e-6 * max(abs(want), scale), (key, got, want)
 
 
-def _disc(density_ratio: float, fluid_gravity: bool = True
-          ) -> tuple[Simulation, solid.ElasticBody]:
+def _disc(density_ratio: float, fluid_gravity: bool = True,
+          viscosity_scheme: str = "backward_euler") -> tuple[Simulation, solid.ElasticBody]:
     size = 4.0
     grid = Grid2D(nx=256, ny=256, h=size / 256)
     walls = fluid.DomainBoundaries(left=fluid.WallNoSlip(), right=fluid.WallNoSlip(),
                                    bottom=fluid.WallNoSlip(), top=fluid.WallNoSlip())
     solver = fluid.FluidSolver(grid, density=FLUID_DENSITY, viscosity=1e-6, boundaries=walls,
-                               gravity=(0.0, -GRAVITY if fluid_gravity else 0.0))
+                               gravity=(0.0, -GRAVITY if fluid_gravity else 0.0),
+                               viscosity_scheme=viscosity_scheme)
     outline = coupling.obstacle_circle((0.5 * size, 0.5 * size), RADIUS, segments=48).polygon
     mesh = solid.mesh_from_polygon(outline, element_size=0.03)
     body = solid.ElasticBody(mesh, solid.MaterialStVK(density_ratio * FLUID_DENSITY, 1e7, 0.3),
@@ -100,6 +101,23 @@ def test_released_disc_accelerates_with_the_added_mass_of_potential_flow(ratio: 
     velocities = simulation.state.bodies[0].velocities
     acceleration = (mass @ velocities)[1] / mass.sum() / (steps * DT)
     expected = -(ratio - 1.0) / (ratio + 1.0) * GRAVITY
+    assert abs(acceleration - expected) <= 0.03 * abs(expected), (acceleration, expected)
+
+
+@pytest.mark.slow
+def test_released_disc_under_the_bdf2_step_feels_the_same_added_mass() -> None:
+    """The BDF2 step projects over 2 dt / 3 while the disc moves over dt: the coupled
+    system's scale must follow the projection's step, its answer the disc's. A light disc
+    (0.5) is the most sensitive to a wrong scale: within 3 % of potential flow as under
+    backward Euler (measured 0.96 % there)."""
+    simulation, body = _disc(0.5, viscosity_scheme="bdf2")
+    steps = 10
+    for _ in range(steps):
+        simulation.step()
+    mass = body.mass
+    velocities = simulation.state.bodies[0].velocities
+    acceleration = (mass @ velocities)[1] / mass.sum() / (steps * DT)
+    expected = -(0.5 - 1.0) / (0.5 + 1.0) * GRAVITY
     assert abs(acceleration - expected) <= 0.03 * abs(expected), (acceleration, expected)
 
 

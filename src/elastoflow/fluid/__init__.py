@@ -39,13 +39,19 @@ from elastoflow.fluid._level_set import (
     liquid_area,
 )
 from elastoflow.fluid._operators import divergence_faces_to_cells, gradient_cells_to_faces
-from elastoflow.fluid._solver import CoupledBodies, FluidSolver, FluidStepReport
+from elastoflow.fluid._solver import (
+    CoupledBodies,
+    FluidPrediction,
+    FluidSolver,
+    FluidStepReport,
+)
 from elastoflow.fluid._state import FluidState
 
 __all__ = [
     "OPEN_MIN",
     "CoupledBodies",
     "DomainBoundaries",
+    "FluidPrediction",
     "FluidSolver",
     "FluidState",
     "FluidStepReport",

@@ -77,6 +77,22 @@ class FluidStepReport:
     seconds_by_phase: dict[str, float] = field(default_factory=dict)
 
 
+@dataclass(frozen=True)
+class FluidPrediction:
+    """What `FluidSolver.predict` did.
+
+    Attributes:
+        projection_dt: The time step [s] the projection must take: the step's dt, or
+            ``2 dt / 3`` on a BDF2 step.
+        viscosity_iterations: Iterations of the two viscosity solves together.
+        seconds_by_phase: Wall time [s] of "advection", "viscosity", "forces".
+    """
+
+    projection_dt: float
+    viscosity_iterations: int
+    seconds_by_phase: dict[str, float] = field(default_factory=dict)
+
+
 def _check_positive(name: str, value: Any) -> float:
     if not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0.0:
         raise ValueError(f"FluidSolver {name} = {value!r}: must be a finite number > 0")
@@ -147,9 +163,10 @@ class FluidSolver:
             second order along the trajectory too (Crank-Nicolson at the arrival point
             leaves the pressure's backward Euler). ``x_dd`` is traced over 2 dt with u^n
             (the midpoint of that trajectory). The first step, a restart without the previous
-            velocity and a step whose dt differs from the last fall back to backward Euler;
-            the separate phases (`advect`, `diffuse`, `project`, as the coupling schemes call
-            them) stay first order.
+            velocity and a step whose dt differs from the last fall back to backward Euler.
+            In `step` and in `predict` (which the coupling schemes call, then project over
+            its ``projection_dt``); the separate phases `advect`, `diffuse` and `project`
+            stay first order.
         pressure_guess: Where the pressure solve starts. "previous" (the paper's): the last
             pressure. "extrapolated": ``p + dt / dt_p (p - p_previous)``, linear in time from
             the last two (the state keeps the one before, `FluidState.previous_pressure`);
@@ -809,13 +826,20 @@ class FluidSolver:
             self._outflow, has, open_x, open_y, solid_u, solid_v,
         )
 
-    def step(
+    def predict(
         self, state: FluidState, dt: float, time: float = 0.0,
         interior: InteriorBoundary | None = None,
-    ) -> FluidStepReport:
-        """Advect, diffuse, apply forces and project: one fluid step of ``dt`` [s] from ``time``."""
+    ) -> FluidPrediction:
+        """Advect, diffuse and apply forces: every phase of a step of ``dt`` [s] from
+        ``time`` before the projection, which must then take ``projection_dt`` (the coupling
+        schemes call this, then their own projection).
+
+        On a BDF2 step (``viscosity_scheme="bdf2"`` with the last velocity kept and an
+        unchanged dt) the advected velocity becomes ``(4 u^n(x_d) - u^{n-1}(x_dd)) / 3`` and
+        the viscosity, the forces and the projection act over ``2 dt / 3``: the pressure is
+        still p^{n+1}, the force per unit volume ``rho du / (2 dt / 3)``.
+        """
         clock = _time.perf_counter
-        seconds: dict[str, float] = {}
         t0 = clock()
         bdf2 = self._bdf2_history(state, dt, interior)
         self.advect(state, dt, interior)
@@ -836,17 +860,26 @@ class FluidSolver:
         else:
             self._apply_forces(state, effective, time + dt)
         t3 = clock()
-        report = self.project(state, effective, interior)
-        t4 = clock()
-        seconds["advection"] = t1 - t0
-        seconds["viscosity"] = t2 - t1
-        seconds["forces"] = t3 - t2
-        seconds["pressure"] = t4 - t3
+        return FluidPrediction(
+            projection_dt=effective, viscosity_iterations=viscosity_iterations,
+            seconds_by_phase={"advection": t1 - t0, "viscosity": t2 - t1, "forces": t3 - t2},
+        )
+
+    def step(
+        self, state: FluidState, dt: float, time: float = 0.0,
+        interior: InteriorBoundary | None = None,
+    ) -> FluidStepReport:
+        """Advect, diffuse, apply forces and project: one fluid step of ``dt`` [s] from ``time``."""
+        prediction = self.predict(state, dt, time, interior)
+        t0 = _time.perf_counter()
+        report = self.project(state, prediction.projection_dt, interior)
+        seconds = dict(prediction.seconds_by_phase)
+        seconds["pressure"] = _time.perf_counter() - t0
         return FluidStepReport(
             pressure_iterations=int(report.iterations),
             pressure_residual=float(report.residual),
             pressure_converged=bool(report.converged),
-            viscosity_iterations=viscosity_iterations,
+            viscosity_iterations=prediction.viscosity_iterations,
             seconds_by_phase=seconds,
         )
 

@@ -166,9 +166,11 @@ class FluidSpec(_Spec):
     """Velocity the advection's back-trace follows: the step's starting velocity (the
     paper's, first order in time) or the one extrapolated to mid-step from the last two
     steps (second order; docs/validation/unsteady.md, time discretization)."""
-    viscosity_scheme: Literal["backward_euler", "crank_nicolson"] = "backward_euler"
+    viscosity_scheme: Literal["backward_euler", "crank_nicolson", "bdf2"] = "backward_euler"
     """Time discretization of the implicit viscosity: backward Euler (the paper's, first
-    order) or Crank-Nicolson (second order)."""
+    order), Crank-Nicolson (second order), or the whole step by BDF2 along trajectories
+    (second order for the pressure too; the only one that put DFG 2D-2's Strouhal number
+    inside its bounds at 20 cells per diameter, docs/validation/unsteady.md)."""
     pressure_guess: Literal["previous", "extrapolated"] = "extrapolated"
     """Where each pressure solve starts: the pressure extrapolated linearly from the last two
     steps (the default: the same answer to ``pressure_rtol`` in fewer iterations where the
