@@ -38,8 +38,9 @@ def test_standing_wave_frequency() -> None:
 
 def test_viscous_wave_decays_at_the_frequency_of_lambs_mode() -> None:
     """Prosperetti's set-up without the light phase, 32 cells per wavelength: frequency within
-    1 % of Lamb's viscous mode; it decays, more slowly than the mode (see the page: the
-    extrapolated velocity acts as a zero-gradient condition, not a stress-free one)."""
+    1 % of Lamb's viscous mode; it decays at 60 % of the mode's rate (0.73 against 1.23 1/s
+    measured; the page says why: the surface's normal viscous stress is not balanced by
+    default)."""
     wave = run_standing_wave(32, viscous=True, periods=3.0)
     assert wave.omega == pytest.approx(wave.omega_linear, rel=0.01)
     assert 0.2 * wave.damping_reference < wave.damping < 1.2 * wave.damping_reference
