@@ -12,6 +12,10 @@ centres, faces open or closed: ``interior_boundary_staircase``). ``classify_poin
 tests every grid point against every element, the cost the map avoids. Bodies thinner than a
 cell, down to an open polyline of zero thickness (``obstacle_polyline``), cut the pressure
 connections their mid-line crosses (``elastoflow.coupling._thin``), so no fluid passes them.
+
+In 3D (``BoundaryMap3D``, ``build_boundary_map_3d``): the crossings of closed surface
+triangles with the grid lines along x, y and z (``LineCrossings``), and the cells inside
+(``solid_cells_3d``).
 """
 
 from elastoflow.coupling._brute_force import classify_points_brute_force
@@ -27,6 +31,12 @@ from elastoflow.coupling._interface import (
     interface_flux,
 )
 from elastoflow.coupling._map import BoundaryMap, build_boundary_map
+from elastoflow.coupling._map3d import (
+    BoundaryMap3D,
+    LineCrossings,
+    build_boundary_map_3d,
+    solid_cells_3d,
+)
 from elastoflow.coupling._obstacle import (
     Obstacle,
     RigidMotion,
@@ -54,9 +64,11 @@ __all__ = [
     "BOUNDARY_TREATMENTS",
     "BoundaryCutCell",
     "BoundaryMap",
+    "BoundaryMap3D",
     "BoundaryStaircase",
     "BoundaryTreatment",
     "InterfaceFlux",
+    "LineCrossings",
     "Obstacle",
     "PointClassification",
     "PressureCoupledBodies",
@@ -64,6 +76,7 @@ __all__ = [
     "StaircaseInteriorBoundary",
     "boundary_treatment",
     "build_boundary_map",
+    "build_boundary_map_3d",
     "classify_points",
     "classify_points_brute_force",
     "concatenate_boundaries",
@@ -78,4 +91,5 @@ __all__ = [
     "obstacle_polyline",
     "obstacle_rectangle",
     "polygon_signed_area",
+    "solid_cells_3d",
 ]

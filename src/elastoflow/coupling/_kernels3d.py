@@ -1,0 +1,185 @@
+"""Kernels of the 3D boundary map: crossings of surface triangles with grid lines.
+
+The lines parallel to one axis ``a`` are indexed by their half-grid position ``(U, V)`` in the
+two other axes ``u = (a + 1) % 3``, ``v = (a + 2) % 3`` (the line through ``u = origin_u +
+U h/2``, ``v = origin_v + V h/2``). A triangle crosses the line when the line's point ``q``
+lies inside the triangle's projection onto the (u, v) plane.
+
+Points on a projected edge or vertex are decided by a symbolic perturbation of ``q`` (Edelsbrunner
+& Muecke's simulation of simplicity): ``q + (d, d e)`` for infinitesimal ``d >> d e > 0``. Each
+edge function is evaluated with the edge's endpoints in a canonical order (lower point index
+first), so that the two triangles sharing an edge see the same value to the last bit, and
+an exactly zero value takes the sign of the perturbation. A line through an edge or a vertex
+therefore crosses exactly the triangles that the perturbed line crosses: a closed surface is
+crossed an even number of times, entering and leaving alternately.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+# A crossing's sign: walking the line towards +a, the line enters or leaves a body there.
+ENTERING = 1
+LEAVING = -1
+
+
+@njit(cache=True, inline="always")
+def _edge_sign(p0u: float, p0v: float, p1u: float, p1v: float, qu: float, qv: float
+               ) -> tuple[float, int]:
+    """``(value, sign)`` of the edge function ``(p1 - p0) x (q - p0)`` with ``q`` perturbed
+    by ``(d, d e)``: the value as computed, its sign (never 0 for a proper edge)."""
+    value = (p1u - p0u) * (qv - p0v) - (p1v - p0v) * (qu - p0u)
+    if value > 0.0:
+        return value, 1
+    if value < 0.0:
+        return value, -1
+    # d/dd of (p1 - p0) x (q + (d, d e) - p0) = (p1u - p0u) e - (p1v - p0v): the v term
+    # leads unless the edge is parallel to u.
+    if p1v != p0v:
+        return value, 1 if p1v < p0v else -1
+    if p1u != p0u:
+        return value, 1 if p1u > p0u else -1
+    return value, 0
+
+
+@njit(cache=True, inline="always")
+def _oriented_edge(points, i, j, u, v, qu, qv) -> tuple[float, int]:
+    """The edge function of i -> j at q, computed in the canonical order (lower index first)
+    and turned to i -> j (exact negation)."""
+    if i < j:
+        return _edge_sign(points[i, u], points[i, v], points[j, u], points[j, v], qu, qv)
+    value, sign = _edge_sign(points[j, u], points[j, v], points[i, u], points[i, v], qu, qv)
+    return -value, -sign
+
+
+@njit(cache=True)
+def triangle_crossings(points, triangles, axis, origin_u, origin_v, half, lines_u, lines_v,
+                       fill, line_count, line_of, coordinate, triangle_of, weights, sign):
+    """Every crossing of the triangles with the lines parallel to ``axis``.
+
+    Args:
+        points: Vertex positions (P, 3).
+        triangles: Vertex indices (T, 3), outward orientation.
+        axis: 0, 1 or 2.
+        origin_u, origin_v: Grid origin along u and v [m].
+        half: Half the cell side [m].
+        lines_u, lines_v: Number of half-grid lines along u and v (2 n + 1).
+        fill: False: only count (``line_count[L]`` per line ``L = U * lines_v + V``);
+            True: also write each crossing into the next free slot of its line
+            (``line_of`` holds the next free slot of each line on entry).
+        line_count: Crossings per line (incremented), int64, (lines_u * lines_v,).
+        line_of: Next free slot per line (fill only).
+        coordinate: Coordinate along ``axis`` [m] of each crossing (fill only).
+        triangle_of: Triangle of each crossing (fill only).
+        weights: Barycentric weights of the crossing in its triangle, (C, 3) (fill only).
+        sign: ``ENTERING`` or ``LEAVING`` (fill only), int8.
+    """
+    u = (axis + 1) % 3
+    v = (axis + 2) % 3
+    for t in range(triangles.shape[0]):
+        a, b, c = triangles[t, 0], triangles[t, 1], triangles[t, 2]
+        # Twice the projected signed area: the outward normal's component along the axis.
+        area = ((points[b, u] - points[a, u]) * (points[c, v] - points[a, v])
+                - (points[b, v] - points[a, v]) * (points[c, u] - points[a, u]))
+        if area == 0.0:
+            continue  # parallel to the axis: no transversal crossing
+        orientation = 1 if area > 0.0 else -1
+        low_u = min(points[a, u], points[b, u], points[c, u])
+        high_u = max(points[a, u], points[b, u], points[c, u])
+        low_v = min(points[a, v], points[b, v], points[c, v])
+        high_v = max(points[a, v], points[b, v], points[c, v])
+        first_u = max(int(np.ceil((low_u - origin_u) / half)), 0)
+        last_u = min(int(np.floor((high_u - origin_u) / half)), lines_u - 1)
+        first_v = max(int(np.ceil((low_v - origin_v) / half)), 0)
+        last_v = min(int(np.floor((high_v - origin_v) / half)), lines_v - 1)
+        for line_u in range(first_u, last_u + 1):
+            qu = origin_u + line_u * half
+            for line_v in range(first_v, last_v + 1):
+                qv = origin_v + line_v * half
+                e_bc, s_bc = _oriented_edge(points, b, c, u, v, qu, qv)
+                if s_bc != orientation:
+                    continue
+                e_ca, s_ca = _oriented_edge(points, c, a, u, v, qu, qv)
+                if s_ca != orientation:
+                    continue
+                e_ab, s_ab = _oriented_edge(points, a, b, u, v, qu, qv)
+                if s_ab != orientation:
+                    continue
+                line = line_u * lines_v + line_v
+                if fill:
+                    slot = line_of[line]
+                    line_of[line] += 1
+                    wa = e_bc / area
+                    wb = e_ca / area
+                    wc = 1.0 - wa - wb
+                    weights[slot, 0] = wa
+                    weights[slot, 1] = wb
+                    weights[slot, 2] = wc
+                    coordinate[slot] = (wa * points[a, axis] + wb * points[b, axis]
+                                        + wc * points[c, axis])
+                    triangle_of[slot] = t
+                    # An outward normal along +axis: walking towards +axis leaves the body.
+                    sign[slot] = LEAVING if orientation > 0 else ENTERING
+                line_count[line] += 1
+
+
+@njit(cache=True)
+def sort_lines(offsets, coordinate, triangle_of, weights, sign):
+    """Sort each line's crossings by coordinate, leaving before entering on ties, in place."""
+    for line in range(offsets.shape[0] - 1):
+        begin, end = offsets[line], offsets[line + 1]
+        if end - begin < 2:
+            continue
+        keys = np.empty(end - begin)
+        for k in range(begin, end):
+            keys[k - begin] = coordinate[k]
+        order = np.argsort(keys, kind="mergesort")
+        # Ties (a silhouette edge: the line grazes two triangles at one point) leave first.
+        for k in range(1, order.shape[0]):
+            m = k
+            while (m > 0 and keys[order[m]] == keys[order[m - 1]]
+                   and sign[begin + order[m]] < sign[begin + order[m - 1]]):
+                order[m], order[m - 1] = order[m - 1], order[m]
+                m -= 1
+        c = coordinate[begin:end].copy()
+        t = triangle_of[begin:end].copy()
+        w = weights[begin:end].copy()
+        s = sign[begin:end].copy()
+        for k in range(order.shape[0]):
+            coordinate[begin + k] = c[order[k]]
+            triangle_of[begin + k] = t[order[k]]
+            weights[begin + k, :] = w[order[k], :]
+            sign[begin + k] = s[order[k]]
+
+
+@njit(cache=True)
+def winding_along_lines(offsets, coordinate, sign, lines_v, line_u0, line_v0, count_u,
+                        count_v, origin, h, count, out):
+    """``out[i, j, k]`` = winding number at the points ``origin + (i + 1/2) h`` along the
+    axis on the lines ``(line_u0 + 2 j, line_v0 + 2 k)``: the sum of the signs of the
+    crossings before the point (a point exactly on a crossing counts it as passed).
+
+    Args:
+        offsets: Line offsets of the map (lines ``U * lines_v + V``).
+        coordinate, sign: The crossings.
+        lines_v: Number of half-grid lines along v.
+        line_u0, line_v0: Half-grid index of the first line (1 for cell centres).
+        count_u, count_v: Number of lines along u and v (step 2 in the half grid).
+        origin: Grid origin along the axis [m].
+        h: Cell side [m].
+        count: Number of points along the axis.
+        out: Winding numbers, int32, shape (count, count_u, count_v).
+    """
+    for j in range(count_u):
+        for k in range(count_v):
+            line = (line_u0 + 2 * j) * lines_v + line_v0 + 2 * k
+            entry = offsets[line]
+            end = offsets[line + 1]
+            winding = 0
+            for i in range(count):
+                position = origin + (i + 0.5) * h
+                while entry < end and coordinate[entry] <= position:
+                    winding += sign[entry]
+                    entry += 1
+                out[i, j, k] = winding
