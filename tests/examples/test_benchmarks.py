@@ -70,7 +70,8 @@ def test_coupling_benchmark_runs(results: Path) -> None:
     from benchmarks import bench_coupling
 
     rows = bench_coupling.main(["--quick", "--steps", "2", "--size", "32"])
-    assert [row["case"] for row in rows] == ["bar_in_jet explicit", "bar_in_jet monolithic"]
+    assert [row["case"] for row in rows] == ["bar_in_jet explicit", "bar_in_jet monolithic",
+                                             "windmill explicit", "windmill monolithic"]
     assert all(row["ms_per_step"] > 0.0 and row["pressure_iterations"] > 0 for row in rows)
-    assert rows[1]["ratio_to_explicit"] > 0.0
+    assert rows[1]["ratio_to_explicit"] > 0.0 and rows[3]["ratio_to_explicit"] > 0.0
     assert _written(results, "coupling")
