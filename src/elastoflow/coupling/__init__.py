@@ -15,7 +15,8 @@ connections their mid-line crosses (``elastoflow.coupling._thin``), so no fluid 
 
 In 3D (``BoundaryMap3D``, ``build_boundary_map_3d``): the crossings of closed surface
 triangles with the grid lines along x, y and z (``LineCrossings``), and the cells inside
-(``solid_cells_3d``).
+(``solid_cells_3d``), and the fluid share of every face from the bodies' exact cross-sections
+(``face_open_fractions_3d``).
 """
 
 from elastoflow.coupling._brute_force import classify_points_brute_force
@@ -35,6 +36,7 @@ from elastoflow.coupling._map3d import (
     BoundaryMap3D,
     LineCrossings,
     build_boundary_map_3d,
+    face_open_fractions_3d,
     solid_cells_3d,
 )
 from elastoflow.coupling._obstacle import (
@@ -80,6 +82,7 @@ __all__ = [
     "classify_points",
     "classify_points_brute_force",
     "concatenate_boundaries",
+    "face_open_fractions_3d",
     "force_momentum_exchange",
     "force_traction",
     "interface_flux",

@@ -19,6 +19,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from elastoflow.coupling._area import segment_areas
+
 # A crossing's sign: walking the line towards +a, the line enters or leaves a body there.
 ENTERING = 1
 LEAVING = -1
@@ -183,3 +185,85 @@ def winding_along_lines(offsets, coordinate, sign, lines_v, line_u0, line_v0, co
                     winding += sign[entry]
                     entry += 1
                 out[i, j, k] = winding
+
+
+@njit(cache=True, inline="always")
+def _plane_point(points, i, j, axis, level, out, slot):
+    """Where edge i-j meets the plane ``x_axis = level``, computed from the lower point index
+    first, so that both triangles sharing the edge get the same point to the last bit."""
+    if i > j:
+        i, j = j, i
+    t = (level - points[i, axis]) / (points[j, axis] - points[i, axis])
+    for d in range(3):
+        out[slot, d] = points[i, d] + t * (points[j, d] - points[i, d])
+
+
+@njit(cache=True)
+def plane_sections(points, triangles, axis, origin, h, planes, fill, per_plane, next_slot,
+                   segments):
+    """The segments in which the triangles cut the planes ``x_axis = origin + p h``,
+    ``p = 0 .. planes - 1``, oriented so that the body's cross-section lies on their left in
+    the plane's (u, v) coordinates (``u = (axis + 1) % 3``, ``v = (axis + 2) % 3``).
+
+    A vertex on a plane counts as above it (a symbolic shift of the plane downwards), so that
+    every triangle is cut consistently with its neighbours and the sections close.
+
+    Args:
+        fill: False: only count per plane; True: write ``(au, av, bu, bv)`` into
+            ``segments[next_slot[p]]`` and advance it.
+    """
+    u = (axis + 1) % 3
+    v = (axis + 2) % 3
+    corner = np.empty((2, 3))
+    for t in range(triangles.shape[0]):
+        a, b, c = triangles[t, 0], triangles[t, 1], triangles[t, 2]
+        low = min(points[a, axis], points[b, axis], points[c, axis])
+        high = max(points[a, axis], points[b, axis], points[c, axis])
+        # Planes with low < level <= high cut the triangle (vertices on a plane are above it).
+        first = max(int(np.floor((low - origin) / h)) + 1, 0)
+        last = min(int(np.floor((high - origin) / h)), planes - 1)
+        if last < first:
+            continue
+        # The outward normal's (u, v) part, for the orientation.
+        e1 = points[b] - points[a]
+        e2 = points[c] - points[a]
+        normal_u = e1[v] * e2[axis] - e1[axis] * e2[v]
+        normal_v = e1[axis] * e2[u] - e1[u] * e2[axis]
+        for p in range(first, last + 1):
+            level = origin + p * h
+            if level <= low or level > high:
+                continue
+            count = 0
+            for k in range(3):
+                i = triangles[t, k]
+                j = triangles[t, (k + 1) % 3]
+                if (points[i, axis] >= level) != (points[j, axis] >= level):
+                    if count < 2:
+                        _plane_point(points, i, j, axis, level, corner, count)
+                    count += 1
+            if count != 2:
+                continue
+            if fill:
+                slot = next_slot[p]
+                next_slot[p] += 1
+                du = corner[1, u] - corner[0, u]
+                dv = corner[1, v] - corner[0, v]
+                # Inside on the left: the left normal (-dv, du) points against the outward
+                # normal.
+                if -dv * normal_u + du * normal_v > 0.0:
+                    segments[slot, 0], segments[slot, 1] = corner[1, u], corner[1, v]
+                    segments[slot, 2], segments[slot, 3] = corner[0, u], corner[0, v]
+                else:
+                    segments[slot, 0], segments[slot, 1] = corner[0, u], corner[0, v]
+                    segments[slot, 2], segments[slot, 3] = corner[1, u], corner[1, v]
+            per_plane[p] += 1
+
+
+@njit(cache=True)
+def section_areas(segments, offsets, origin_u, origin_v, h, out):
+    """``out[p, i, j]`` += area of plane p's section (``segments[offsets[p]:offsets[p+1]]``)
+    inside square (i, j) of the plane."""
+    for p in range(offsets.shape[0] - 1):
+        if offsets[p + 1] > offsets[p]:
+            segment_areas(segments[offsets[p]:offsets[p + 1]], origin_u, origin_v, h,
+                          out.shape[1], out.shape[2], out[p])

@@ -180,3 +180,48 @@ def solid_cells_3d(bmap: BoundaryMap3D) -> np.ndarray:
                                    crossings.lines_v, 1, 1, grid.ny, grid.nz,
                                    float(grid.origin[0]), grid.h, grid.nx, winding)
     return winding > 0
+
+
+def face_open_fractions_3d(bmap: BoundaryMap3D
+                           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The fluid share of every face's square, exactly: ``1 - area(section n square) / h^2``
+    with the section the bodies' cross-section in the face's plane (`elastoflow.coupling._area`).
+
+    Continuous in the bodies' positions (a body edge sliding across a face changes it
+    linearly), in [0, 1], so the pressure operator weighted by it stays SPD. Overlapping
+    bodies count their overlap twice (clipped at 0).
+
+    Returns:
+        ``(x faces (nx+1, ny, nz), y faces (nx, ny+1, nz), z faces (nx, ny, nz+1))``.
+    """
+    grid = bmap.grid
+    counts = (grid.nx, grid.ny, grid.nz)
+    fractions = []
+    for axis in range(3):
+        u, v = (axis + 1) % 3, (axis + 2) % 3
+        planes = counts[axis] + 1
+        per_plane = np.zeros(planes, dtype=np.int64)
+        no_slots = np.zeros(planes, dtype=np.int64)
+        no_segments = np.zeros((0, 4))
+        _kernels3d.plane_sections(bmap.points, bmap.triangles, axis, float(grid.origin[axis]),
+                                  grid.h, planes, False, per_plane, no_slots, no_segments)
+        offsets = np.zeros(planes + 1, dtype=np.int64)
+        np.cumsum(per_plane, out=offsets[1:])
+        segments = np.empty((int(offsets[-1]), 4))
+        next_slot = offsets[:-1].copy()
+        per_plane[:] = 0
+        _kernels3d.plane_sections(bmap.points, bmap.triangles, axis, float(grid.origin[axis]),
+                                  grid.h, planes, True, per_plane, next_slot, segments)
+        solid = np.zeros((planes, counts[u], counts[v]))
+        _kernels3d.section_areas(segments, offsets, float(grid.origin[u]),
+                                 float(grid.origin[v]), grid.h, solid)
+        open_fraction = np.clip(1.0 - solid / grid.h**2, 0.0, 1.0)
+        # (plane, u, v) -> (x, y, z) order.
+        fractions.append(np.ascontiguousarray(np.transpose(open_fraction, _to_xyz(axis))))
+    return fractions[0], fractions[1], fractions[2]
+
+
+def _to_xyz(axis: int) -> tuple[int, int, int]:
+    """The transpose taking an array indexed (axis, u, v) to (x, y, z)."""
+    order = (axis, (axis + 1) % 3, (axis + 2) % 3)
+    return (order.index(0), order.index(1), order.index(2))

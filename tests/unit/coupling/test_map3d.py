@@ -232,3 +232,40 @@ def test_bad_input_is_refused_in_one_line(points, triangles, message) -> None:
     grid = Grid3D(nx=4, ny=4, nz=4, h=0.25)
     with pytest.raises(ValueError, match=message):
         build_boundary_map_3d(grid, points, np.zeros_like(points), triangles)
+
+
+def test_face_fractions_of_a_box_are_its_exact_cross_sections() -> None:
+    from elastoflow.coupling import face_open_fractions_3d
+
+    grid = Grid3D(nx=8, ny=8, nz=8, h=0.125)
+    low, high = np.array([0.23, 0.18, 0.33]), np.array([0.71, 0.64, 0.77])
+    corners, triangles = box_surface(low, high)
+    bmap = build_boundary_map_3d(grid, corners, np.zeros_like(corners), triangles)
+    fractions = face_open_fractions_3d(bmap)
+    edges = np.arange(9) * grid.h
+    overlap = [np.clip(np.minimum(edges[1:], high[a]) - np.maximum(edges[:-1], low[a]), 0.0,
+                       None) / grid.h for a in range(3)]
+    for axis, open_fraction in enumerate(fractions):
+        u, v = (axis + 1) % 3, (axis + 2) % 3
+        crossed = (edges > low[axis]) & (edges <= high[axis])
+        covered = crossed[:, None, None] * overlap[u][None, :, None] * overlap[v][None, None, :]
+        expected = np.transpose(1.0 - covered, np.argsort((axis, u, v)))
+        assert np.allclose(open_fraction, expected, rtol=0.0, atol=1e-12), axis
+
+
+def test_face_fractions_move_continuously_with_the_body() -> None:
+    from elastoflow.coupling import face_open_fractions_3d
+
+    points, triangles = icosphere(3)
+    grid = Grid3D(nx=10, ny=10, nz=10, h=0.1)
+    results = []
+    for shift in (0.0, 1e-9):
+        surface = np.array([0.5, 0.5, 0.5 + shift]) + 0.3 * points  # vertices on planes
+        bmap = build_boundary_map_3d(grid, surface, np.zeros_like(surface), triangles)
+        results.append(face_open_fractions_3d(bmap))
+    for before, after in zip(*results):
+        assert np.abs(after - before).max() < 1e-6
+        assert before.min() >= 0.0 and before.max() <= 1.0
+    # A sphere's cross-section through its centre: the solid share of the plane z = 0.5.
+    solid = (1.0 - results[0][2][:, :, 5]).sum() * grid.h**2
+    assert abs(solid - np.pi * 0.09) < 0.02 * np.pi * 0.09
