@@ -19,6 +19,7 @@ triangles with the grid lines along x, y and z (``LineCrossings``), and the cell
 (``face_open_fractions_3d``).
 """
 
+from elastoflow.coupling._area import DualFaceWeights, dual_face_weights
 from elastoflow.coupling._brute_force import classify_points_brute_force
 from elastoflow.coupling._classify import (
     PointClassification,
@@ -69,6 +70,7 @@ __all__ = [
     "BoundaryMap3D",
     "BoundaryStaircase",
     "BoundaryTreatment",
+    "DualFaceWeights",
     "InterfaceFlux",
     "LineCrossings",
     "Obstacle",
@@ -82,6 +84,7 @@ __all__ = [
     "classify_points",
     "classify_points_brute_force",
     "concatenate_boundaries",
+    "dual_face_weights",
     "face_open_fractions_3d",
     "force_momentum_exchange",
     "force_traction",

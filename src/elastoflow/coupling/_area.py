@@ -22,8 +22,13 @@ them up to the polygon's lowest point, i.e. the polygon's area in cells, not the
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 from numba import njit
+
+from elastoflow.coupling._map import BoundaryMap
+from elastoflow.grid import Grid2D
 
 
 @njit(cache=True, inline="always")
@@ -130,3 +135,145 @@ def segment_areas(segments, origin_x, origin_y, h, nx, ny, out):
         for j in range(ny - 1, -1, -1):
             running += below[i, j]
             out[i, j] += running
+
+
+@njit(cache=True, inline="always")
+def _clamped_moments(xa: float, ya: float, xb: float, yb: float, low: float, high: float,
+                     xc: float, yc: float) -> tuple[float, float, float]:
+    """The three Green integrals of `segment_moments` along one clipped edge: ``int P dx``
+    for ``P = clamp(y) - low``, ``(x - xc)(clamp(y) - low)`` and ``((clamp(y) - yc)^2 -
+    (low - yc)^2) / 2``; clamp(y) is linear on each piece between the crossings of the two
+    levels, so Simpson's rule is exact on it."""
+    area = 0.0
+    first = 0.0
+    second = 0.0
+    if xa == xb:
+        return area, first, second
+    ts = np.empty(4)
+    ts[0] = 0.0
+    count = 1
+    dy = yb - ya
+    if dy != 0.0:
+        for level in (low, high):
+            t = (level - ya) / dy
+            if 0.0 < t < 1.0:
+                ts[count] = t
+                count += 1
+    ts[count] = 1.0
+    count += 1
+    for i in range(1, count):
+        k = i
+        while k > 0 and ts[k - 1] > ts[k]:
+            ts[k - 1], ts[k] = ts[k], ts[k - 1]
+            k -= 1
+    dx = xb - xa
+    base = 0.5 * (low - yc) ** 2
+    for i in range(count - 1):
+        t0, t1 = ts[i], ts[i + 1]
+        if t1 <= t0:
+            continue
+        width = (t1 - t0) * dx
+        for weight, t in ((1.0, t0), (4.0, 0.5 * (t0 + t1)), (1.0, t1)):
+            x = xa + t * dx
+            y = min(max(ya + t * dy, low), high)
+            area += weight * width * (y - low) / 6.0
+            first += weight * width * (x - xc) * (y - low) / 6.0
+            second += weight * width * (0.5 * (y - yc) ** 2 - base) / 6.0
+    return area, first, second
+
+
+@njit(cache=True)
+def segment_moments(segments, origin_x, origin_y, h, nx, ny, out):
+    """``out[i, j]`` += (area [m^2], int (x - xc) dA, int (y - yc) dA [m^3]) of the polygons
+    inside square (i, j), ``(xc, yc)`` its centre; edges as `segment_areas`.
+
+    The centroid of the covered part is ``(xc + out[..., 1] / A, yc + out[..., 2] / A)``.
+    """
+    below_area = np.zeros((nx, ny + 1))
+    below_first = np.zeros((nx, ny + 1))
+    for e in range(segments.shape[0]):
+        ax, ay, bx, by = segments[e, 0], segments[e, 1], segments[e, 2], segments[e, 3]
+        if ax == bx:
+            continue
+        left, right = min(ax, bx), max(ax, bx)
+        first = max(int(np.floor((left - origin_x) / h)), 0)
+        last = min(int(np.floor((right - origin_x) / h)), nx - 1)
+        for i in range(first, last + 1):
+            x0 = origin_x + i * h
+            xc = x0 + 0.5 * h
+            ta = (max(x0, left) - ax) / (bx - ax)
+            tb = (min(x0 + h, right) - ax) / (bx - ax)
+            if ta > tb:
+                ta, tb = tb, ta
+            if tb <= ta:
+                continue
+            pxa, pya = ax + ta * (bx - ax), ay + ta * (by - ay)
+            pxb, pyb = ax + tb * (bx - ax), ay + tb * (by - ay)
+            j_low = int(np.floor((min(pya, pyb) - origin_y) / h))
+            j_high = int(np.floor((max(pya, pyb) - origin_y) / h))
+            for j in range(max(j_low, 0), min(j_high, ny - 1) + 1):
+                y0 = origin_y + j * h
+                area, moment_x, moment_y = _clamped_moments(pxa, pya, pxb, pyb, y0, y0 + h, xc,
+                                                            y0 + 0.5 * h)
+                out[i, j, 0] -= area
+                out[i, j, 1] -= moment_x
+                out[i, j, 2] -= moment_y
+            top_below = min(j_low - 1, ny - 1)
+            if top_below >= 0:
+                # Above a square the edge counts its full height: area h dx, x-moment
+                # h (x - xc) dx, y-moment 0 (symmetric about yc).
+                below_area[i, top_below] -= h * (pxb - pxa)
+                below_first[i, top_below] -= h * 0.5 * ((pxb - xc) ** 2 - (pxa - xc) ** 2)
+    for i in range(nx):
+        running_area = 0.0
+        running_first = 0.0
+        for j in range(ny - 1, -1, -1):
+            running_area += below_area[i, j]
+            running_first += below_first[i, j]
+            out[i, j, 0] += running_area
+            out[i, j, 1] += running_first
+
+
+@dataclass(frozen=True)
+class DualFaceWeights:
+    """The fluid share of each face's dual cell (the h x h square centred on the face) and
+    the centroid of its covered part: the face weights of Batty, Bertails & Bridson's
+    variational projection, continuous in the bodies' positions (docs/method_notes.md item 9).
+
+    Attributes:
+        open_x: Fluid share of the u faces' dual cells, in [0, 1], (nx+1, ny).
+        open_y: Same for the v faces, (nx, ny+1).
+        centroid_x: Centroid [m] of the covered part of each u face's dual cell (the face
+            centre where nothing covers it), (nx+1, ny, 2).
+        centroid_y: Same for the v faces, (nx, ny+1, 2).
+    """
+
+    open_x: np.ndarray
+    open_y: np.ndarray
+    centroid_x: np.ndarray
+    centroid_y: np.ndarray
+
+
+def dual_face_weights(grid: Grid2D, bmap: BoundaryMap) -> DualFaceWeights:
+    """`DualFaceWeights` of the map's closed outlines (bodies on the left of their edges).
+    Overlapping outlines count their overlap twice (the share is clipped at 0)."""
+    if bmap.grid is not grid and bmap.grid != grid:
+        raise ValueError(f"boundary map grid {bmap.grid!r}: must be the grid {grid!r}")
+    h = grid.h
+    ox, oy = grid.origin
+    segments = np.ascontiguousarray(
+        np.concatenate([bmap.points[bmap.edges[:, 0]], bmap.points[bmap.edges[:, 1]]], axis=1))
+    results = []
+    for corner_x, corner_y, count_x, count_y in ((ox - 0.5 * h, oy, grid.nx + 1, grid.ny),
+                                                  (ox, oy - 0.5 * h, grid.nx, grid.ny + 1)):
+        moments = np.zeros((count_x, count_y, 3))
+        segment_moments(segments, corner_x, corner_y, h, count_x, count_y, moments)
+        area = moments[..., 0]
+        centre_x = corner_x + (np.arange(count_x) + 0.5) * h
+        centre_y = corner_y + (np.arange(count_y) + 0.5) * h
+        safe = np.where(area > 0.0, area, 1.0)
+        centroid = np.stack(np.broadcast_arrays(centre_x[:, None] + moments[..., 1] / safe,
+                                                centre_y[None, :] + moments[..., 2] / safe),
+                            axis=-1)
+        results.append((np.clip(1.0 - area / h**2, 0.0, 1.0), np.ascontiguousarray(centroid)))
+    return DualFaceWeights(results[0][0], results[1][0], results[0][1], results[1][1])
