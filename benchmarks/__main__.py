@@ -1,4 +1,4 @@
-"""Run every benchmark: ``python -m benchmarks [NAME ...] [--quick]``.
+"""Run every benchmark: ``python -m benchmarks [NAME ...] [--options ...]``.
 
 Each ``benchmarks/bench_NAME.py`` module exposes ``main(argv) -> list[dict]``; it prints its own
 table and writes ``benchmarks/results/NAME.json``. Timings are measurements, never assertions.
@@ -24,8 +24,11 @@ def available() -> list[str]:
 
 def main(argv: list[str] | None = None) -> int:
     args = list(sys.argv[1:] if argv is None else argv)
-    options = [a for a in args if a.startswith("-")]
-    names = [a for a in args if not a.startswith("-")] or available()
+    # Names come first; everything from the first option on goes to the benchmarks, values
+    # included (``coupling --steps 100``: 100 is the option's value, not a benchmark).
+    first_option = next((k for k, a in enumerate(args) if a.startswith("-")), len(args))
+    options = args[first_option:]
+    names = args[:first_option] or available()
     unknown = sorted(set(names) - set(available()))
     if unknown:
         print(f"benchmark {unknown[0]!r}: unknown; available: {', '.join(available())}")

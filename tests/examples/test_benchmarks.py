@@ -75,3 +75,16 @@ def test_coupling_benchmark_runs(results: Path) -> None:
     assert all(row["ms_per_step"] > 0.0 and row["pressure_iterations"] > 0 for row in rows)
     assert rows[1]["ratio_to_explicit"] > 0.0 and rows[3]["ratio_to_explicit"] > 0.0
     assert _written(results, "coupling")
+
+
+def test_runner_passes_option_values_to_the_benchmark(monkeypatch) -> None:
+    """``python -m benchmarks coupling --steps 3``: 3 is the value of --steps, not a
+    benchmark's name (it used to be refused as an unknown benchmark)."""
+    import benchmarks.__main__ as runner
+    from benchmarks import bench_coupling
+
+    seen: list[list[str]] = []
+    monkeypatch.setattr(bench_coupling, "main", lambda options: seen.append(options) or [])
+    assert runner.main(["coupling", "--steps", "3", "--size", "32"]) == 0
+    assert seen == [["--steps", "3", "--size", "32"]]
+    assert runner.main(["coupling", "3"]) == 2
