@@ -81,17 +81,67 @@ def _sample(f, fx, fy, fz, modes, values, row):
         high = _lerp(_lerp(f[i0, j0, k0 + 1], f[i0 + 1, j0, k0 + 1], a),
                      _lerp(f[i0, j0 + 1, k0 + 1], f[i0 + 1, j0 + 1, k0 + 1], a), b)
         return _lerp(low, high, c)
+    return _sample_near_side(f, i0, j0, k0, a, b, c, modes, values, row)
+
+
+@njit(cache=True)
+def _sample_near_side(f, i0, j0, k0, a, b, c, modes, values, row):
+    """`_sample` when a corner lies beyond a side. Per axis, the two corner indices clamped
+    into the array and the affine ghost map (value = a * inside + b) of each, composed x,
+    then y, then z as in `_field_value`: computed once per axis instead of once per corner.
+    Not inlined, so that the inlined fast path stays small."""
+    m, n, l = f.shape
+    ia, aia, bia = _axis_corner(i0, m, modes[row, SIDE_LEFT], values[row, SIDE_LEFT],
+                                modes[row, SIDE_RIGHT], values[row, SIDE_RIGHT])
+    ib, aib, bib = _axis_corner(i0 + 1, m, modes[row, SIDE_LEFT], values[row, SIDE_LEFT],
+                                modes[row, SIDE_RIGHT], values[row, SIDE_RIGHT])
+    ja, aja, bja = _axis_corner(j0, n, modes[row, SIDE_BOTTOM], values[row, SIDE_BOTTOM],
+                                modes[row, SIDE_TOP], values[row, SIDE_TOP])
+    jb, ajb, bjb = _axis_corner(j0 + 1, n, modes[row, SIDE_BOTTOM], values[row, SIDE_BOTTOM],
+                                modes[row, SIDE_TOP], values[row, SIDE_TOP])
+    ka, aka, bka = _axis_corner(k0, l, modes[row, SIDE_BACK], values[row, SIDE_BACK],
+                                modes[row, SIDE_FRONT], values[row, SIDE_FRONT])
+    kb, akb, bkb = _axis_corner(k0 + 1, l, modes[row, SIDE_BACK], values[row, SIDE_BACK],
+                                modes[row, SIDE_FRONT], values[row, SIDE_FRONT])
     low = _lerp(
-        _lerp(_field_value(f, i0, j0, k0, modes, values, row),
-              _field_value(f, i0 + 1, j0, k0, modes, values, row), a),
-        _lerp(_field_value(f, i0, j0 + 1, k0, modes, values, row),
-              _field_value(f, i0 + 1, j0 + 1, k0, modes, values, row), a), b)
+        _lerp(_corner(f, ia, aia, bia, ja, aja, bja, ka, aka, bka),
+              _corner(f, ib, aib, bib, ja, aja, bja, ka, aka, bka), a),
+        _lerp(_corner(f, ia, aia, bia, jb, ajb, bjb, ka, aka, bka),
+              _corner(f, ib, aib, bib, jb, ajb, bjb, ka, aka, bka), a), b)
     high = _lerp(
-        _lerp(_field_value(f, i0, j0, k0 + 1, modes, values, row),
-              _field_value(f, i0 + 1, j0, k0 + 1, modes, values, row), a),
-        _lerp(_field_value(f, i0, j0 + 1, k0 + 1, modes, values, row),
-              _field_value(f, i0 + 1, j0 + 1, k0 + 1, modes, values, row), a), b)
+        _lerp(_corner(f, ia, aia, bia, ja, aja, bja, kb, akb, bkb),
+              _corner(f, ib, aib, bib, ja, aja, bja, kb, akb, bkb), a),
+        _lerp(_corner(f, ia, aia, bia, jb, ajb, bjb, kb, akb, bkb),
+              _corner(f, ib, aib, bib, jb, ajb, bjb, kb, akb, bkb), a), b)
     return _lerp(low, high, c)
+
+
+@njit(cache=True, inline="always")
+def _ghost_map(mode, value):
+    """``(a, b)`` with ``ghost = a * inside + b`` for a ghost ``mode`` (see `_ghost`)."""
+    if mode == GHOST_COPY:
+        return 1.0, 0.0
+    if mode == GHOST_DIRICHLET:
+        return -1.0, 2.0 * value
+    return 0.0, value
+
+
+@njit(cache=True, inline="always")
+def _axis_corner(index, size, mode_low, value_low, mode_high, value_high):
+    """``index`` clamped into ``[0, size)`` and the ghost map ``(a, b)`` that applies there
+    (``(1, 0)`` inside)."""
+    if index < 0:
+        a, b = _ghost_map(mode_low, value_low)
+        return 0, a, b
+    if index >= size:
+        a, b = _ghost_map(mode_high, value_high)
+        return size - 1, a, b
+    return index, 1.0, 0.0
+
+
+@njit(cache=True, inline="always")
+def _corner(f, i, ai, bi, j, aj, bj, k, ak, bk):
+    return ((f[i, j, k] * ai + bi) * aj + bj) * ak + bk
 
 
 @njit(cache=True, inline="always")
