@@ -182,13 +182,16 @@ def test_nodes_in_box_3d() -> None:
 
 @pytest.mark.skipif(importlib.util.find_spec("pytetwild") is None,
                     reason="optional extra elastoflow[tetwild] not installed")
-def test_tetrahedralize_closed_surface_file(tmp_path) -> None:
-    # The sphere's own boundary as an STL file: fTetWild's solid must have its volume.
+@pytest.mark.parametrize("suffix", [".stl", ".obj", ".ply"])
+def test_tetrahedralize_closed_surface_file(tmp_path, suffix: str) -> None:
+    # The sphere's own boundary as a surface file: fTetWild's solid must have its volume.
     sphere = mesh_sphere(1.0, 0.4)
-    path = tmp_path / "ball.stl"
-    meshio.write(str(path), meshio.Mesh(sphere.points, [("triangle",
-                                                         sphere.boundary_triangles)]),
-                 binary=True)
+    path = tmp_path / f"ball{suffix}"
+    surface = meshio.Mesh(sphere.points, [("triangle", sphere.boundary_triangles)])
+    if suffix == ".stl":
+        meshio.write(str(path), surface, binary=True)
+    else:
+        meshio.write(str(path), surface)
     mesh = tetrahedralize_surface(path, 0.5)
     assert mesh.volume == pytest.approx(sphere.volume, rel=0.01)
     assert_closed_and_outward(mesh)
