@@ -196,3 +196,19 @@ def test_invalid_input_is_refused() -> None:
                        np.ones((4, 4, 3)))
     with pytest.raises(ValueError, match="rtol"):
         PoissonSolverMGPCG3D(rtol=0.0)
+
+
+def test_shapes_of_equal_size_share_vectors_without_mixing_answers() -> None:
+    # The three velocity components of a cubic grid: (n+1) n n, n (n+1) n, n n (n+1).
+    solver = PoissonSolverMGPCG3D(rtol=1e-10)
+    operators = [laplacian(0, outflow=True, shape=shape)
+                 for shape in ((9, 8, 8), (8, 9, 8), (8, 8, 9))]
+    rng = np.random.default_rng(12)
+    rhs = [rng.standard_normal(op.shape) for op in operators]
+    for _ in range(2):
+        for operator, b in zip(operators, rhs, strict=True):
+            x, report = solver.solve(operator, b)
+            alone, _ = PoissonSolverMGPCG3D(rtol=1e-10).solve(operator, b)
+            assert report.converged
+            np.testing.assert_array_equal(x, alone)
+    assert len(solver._vector_pool) == 1 and len(solver._hierarchies) == 3
