@@ -46,13 +46,16 @@ def test_viscous_wave_decays_at_the_frequency_of_lambs_mode() -> None:
     assert 0.2 * wave.damping_reference < wave.damping < 1.2 * wave.damping_reference
 
 
-def test_dam_break_front_and_volume() -> None:
-    """Martin & Moyce's column at a / 8 up to T = 3.5: the front ahead of the experiment by
-    less than 0.8 a, and the liquid area kept by the volume correction."""
+def test_dam_break_front_energy_and_volume() -> None:
+    """Martin & Moyce's column at a / 8 up to T = 3.5 (semi-Lagrangian velocity): the front
+    within 0.3 a of the experiment (-0.01 to +0.19 measured), the mechanical energy of the
+    liquid cells within 10 % of the initial (up to 1.08 in the first steps, as cells change
+    sides on this coarse grid, 0.97 at T = 3; with MacCormack for the velocity 1.17 at T = 3),
+    and the liquid area kept by the volume correction."""
     dam = run_dam_break(8, tank_widths=6.0, end_time=3.5)
-    assert len(dam.front_error) >= 4
-    assert np.all(dam.front_error > -0.3)
-    assert np.max(np.abs(dam.front_error)) < 0.8
+    assert len(dam.front_error) == 5
+    assert np.max(np.abs(dam.front_error)) < 0.3
+    assert np.max(dam.energy) < 1.1
     assert abs(dam.area[-1] / dam.area[0] - 1.0) < 1e-12
     assert np.max(dam.pressure_iterations) <= 12
 

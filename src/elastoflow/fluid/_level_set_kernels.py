@@ -472,6 +472,10 @@ def redistance_fast_sweeping(phi, h, rounds, out, fixed):
         _sweep(out, fixed, h, 0, 1, ny - 1, -1)
     for i in range(nx):
         for j in range(ny):
+            # No surface reaches this cell (a grid all liquid or all air, or a region the
+            # sweeps did not reach): keep phi rather than an infinite distance.
+            if out[i, j] == np.inf:
+                out[i, j] = abs(phi[i, j])
             if phi[i, j] < 0.0:
                 out[i, j] = -out[i, j]
 

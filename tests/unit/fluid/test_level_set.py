@@ -286,3 +286,16 @@ def test_surface_pressure_moves_to_the_right_hand_side_exactly() -> None:
     kernels.add_surface_pressure(phi, surface, 1e-3, rhs)
     liquid = phi < 0.0
     assert np.allclose(apply_operator(operator, surface)[liquid], rhs[liquid], rtol=1e-13)
+
+
+def test_a_tank_full_of_liquid_stays_full() -> None:
+    """No surface anywhere: redistancing keeps phi (not an infinite distance), and the
+    projection's operator is the closed box's singular one, solved with zero mean."""
+    grid = Grid2D(8, 8, 0.125)
+    solver = _solver(grid)
+    state = solver.state(level_set_below(grid, 2.0))
+    for index in range(3):
+        report = solver.step(state, 1e-3, index * 1e-3)
+    assert report.liquid_cells == 64
+    assert np.all(np.isfinite(state.level_set))
+    assert np.max(np.abs(state.fluid.velocity_y)) < 1e-7  # rtol 1e-6 of g dt
