@@ -21,7 +21,7 @@ so boundary triangles point outwards.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -40,8 +40,8 @@ class TetrahedralMesh:
     one-line ``ValueError`` naming the bad element, face or vertex: degenerate (zero-volume) or
     inverted (negatively oriented) tetrahedra, faces shared by more than two tetrahedra or by
     two with the same orientation (overlap), and vertices used by no tetrahedron. The boundary
-    triangles are derived from the tetrahedra. The arrays are made read-only; meshes compare by
-    identity.
+    triangles are derived from the tetrahedra (not an argument). The arrays are made
+    read-only; meshes compare by identity.
 
     Attributes:
         points: Rest positions [m], float64, shape (n, 3).
@@ -52,7 +52,7 @@ class TetrahedralMesh:
 
     points: np.ndarray
     tetrahedra: np.ndarray
-    boundary_triangles: np.ndarray = None  # type: ignore[assignment]
+    boundary_triangles: np.ndarray = field(init=False)
 
     def __post_init__(self) -> None:
         points = np.ascontiguousarray(self.points, dtype=np.float64)
@@ -382,8 +382,8 @@ def mesh_sphere(
     like :func:`mesh_box` by the parity of its lattice corners, which agrees across the blocks'
     shared faces because ``n`` is even, so the mesh is conforming. A plain lattice mapped onto
     the ball would flatten the cells along the cube's edges more and more with refinement
-    (radius ratio 0.09 at r/4, 7e-4 at r/16); here the smallest radius ratio measured 0.24 at
-    element size r/2.5 and 0.20 at r/20, the median 0.73 (tests/unit/solid/test_tet_mesh.py).
+    (smallest radius ratio 0.09 at element size r/2, 7e-4 at r/8); here it measured 0.24 at
+    r/2.5 and 0.20 at r/20, the median 0.73 (tests/unit/solid/test_tet_mesh.py checks 0.19).
 
     Args:
         radius: Radius [m].
