@@ -58,6 +58,25 @@ def test_box_counts_volume_quality_and_alternation() -> None:
     assert len({tuple(d) for d in face_diagonals}) == 3
 
 
+@pytest.mark.parametrize("axis", [0, 1, 2])
+def test_box_split_is_mirror_symmetric(axis: int) -> None:
+    # No preferred direction: with even cell counts, the reflection x_axis -> l - x_axis maps
+    # the set of tetrahedra onto itself (a 6-tetrahedron split along one main diagonal, or a
+    # 5-tetrahedron split repeated without alternation, does not).
+    size = (0.4, 0.2, 0.6)
+    mesh = mesh_box(size, counts=(4, 2, 6))
+    mirrored = mesh.points.copy()
+    mirrored[:, axis] = size[axis] - mirrored[:, axis]
+    key = np.round(mesh.points / 0.1).astype(np.int64) @ np.array([10_000, 100, 1])
+    mirror_key = np.round(mirrored / 0.1).astype(np.int64) @ np.array([10_000, 100, 1])
+    order = np.argsort(key)
+    image = order[np.searchsorted(key[order], mirror_key)]
+    np.testing.assert_array_equal(key[image], mirror_key)
+    original = {tuple(sorted(t)) for t in mesh.tetrahedra.tolist()}
+    reflected = {tuple(sorted(t)) for t in image[mesh.tetrahedra].tolist()}
+    assert reflected == original
+
+
 @pytest.mark.parametrize("element_size,tolerance", [(0.5, 0.04), (0.25, 0.01), (0.125, 0.003)])
 def test_cylinder_volume_and_area(element_size: float, tolerance: float) -> None:
     # Inscribed polygon of s sides: volume pi r^2 L (1 - O(1/s^2)), second order in h.
