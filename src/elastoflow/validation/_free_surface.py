@@ -580,7 +580,9 @@ def plot_dam_break(runs: list[DamBreak], path: Path) -> None:
     figure, axes = plt.subplots(1, 3, figsize=(15, 3.8))
     for run in runs:
         label = (f"{run.cells[0]}x{run.cells[1]}, {run.advection}"
-                 + ("" if run.volume_correction else ", no volume correction"))
+                 + ("" if run.volume_correction else ", no volume correction")
+                 + ("" if run.theta_min == GhostFluidProjection().theta_min
+                    else f", theta_min {run.theta_min:g}"))
         axes[0].plot(run.time * scale, run.front / a, lw=0.9, label=label)
         axes[1].plot(run.time * scale, 100 * (run.area / run.area[0] - 1.0), lw=0.9, label=label)
         axes[2].plot(run.time * scale, run.energy, lw=0.9, label=label)
