@@ -20,6 +20,8 @@ so boundary triangles point outwards.
 
 from __future__ import annotations
 
+import contextlib
+import tempfile
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -490,7 +492,9 @@ def tetrahedralize_surface(
 
     Uses ``pytetwild`` (the optional extra ``elastoflow[tetwild]``; fTetWild, MPL-2.0), which
     meshes robustly even surfaces with small defects: its boundary lies within ``envelope``
-    times the bounding-box diagonal of the input surface, not exactly on it.
+    times the bounding-box diagonal of the input surface, not exactly on it. fTetWild runs in
+    a temporary working directory (it writes a scratch file): the process's working directory
+    changes for the duration of the call.
 
     Args:
         surface: A file meshio reads with triangle cells (.stl, .obj, .ply, .off, .vtk, ...),
@@ -523,12 +527,15 @@ def tetrahedralize_surface(
     if faces.min() < 0 or faces.max() >= vertices.shape[0]:
         raise ValueError(f"{name}: triangle node indices must lie in [0, {vertices.shape[0]})")
     _check_length("element_size", element_size)
-    # Writable C-ordered copies: the binding refuses read-only arrays (a mesh's own points).
-    raw_points, raw_tetrahedra = pytetwild.tetrahedralize(
-        np.array(vertices, dtype=np.float64, order="C"), np.array(faces, dtype=np.int32),
-        edge_length_abs=float(element_size), epsilon=float(envelope),
-        num_threads=int(threads), quiet=True,
-    )
+    # fTetWild writes a scratch file (__tracked_surface.stl) into the working directory; run
+    # it in a temporary one, which goes with the file. Writable C-ordered copies: the binding
+    # refuses read-only arrays (a mesh's own points).
+    with tempfile.TemporaryDirectory() as folder, contextlib.chdir(folder):
+        raw_points, raw_tetrahedra = pytetwild.tetrahedralize(
+            np.array(vertices, dtype=np.float64, order="C"), np.array(faces, dtype=np.int32),
+            edge_length_abs=float(element_size), epsilon=float(envelope),
+            num_threads=int(threads), quiet=True,
+        )
     if len(raw_tetrahedra) == 0:
         raise ValueError(f"{name}: fTetWild returned no tetrahedra (is the surface closed?)")
     points = np.asarray(raw_points, dtype=np.float64)

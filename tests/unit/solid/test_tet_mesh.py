@@ -202,8 +202,10 @@ def test_nodes_in_box_3d() -> None:
 @pytest.mark.skipif(importlib.util.find_spec("pytetwild") is None,
                     reason="optional extra elastoflow[tetwild] not installed")
 @pytest.mark.parametrize("suffix", [".stl", ".obj", ".ply"])
-def test_tetrahedralize_closed_surface_file(tmp_path, suffix: str) -> None:
+def test_tetrahedralize_closed_surface_file(tmp_path, monkeypatch, suffix: str) -> None:
     # The sphere's own boundary as a surface file: fTetWild's solid must have its volume.
+    # It leaves no scratch file in the working directory.
+    monkeypatch.chdir(tmp_path)
     sphere = mesh_sphere(1.0, 0.4)
     path = tmp_path / f"ball{suffix}"
     surface = meshio.Mesh(sphere.points, [("triangle", sphere.boundary_triangles)])
@@ -212,6 +214,7 @@ def test_tetrahedralize_closed_surface_file(tmp_path, suffix: str) -> None:
     else:
         meshio.write(str(path), surface)
     mesh = tetrahedralize_surface(path, 0.5)
+    assert sorted(p.name for p in tmp_path.iterdir()) == [path.name]
     assert mesh.volume == pytest.approx(sphere.volume, rel=0.01)
     assert_closed_and_outward(mesh)
     with pytest.raises(ValueError, match="triangle node indices must lie"):
