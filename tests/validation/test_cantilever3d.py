@@ -4,7 +4,7 @@ The set-up and the reference are those of `elastoflow.validation._solid3d` (stee
 1 x 0.1 x 0.1 m, clamped at x = 0; docs/validation/three_d_solid.md). Linear tetrahedra lock
 in bending, so coarse meshes are too stiff: the frequency comes out high and the deflection
 low, and both errors shrink with refinement. Measured: k = 2 cells across: +21.1 % and
--32.5 %; k = 3: +9.8 % and -17.7 % (slopes 2.0 and 1.5).
+-32.5 %; k = 3: +9.8 % and -17.7 % (slopes 1.9 and 1.5).
 """
 
 from __future__ import annotations
