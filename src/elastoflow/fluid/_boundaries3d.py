@@ -15,9 +15,28 @@ from numpy.typing import NDArray
 
 from elastoflow.fluid._boundaries import Inflow, Outflow, WallFreeSlip, WallNoSlip
 
-Side3D = WallNoSlip | WallFreeSlip | Inflow | Outflow
-_SIDE_TYPES = (WallNoSlip, WallFreeSlip, Inflow, Outflow)
 SIDE_NAMES = ("left", "right", "bottom", "top", "back", "front")
+
+
+@dataclass(frozen=True)
+class WallMoving3D:
+    """A wall sliding along itself (a lid), zero normal velocity (3D `WallMoving`).
+
+    Attributes:
+        velocity: Wall velocity ``(vx, vy, vz)`` [m/s]; its component normal to the side it
+            is put on must be 0.
+    """
+
+    velocity: tuple[float, float, float]
+
+    def __post_init__(self) -> None:
+        if len(self.velocity) != 3 or not all(math.isfinite(float(c)) for c in self.velocity):
+            raise ValueError(
+                f"WallMoving3D.velocity = {self.velocity!r}: must be three finite numbers")
+
+
+Side3D = WallNoSlip | WallFreeSlip | WallMoving3D | Inflow | Outflow
+_SIDE_TYPES = (WallNoSlip, WallFreeSlip, WallMoving3D, Inflow, Outflow)
 
 
 @dataclass(frozen=True)
@@ -46,7 +65,13 @@ class DomainBoundaries3D:
             if not isinstance(side, _SIDE_TYPES):
                 raise ValueError(
                     f"DomainBoundaries3D.{name} = {side!r}: must be WallNoSlip, WallFreeSlip, "
-                    "Inflow or Outflow (a moving wall is not available in 3D yet)"
+                    "WallMoving3D, Inflow or Outflow"
+                )
+            axis = SIDE_NAMES.index(name) // 2
+            if isinstance(side, WallMoving3D) and side.velocity[axis] != 0.0:
+                raise ValueError(
+                    f"DomainBoundaries3D.{name} = {side!r}: a moving wall slides along itself; "
+                    f"its velocity's {'xyz'[axis]} component must be 0"
                 )
 
     @classmethod

@@ -278,7 +278,8 @@ def _is_fixed(index, size, fixed_low, fixed_high):
 
 
 def _make_viscosity(loop):
-    def kernel(f, c, axis, fixed_low, fixed_high, tangential_modes, diagonal, weights_x,
+    def kernel(f, c, axis, fixed_low, fixed_high, tangential_modes, tangential_values,
+               diagonal, weights_x,
                weights_y, weights_z, rhs):
         m, n, l = f.shape
         size = f.shape[axis]
@@ -307,10 +308,12 @@ def _make_viscosity(loop):
                         nj = np.int64(j) + step if along == 1 else np.int64(j)
                         nk = np.int64(k) + step if along == 2 else np.int64(k)
                         if ni < 0 or ni >= m or nj < 0 or nj >= n or nk < 0 or nk >= l:
-                            # Beyond a side along another axis: a no-slip ghost (wall
-                            # velocity 0) adds 2c; a zero-gradient ghost adds nothing.
+                            # Beyond a side along another axis: a wall's mirror ghost
+                            # (2 v_wall - inside) adds 2c and 2c v_wall; a zero-gradient
+                            # ghost adds nothing.
                             if along != axis and tangential_modes[direction] == GHOST_DIRICHLET:
                                 d += 2.0 * c
+                                r += 2.0 * c * tangential_values[direction]
                             continue
                         neighbour = ni if axis == 0 else (nj if axis == 1 else nk)
                         if along == axis and _is_fixed(neighbour, size, fixed_low, fixed_high):
@@ -335,8 +338,8 @@ _viscosity_serial, _viscosity_parallel = serial_and_parallel(_make_viscosity)
 
 
 @njit(cache=True)
-def build_viscosity_system_3d(f, c, axis, fixed_low, fixed_high, tangential_modes, diagonal,
-                              weights_x, weights_y, weights_z, rhs):
+def build_viscosity_system_3d(f, c, axis, fixed_low, fixed_high, tangential_modes,
+                              tangential_values, diagonal, weights_x, weights_y, weights_z, rhs):
     """Assemble ``(I - nu dt lap) f = f*`` for one velocity component as a 7-point operator.
 
     Args:
@@ -345,18 +348,20 @@ def build_viscosity_system_3d(f, c, axis, fixed_low, fixed_high, tangential_mode
         axis: The component's own axis (0 u, 1 v, 2 w); its first and last planes are the
             boundary faces normal to it, held (Dirichlet) when ``fixed_low`` / ``fixed_high``.
         tangential_modes: (6,) ghost modes per side (`GHOST_COPY` or `GHOST_DIRICHLET`), read
-            on the four sides along the other axes.
+            on the four sides along the other axes; ``tangential_values`` (6,) the walls'
+            velocity component there (0 unless a wall moves).
         diagonal, weights_x, weights_y, weights_z, rhs: Outputs (the operator's arrays).
     """
     if f.size > PARALLEL_MINIMUM_3D:
         return _viscosity_parallel(f, c, axis, fixed_low, fixed_high, tangential_modes,
-                                   diagonal, weights_x, weights_y, weights_z, rhs)
-    return _viscosity_serial(f, c, axis, fixed_low, fixed_high, tangential_modes, diagonal,
-                             weights_x, weights_y, weights_z, rhs)
+                                   tangential_values, diagonal, weights_x, weights_y, weights_z,
+                                   rhs)
+    return _viscosity_serial(f, c, axis, fixed_low, fixed_high, tangential_modes,
+                             tangential_values, diagonal, weights_x, weights_y, weights_z, rhs)
 
 
 def _make_viscosity_rhs(loop):
-    def kernel(f, c, axis, fixed_low, fixed_high, rhs):
+    def kernel(f, c, axis, fixed_low, fixed_high, tangential_modes, tangential_values, rhs):
         m, n, l = f.shape
         size = f.shape[axis]
         for i in loop(m):
@@ -365,6 +370,8 @@ def _make_viscosity_rhs(loop):
                     own = i if axis == 0 else (j if axis == 1 else k)
                     value = f[i, j, k]
                     if not _is_fixed(own, size, fixed_low, fixed_high):
+                        value += 2.0 * c * _wall_sum(i, j, k, m, n, l, axis, tangential_modes,
+                                                     tangential_values)
                         if own == 1 and fixed_low:
                             value += c * (f[i - 1, j, k] if axis == 0 else (
                                 f[i, j - 1, k] if axis == 1 else f[i, j, k - 1]))
@@ -378,13 +385,34 @@ def _make_viscosity_rhs(loop):
 _viscosity_rhs_serial, _viscosity_rhs_parallel = serial_and_parallel(_make_viscosity_rhs)
 
 
+@njit(cache=True, inline="always")
+def _wall_sum(i, j, k, m, n, l, axis, modes, values):
+    """Sum of the wall velocities (mirror ghosts) of the sides along the other axes that the
+    point ``[i, j, k]`` touches."""
+    total = 0.0
+    for along in range(3):
+        if along == axis:
+            continue
+        index = i if along == 0 else (j if along == 1 else k)
+        size = m if along == 0 else (n if along == 1 else l)
+        if index == 0 and modes[2 * along] == GHOST_DIRICHLET:
+            total += values[2 * along]
+        if index == size - 1 and modes[2 * along + 1] == GHOST_DIRICHLET:
+            total += values[2 * along + 1]
+    return total
+
+
 @njit(cache=True)
-def viscosity_rhs_3d(f, c, axis, fixed_low, fixed_high, rhs):
+def viscosity_rhs_3d(f, c, axis, fixed_low, fixed_high, tangential_modes, tangential_values,
+                     rhs):
     """Only the right-hand side of `build_viscosity_system_3d` (its operator is known
-    unchanged): ``f`` plus ``c`` times the held boundary faces next to a point."""
+    unchanged): ``f`` plus ``c`` times the held boundary faces next to a point plus ``2c``
+    times the velocity of moving walls next to it."""
     if f.size > PARALLEL_MINIMUM_3D:
-        return _viscosity_rhs_parallel(f, c, axis, fixed_low, fixed_high, rhs)
-    return _viscosity_rhs_serial(f, c, axis, fixed_low, fixed_high, rhs)
+        return _viscosity_rhs_parallel(f, c, axis, fixed_low, fixed_high, tangential_modes,
+                                       tangential_values, rhs)
+    return _viscosity_rhs_serial(f, c, axis, fixed_low, fixed_high, tangential_modes,
+                                 tangential_values, rhs)
 
 
 def _make_pressure_rhs(loop):

@@ -12,7 +12,12 @@ from numpy.typing import NDArray
 
 from elastoflow.fluid import _kernels3d as kernels
 from elastoflow.fluid._boundaries import Inflow, Outflow, WallNoSlip
-from elastoflow.fluid._boundaries3d import DomainBoundaries3D, Jet3D, inflow_profile_3d
+from elastoflow.fluid._boundaries3d import (
+    DomainBoundaries3D,
+    Jet3D,
+    WallMoving3D,
+    inflow_profile_3d,
+)
 from elastoflow.fluid._solver import FluidStepReport
 from elastoflow.fluid._state3d import FluidState3D
 from elastoflow.grid import Grid3D
@@ -173,10 +178,11 @@ class FluidSolver3D:
         grid = self.grid
         sides = self.boundaries.sides()
         self._outflow = np.array([isinstance(s, Outflow) for s in sides], dtype=np.bool_)
-        # Tangential velocity beyond a side: held at 0 by a no-slip wall or an inflow (its
-        # velocity is normal), copied from inside (zero gradient) by free slip and outflow.
+        # Tangential velocity beyond a side: held at the wall's velocity by a wall (0 unless
+        # it moves) or an inflow (its velocity is normal), copied from inside (zero gradient)
+        # by free slip and outflow.
         tangential = np.array(
-            [kernels.GHOST_DIRICHLET if isinstance(s, (WallNoSlip, Inflow))
+            [kernels.GHOST_DIRICHLET if isinstance(s, (WallNoSlip, WallMoving3D, Inflow))
              else kernels.GHOST_COPY for s in sides], dtype=np.int64)
         self._tangential_modes = tangential
         # Each velocity component samples with the tangential ghosts on the four sides along
@@ -184,7 +190,13 @@ class FluidSolver3D:
         self._velocity_modes = np.tile(tangential, (3, 1))
         for axis in range(3):
             self._velocity_modes[axis, 2 * axis:2 * axis + 2] = kernels.GHOST_COPY
+        # (3, 6): component, side; a moving wall's component along the side.
         self._velocity_values = np.zeros((3, 6))
+        for index, side in enumerate(sides):
+            if isinstance(side, WallMoving3D):
+                for axis in range(3):
+                    if axis != index // 2:
+                        self._velocity_values[axis, index] = float(side.velocity[axis])
         # (1, 6): the kernels read one row of a ghost table.
         self._dye_modes = np.array(
             [[kernels.GHOST_VALUE if isinstance(s, Inflow) else kernels.GHOST_COPY
@@ -264,13 +276,15 @@ class FluidSolver3D:
         rhs = self._viscosity_rhs[axis]
         operator = self._viscosity_operators.get((axis, dt))
         if operator is not None:
-            kernels.viscosity_rhs_3d(field, c, axis, fixed_low, fixed_high, rhs)
+            kernels.viscosity_rhs_3d(field, c, axis, fixed_low, fixed_high,
+                                     self._tangential_modes, self._velocity_values[axis], rhs)
             return operator, rhs
         m, n, l = field.shape
         diagonal = np.empty((m, n, l))
         weights = (np.empty((m - 1, n, l)), np.empty((m, n - 1, l)), np.empty((m, n, l - 1)))
         kernels.build_viscosity_system_3d(field, c, axis, fixed_low, fixed_high,
-                                          self._tangential_modes, diagonal, *weights, rhs)
+                                          self._tangential_modes, self._velocity_values[axis],
+                                          diagonal, *weights, rhs)
         operator = Operator7Point(diagonal, *weights)
         # One dt at a time in practice; a changing dt must not grow the cache without end.
         if len(self._viscosity_operators) >= 6:

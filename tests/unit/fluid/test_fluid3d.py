@@ -7,7 +7,7 @@ import pytest
 
 from elastoflow.fluid import _kernels3d as kernels
 from elastoflow.fluid._boundaries import Inflow, Outflow, WallFreeSlip, WallMoving, WallNoSlip
-from elastoflow.fluid._boundaries3d import DomainBoundaries3D
+from elastoflow.fluid._boundaries3d import DomainBoundaries3D, WallMoving3D
 from elastoflow.fluid._solver3d import FluidSolver3D
 from elastoflow.fluid._state3d import FluidState3D
 from elastoflow.grid import Grid3D
@@ -162,9 +162,13 @@ def test_inflow_profile_and_outflow_side_values() -> None:
 
 
 def test_invalid_input_is_refused() -> None:
-    with pytest.raises(ValueError, match="moving wall"):
+    with pytest.raises(ValueError, match="WallMoving3D"):
         DomainBoundaries3D(left=WallMoving(1.0), right=WallNoSlip(), bottom=WallNoSlip(),
                            top=WallNoSlip(), back=WallNoSlip(), front=WallNoSlip())
+    with pytest.raises(ValueError, match="y component must be 0"):
+        DomainBoundaries3D(left=WallNoSlip(), right=WallNoSlip(), bottom=WallNoSlip(),
+                           top=WallMoving3D((1.0, 0.5, 0.0)), back=WallNoSlip(),
+                           front=WallNoSlip())
     box = DomainBoundaries3D.closed_box()
     with pytest.raises(ValueError, match="Grid3D"):
         FluidSolver3D(None, density=1.0, viscosity=0.0, boundaries=box)  # type: ignore[arg-type]
@@ -195,3 +199,26 @@ def test_jet_sets_the_faces_and_cells_inside_its_box() -> None:
     assert np.count_nonzero(state.dye == 0.5) == 2 * 2 * 4
     with pytest.raises(ValueError, match="z0 < z1"):
         Jet3D(region=(0.0, 0.0, 0.5, 1.0, 1.0, 0.5), velocity=(0.0, 0.0, 0.0))
+
+
+def test_couette_flow_between_a_moving_lid_and_a_wall_is_linear() -> None:
+    # Lid at y = H moving along x and z, still wall at y = 0, outflow on the four other
+    # sides: the steady u(y) and w(y) are linear, which the 7-point operator with mirror
+    # ghosts represents exactly. nu = 1, H = 1: the slowest start-up mode decays as
+    # exp(-pi^2 t), 1e-13 by t = 3.
+    grid = Grid3D(nx=4, ny=8, nz=4, h=0.125)
+    boundaries = DomainBoundaries3D(left=Outflow(), right=Outflow(), bottom=WallNoSlip(),
+                                    top=WallMoving3D((0.2, 0.0, -0.1)), back=Outflow(),
+                                    front=Outflow())
+    solver = FluidSolver3D(grid, density=1.0, viscosity=1.0, boundaries=boundaries,
+                           pressure_solver=PoissonSolverMGPCG3D(rtol=1e-12),
+                           viscosity_solver=PoissonSolverMGPCG3D(rtol=1e-12))
+    state = FluidState3D.zeros(grid)
+    for step in range(30):
+        solver.step(state, 0.1, time=0.1 * step)
+    y = (np.arange(8) + 0.5) / 8
+    np.testing.assert_allclose(state.velocity_x, 0.2 * y[None, :, None] * np.ones((5, 8, 4)),
+                               atol=1e-10)
+    np.testing.assert_allclose(state.velocity_z, -0.1 * y[None, :, None] * np.ones((4, 8, 5)),
+                               atol=1e-10)
+    assert np.abs(state.velocity_y).max() < 1e-10
