@@ -33,6 +33,7 @@ from elastoflow.io._meshes import (
     write_extruded_meshes,
     write_obj,
     write_ply,
+    write_tetrahedral_mesh,
 )
 from elastoflow.io._probes import ProbeRecorder, plot_probes, read_probes
 from elastoflow.io._session import (
@@ -73,6 +74,7 @@ __all__ = [
     "write_bytes_atomic",
     "write_extruded_meshes",
     "write_obj",
+    "write_tetrahedral_mesh",
     "write_ply",
     "write_text_atomic",
 ]

@@ -11,7 +11,8 @@ from pathlib import Path
 
 import numpy as np
 
-from elastoflow.io._atomic import write_text_atomic
+from elastoflow.io._atomic import atomic_path, write_text_atomic
+from elastoflow.solid import TetrahedralMesh
 
 
 def boundary_edges_of(triangles: np.ndarray) -> np.ndarray:
@@ -121,3 +122,17 @@ def write_extruded_meshes(folder: str | Path, frame: int, meshes: list[tuple[np.
             writer(path, *extrude_polyline(points, thickness))
         paths.append(path)
     return paths
+
+
+def write_tetrahedral_mesh(path: str | Path, mesh: TetrahedralMesh,
+                           positions: np.ndarray | None = None) -> None:
+    """Write a tetrahedral body (at ``positions`` (n, 3) [m] when given) with meshio, the
+    format from the file suffix (.vtu for ParaView, .msh, ...), atomically (a temporary
+    file beside it, then a rename)."""
+    import meshio
+
+    points = mesh.points if positions is None else np.asarray(positions, dtype=np.float64)
+    if points.shape != mesh.points.shape:
+        raise ValueError(f"positions shape {points.shape}: must be {mesh.points.shape}")
+    with atomic_path(path) as temporary:
+        meshio.write(str(temporary), meshio.Mesh(points, [("tetra", mesh.tetrahedra)]))

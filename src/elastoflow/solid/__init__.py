@@ -58,7 +58,6 @@ from elastoflow.solid._tet_mesh import (
     nodes_in_box_3d,
     read_tetrahedral_mesh,
     tetrahedralize_surface,
-    write_tetrahedral_mesh,
 )
 
 __all__ = [
@@ -94,5 +93,4 @@ __all__ = [
     "stable_substep",
     "static_equilibrium",
     "tetrahedralize_surface",
-    "write_tetrahedral_mesh",
 ]

@@ -457,19 +457,6 @@ def read_tetrahedral_mesh(path: str | Path) -> TetrahedralMesh:
     return TetrahedralMesh(points, _orient(points, tetrahedra))
 
 
-def write_tetrahedral_mesh(path: str | Path, mesh: TetrahedralMesh,
-                           positions: np.ndarray | None = None) -> None:
-    """Write ``mesh`` (at ``positions`` (n, 3) [m] when given) with meshio, the format from
-    the file suffix (.vtu for ParaView, .msh, ...). This is the file layer's helper for
-    scripts and tests; simulations write through ``elastoflow.io``."""
-    import meshio
-
-    points = mesh.points if positions is None else np.asarray(positions, dtype=np.float64)
-    if points.shape != mesh.points.shape:
-        raise ValueError(f"positions shape {points.shape}: must be {mesh.points.shape}")
-    meshio.write(str(path), meshio.Mesh(points, [("tetra", mesh.tetrahedra)]))
-
-
 def _read_surface(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
     import meshio
 

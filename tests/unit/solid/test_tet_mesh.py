@@ -8,6 +8,7 @@ import meshio
 import numpy as np
 import pytest
 
+from elastoflow.io import write_tetrahedral_mesh
 from elastoflow.solid import (
     TetrahedralMesh,
     mesh_box,
@@ -16,7 +17,6 @@ from elastoflow.solid import (
     nodes_in_box_3d,
     read_tetrahedral_mesh,
     tetrahedralize_surface,
-    write_tetrahedral_mesh,
 )
 from elastoflow.solid._tet_mesh import signed_volumes
 
