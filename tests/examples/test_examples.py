@@ -36,3 +36,13 @@ def test_notebook_api_example_writes_a_frame(tmp_path):
     frame = iio.imread(out)
     assert frame.ndim == 3 and frame.shape[2] == 3
     assert np.ptp(frame) > 0
+
+
+def test_free_surface_dam_break_example_writes_a_picture(tmp_path):
+    spec = importlib.util.spec_from_file_location("free_surface_dam_break",
+                                                  EXAMPLES / "free_surface_dam_break.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    out = module.main(steps=3, out=tmp_path / "dam_break.png")
+    frame = iio.imread(out)
+    assert frame.ndim == 3 and np.ptp(frame) > 0
