@@ -603,3 +603,25 @@ def add_constant_3d(target, value):
     if target.size > PARALLEL_MINIMUM_3D:
         return _add_parallel(target, value)
     return _add_serial(target, value)
+
+
+def _make_buoyancy(loop):
+    def kernel(v, dye, scale):
+        nx, ny, nz = dye.shape
+        for i in loop(nx):
+            for j in range(1, ny):
+                for k in range(nz):
+                    v[i, j, k] += scale * 0.5 * (dye[i, j - 1, k] + dye[i, j, k])
+    return kernel
+
+
+_buoyancy_serial, _buoyancy_parallel = serial_and_parallel(_make_buoyancy)
+
+
+@njit(cache=True)
+def add_buoyancy_3d(v, dye, scale):
+    """``v += scale * dye`` on the interior y-faces (dye averaged from the two cells), with
+    ``scale = dt * buoyancy``: dye buoyancy upwards, along +y."""
+    if dye.size > PARALLEL_MINIMUM_3D:
+        return _buoyancy_parallel(v, dye, scale)
+    return _buoyancy_serial(v, dye, scale)

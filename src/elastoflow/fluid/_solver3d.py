@@ -95,6 +95,7 @@ class FluidSolver3D:
         boundaries: The condition on each of the six sides.
         gravity: Gravitational acceleration (gx, gy, gz) [m/s^2].
         jets: Boxes with prescribed velocity and dye, applied every step.
+        buoyancy: Upward (+y) acceleration per unit dye [m/s^2] (None or 0: passive dye).
         pressure_solver: Solver of the pressure equation (`PoissonSolverMGPCG3D(rtol=1e-6)`
             by default); any object with ``solve(operator, rhs, x0=None, out=None)``.
         viscosity_solver: Solver of the viscosity systems (same default).
@@ -120,6 +121,7 @@ class FluidSolver3D:
         boundaries: DomainBoundaries3D,
         gravity: tuple[float, float, float] = (0.0, 0.0, 0.0),
         jets: tuple[Jet3D, ...] | list[Jet3D] = (),
+        buoyancy: float | None = None,
         pressure_solver: PoissonSolverMGPCG3D | None = None,
         viscosity_solver: PoissonSolverMGPCG3D | None = None,
         advection: str = "semi_lagrangian",
@@ -150,6 +152,11 @@ class FluidSolver3D:
             if not isinstance(jet, Jet3D):
                 raise ValueError(f"FluidSolver3D jets entry {jet!r}: must be a Jet3D")
         self.jets = jets
+        if buoyancy is not None and (
+                not isinstance(buoyancy, (int, float)) or not math.isfinite(buoyancy)):
+            raise ValueError(
+                f"FluidSolver3D buoyancy = {buoyancy!r}: must be None or a finite number")
+        self.buoyancy = 0.0 if buoyancy is None else float(buoyancy)
         if advection not in _ADVECTION_SCHEMES:
             raise ValueError(
                 f"FluidSolver3D advection = {advection!r}: must be one of {_ADVECTION_SCHEMES}")
@@ -355,12 +362,14 @@ class FluidSolver3D:
         return iterations
 
     def apply_forces(self, state: FluidState3D, dt: float, time: float) -> None:
-        """Gravity over ``dt`` [s], jets, and the side values at ``time + dt`` [s], in
-        place."""
+        """Gravity and dye buoyancy over ``dt`` [s], jets, and the side values at
+        ``time + dt`` [s], in place."""
         _check_dt(dt)
         for field, g in zip(state.velocity(), self.gravity, strict=True):
             if g != 0.0:
                 kernels.add_constant_3d(field, g * dt)
+        if self.buoyancy != 0.0:
+            kernels.add_buoyancy_3d(state.velocity_y, state.dye, self.buoyancy * dt)
         fields = (*state.velocity(), state.dye)
         for jet, boxes in zip(self.jets, self._jet_boxes, strict=True):
             values = (*jet.velocity, jet.dye)

@@ -222,3 +222,15 @@ def test_couette_flow_between_a_moving_lid_and_a_wall_is_linear() -> None:
     np.testing.assert_allclose(state.velocity_z, -0.1 * y[None, :, None] * np.ones((4, 8, 5)),
                                atol=1e-10)
     assert np.abs(state.velocity_y).max() < 1e-10
+
+
+def test_dye_buoyancy_pushes_the_y_faces_between_dyed_cells_upwards() -> None:
+    solver = FluidSolver3D(GRID, density=1.0, viscosity=0.0,
+                           boundaries=DomainBoundaries3D.closed_box(), buoyancy=2.0)
+    state = FluidState3D.zeros(GRID)
+    state.dye[4, 3, 2] = 1.0
+    solver.apply_forces(state, 0.1, 0.0)
+    expected = np.zeros(GRID.shape_faces_y)
+    expected[4, 3:5, 2] = 0.1 * 2.0 * 0.5
+    np.testing.assert_allclose(state.velocity_y, expected)
+    assert not state.velocity_x.any() and not state.velocity_z.any()
