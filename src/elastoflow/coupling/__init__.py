@@ -15,7 +15,7 @@ connections their mid-line crosses (``elastoflow.coupling._thin``), so no fluid 
 
 In 3D (``BoundaryMap3D``, ``build_boundary_map_3d``): the crossings of closed surface
 triangles with the grid lines along x, y and z (``LineCrossings``), and the cells inside
-(``solid_cells_3d``), and the fluid share of every face from the bodies' exact cross-sections
+(``solid_cells_3d``), the cut distances of the velocity points (``cut_distances_3d``), and the fluid share of every face from the bodies' exact cross-sections
 (``face_open_fractions_3d``).
 """
 
@@ -35,8 +35,10 @@ from elastoflow.coupling._interface import (
 from elastoflow.coupling._map import BoundaryMap, build_boundary_map
 from elastoflow.coupling._map3d import (
     BoundaryMap3D,
+    CutDistances3D,
     LineCrossings,
     build_boundary_map_3d,
+    cut_distances_3d,
     face_open_fractions_3d,
     solid_cells_3d,
 )
@@ -70,6 +72,7 @@ __all__ = [
     "BoundaryMap3D",
     "BoundaryStaircase",
     "BoundaryTreatment",
+    "CutDistances3D",
     "DualFaceWeights",
     "InterfaceFlux",
     "LineCrossings",
@@ -84,6 +87,7 @@ __all__ = [
     "classify_points",
     "classify_points_brute_force",
     "concatenate_boundaries",
+    "cut_distances_3d",
     "dual_face_weights",
     "face_open_fractions_3d",
     "force_momentum_exchange",

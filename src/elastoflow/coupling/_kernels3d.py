@@ -267,3 +267,57 @@ def section_areas(segments, offsets, origin_u, origin_v, h, out):
         if offsets[p + 1] > offsets[p]:
             segment_areas(segments[offsets[p]:offsets[p + 1]], origin_u, origin_v, h,
                           out.shape[1], out.shape[2], out[p])
+
+
+# Smallest cut distance [fraction of h] reported: a crossing exactly at a point is at
+# distance 0, which the fluid's stencils (divided by theta) cannot take.
+THETA_FLOOR = 1e-9
+
+
+@njit(cache=True)
+def nearest_crossings(offsets, coordinate, triangle_of, weights, triangles, velocities,
+                      component, lines_v, line_u0, line_v0, count_u, count_v, origin, shift,
+                      h, count, theta_low, theta_high, velocity_low, velocity_high):
+    """For the points ``origin + (i + shift) h`` along the lines ``(line_u0 + 2 p, line_v0 +
+    2 q)``: the distance (fraction of h) to the nearest crossing below (strictly) and at or
+    above each point within one spacing, and the ``component`` of the surface velocity there
+    (barycentric in the crossing's triangle); ``inf`` and 0 where none lies within h.
+
+    Outputs are indexed ``[i, p, q]``, shape ``(count, count_u, count_v)``.
+    """
+    for p in range(count_u):
+        for q in range(count_v):
+            line = (line_u0 + 2 * p) * lines_v + line_v0 + 2 * q
+            begin = offsets[line]
+            end = offsets[line + 1]
+            # next_entry: the first crossing at or above the current point.
+            next_entry = begin
+            for i in range(count):
+                position = origin + (i + shift) * h
+                while next_entry < end and coordinate[next_entry] < position:
+                    next_entry += 1
+                theta_low[i, p, q] = np.inf
+                velocity_low[i, p, q] = 0.0
+                theta_high[i, p, q] = np.inf
+                velocity_high[i, p, q] = 0.0
+                if next_entry > begin:
+                    e = next_entry - 1
+                    distance = (position - coordinate[e]) / h
+                    if distance <= 1.0:
+                        theta_low[i, p, q] = max(distance, THETA_FLOOR)
+                        velocity_low[i, p, q] = _crossing_velocity(
+                            triangles, velocities, triangle_of[e], weights, e, component)
+                if next_entry < end:
+                    distance = (coordinate[next_entry] - position) / h
+                    if distance <= 1.0:
+                        theta_high[i, p, q] = max(distance, THETA_FLOOR)
+                        velocity_high[i, p, q] = _crossing_velocity(
+                            triangles, velocities, triangle_of[next_entry], weights,
+                            next_entry, component)
+
+
+@njit(cache=True, inline="always")
+def _crossing_velocity(triangles, velocities, t, weights, e, component):
+    return (weights[e, 0] * velocities[triangles[t, 0], component]
+            + weights[e, 1] * velocities[triangles[t, 1], component]
+            + weights[e, 2] * velocities[triangles[t, 2], component])

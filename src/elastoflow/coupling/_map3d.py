@@ -225,3 +225,59 @@ def _to_xyz(axis: int) -> tuple[int, int, int]:
     """The transpose taking an array indexed (axis, u, v) to (x, y, z)."""
     order = (axis, (axis + 1) % 3, (axis + 2) % 3)
     return (order.index(0), order.index(1), order.index(2))
+
+
+@dataclass(frozen=True)
+class CutDistances3D:
+    """For the velocity points of each component, the first body boundary towards each of
+    the six neighbours. Directions ``d``: 0 -x, 1 +x, 2 -y, 3 +y, 4 -z, 5 +z.
+
+    Attributes:
+        theta: Per component (u, v, w), the fraction of h from the point towards its
+            neighbour in direction d at which a boundary is crossed, in (0, 1], ``inf``
+            where none lies within one spacing; shapes (6, *shape of the points).
+        velocity: The body velocity's own component (x for u points, ...) at that crossing
+            [m/s], 0 where none; same shapes.
+    """
+
+    theta: tuple[np.ndarray, np.ndarray, np.ndarray]
+    velocity: tuple[np.ndarray, np.ndarray, np.ndarray]
+
+
+def cut_distances_3d(bmap: BoundaryMap3D) -> CutDistances3D:
+    """`CutDistances3D` of every u, v and w point, from the crossings on the lines through
+    the points (METHOD.md's cut distances, one line per direction)."""
+    grid = bmap.grid
+    counts = (grid.nx, grid.ny, grid.nz)
+    thetas = []
+    speeds = []
+    for component in range(3):
+        # The points of this component: integer positions along their own axis, half
+        # positions along the two others (in half-grid units: even along it, odd across).
+        shape = tuple(counts[a] + (1 if a == component else 0) for a in range(3))
+        theta = np.empty((6, *shape))
+        velocity = np.empty((6, *shape))
+        for axis in range(3):
+            u, v = (axis + 1) % 3, (axis + 2) % 3
+            crossings = bmap.lines[axis]
+            half_u = 0 if u == component else 1
+            half_v = 0 if v == component else 1
+            shift = 0.0 if axis == component else 0.5
+            low = np.empty((shape[axis], shape[u], shape[v]))
+            high = np.empty_like(low)
+            speed_low = np.empty_like(low)
+            speed_high = np.empty_like(low)
+            _kernels3d.nearest_crossings(
+                crossings.offsets, crossings.coordinate, crossings.triangle,
+                crossings.weights, bmap.triangles, bmap.velocities, component,
+                crossings.lines_v, half_u, half_v, shape[u], shape[v],
+                float(grid.origin[axis]), shift, grid.h, shape[axis], low, high, speed_low,
+                speed_high)
+            order = _to_xyz(axis)
+            theta[2 * axis] = np.transpose(low, order)
+            theta[2 * axis + 1] = np.transpose(high, order)
+            velocity[2 * axis] = np.transpose(speed_low, order)
+            velocity[2 * axis + 1] = np.transpose(speed_high, order)
+        thetas.append(theta)
+        speeds.append(velocity)
+    return CutDistances3D((thetas[0], thetas[1], thetas[2]), (speeds[0], speeds[1], speeds[2]))

@@ -269,3 +269,48 @@ def test_face_fractions_move_continuously_with_the_body() -> None:
     # A sphere's cross-section through its centre: the solid share of the plane z = 0.5.
     solid = (1.0 - results[0][2][:, :, 5]).sum() * grid.h**2
     assert abs(solid - np.pi * 0.09) < 0.02 * np.pi * 0.09
+
+
+def test_cut_distances_of_a_box_are_exact_and_carry_its_rigid_velocity() -> None:
+    """Velocity points next to an off-grid box: the distance to its faces along each axis,
+    and the surface velocity of a rigid motion there."""
+    from elastoflow.coupling import cut_distances_3d
+
+    grid = Grid3D(nx=8, ny=8, nz=8, h=0.125)
+    low, high = np.array([0.23, 0.18, 0.33]), np.array([0.71, 0.64, 0.77])
+    corners, triangles = box_surface(low, high)
+    spin, drift = np.array([0.2, -0.5, 0.9]), np.array([0.3, 0.1, -0.2])
+    bmap = build_boundary_map_3d(grid, corners, drift + np.cross(spin, corners), triangles)
+    cuts = cut_distances_3d(bmap)
+    h = grid.h
+    for component, points in enumerate((grid.faces_x(), grid.faces_y(), grid.faces_z())):
+        theta, velocity = cuts.theta[component], cuts.velocity[component]
+        position = np.stack(np.broadcast_arrays(*points), axis=-1)
+        for axis in range(3):
+            across = [a for a in range(3) if a != axis]
+            inside_across = np.all([(position[..., a] > low[a]) & (position[..., a] < high[a])
+                                    for a in across], axis=0)
+            s = position[..., axis]
+            for direction, wall in ((0, low[axis]), (1, high[axis])):
+                # The box's faces crossed by the line through each point, towards -axis
+                # (direction 0) or +axis (1), within one spacing.
+                ahead = [(s - w) / h if direction == 0 else (w - s) / h for w in (low[axis],
+                                                                                  high[axis])]
+                nearest = np.full(s.shape, np.inf)
+                for distance in ahead:
+                    hit = inside_across & (distance > 0.0) & (distance <= 1.0)
+                    nearest = np.where(hit, np.minimum(nearest, distance), nearest)
+                got = theta[2 * axis + direction]
+                assert np.allclose(np.where(np.isfinite(nearest), got, 0.0),
+                                   np.where(np.isfinite(nearest), nearest, 0.0), rtol=0.0,
+                                   atol=1e-12), (component, axis, direction)
+                assert np.array_equal(np.isfinite(got), np.isfinite(nearest)), (
+                    component, axis, direction)
+                # The crossing point and the rigid velocity's own component there.
+                where = np.isfinite(nearest)
+                crossing = position[where].copy()
+                sign = -1.0 if direction == 0 else 1.0
+                crossing[:, axis] += sign * nearest[where] * h
+                rigid = drift + np.cross(spin, crossing)
+                assert np.allclose(velocity[2 * axis + direction][where], rigid[:, component],
+                                   rtol=0.0, atol=1e-12)
