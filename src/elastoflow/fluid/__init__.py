@@ -6,8 +6,9 @@ their open fraction so that bodies described by an ``InteriorBoundary`` (METHOD.
 with cut-distance boundary conditions. ``divergence_faces_to_cells`` and
 ``gradient_cells_to_faces`` are the discrete operators the projection is built from.
 ``FreeSurfaceSolver`` adds a free surface (a level set in ``FreeSurfaceState``, a ghost-fluid
-projection, ``LevelSetTransport``). Validation: docs/validation_fluid.md, and for the free
-surface docs/validation/free_surface.md.
+projection, ``LevelSetTransport``). In 3D: ``FluidSolver3D`` on a ``FluidState3D`` with
+``DomainBoundaries3D`` (no bodies yet). Validation: docs/validation_fluid.md, and for the free
+surface docs/validation/free_surface.md, for 3D docs/validation/three_d.md.
 """
 
 from elastoflow.fluid._boundaries import (
@@ -27,6 +28,12 @@ from elastoflow.fluid._free_surface import (
     ViscosityStressFree,
     ViscosityWholeGrid,
 )
+from elastoflow.fluid._boundaries3d import (
+    DomainBoundaries3D,
+    Jet3D,
+    WallMoving3D,
+    inflow_profile_3d,
+)
 from elastoflow.fluid._interior import InteriorBoundary
 from elastoflow.fluid._kernels import OPEN_MIN
 from elastoflow.fluid._level_set import (
@@ -45,15 +52,20 @@ from elastoflow.fluid._solver import (
     FluidSolver,
     FluidStepReport,
 )
+from elastoflow.fluid._solver3d import FluidSolver3D
 from elastoflow.fluid._state import FluidState
+from elastoflow.fluid._state3d import FluidState3D
 
 __all__ = [
     "OPEN_MIN",
     "CoupledBodies",
     "DomainBoundaries",
+    "DomainBoundaries3D",
     "FluidPrediction",
     "FluidSolver",
+    "FluidSolver3D",
     "FluidState",
+    "FluidState3D",
     "FluidStepReport",
     "FreeSurfaceSolver",
     "FreeSurfaceState",
@@ -62,6 +74,7 @@ __all__ = [
     "Inflow",
     "InteriorBoundary",
     "Jet",
+    "Jet3D",
     "LevelSetTransport",
     "Outflow",
     "RedistanceFastSweeping",
@@ -69,10 +82,12 @@ __all__ = [
     "ViscosityWholeGrid",
     "WallFreeSlip",
     "WallMoving",
+    "WallMoving3D",
     "WallNoSlip",
     "correct_volume",
     "divergence_faces_to_cells",
     "gradient_cells_to_faces",
+    "inflow_profile_3d",
     "level_set_below",
     "level_set_box",
     "level_set_from_function",
