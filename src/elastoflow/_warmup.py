@@ -4,7 +4,8 @@ Numba compiles each kernel the first time it is called and keeps the machine cod
 cache (``__pycache__`` beside the sources, or ``NUMBA_CACHE_DIR``). A fresh install therefore
 spends about a minute of its first step compiling on two cores. `warm_up` runs every built-in
 scene for two steps on a grid just large enough to reach the threaded variants of the kernels
-and draws a frame of every view, so that a later run finds everything compiled; ``make``
+and draws a frame of every view, then steps the parts no scene uses yet (the free surface, the
+3D fluid, tetrahedral bodies and the 3D map), so that a later run finds everything compiled; ``make``
 runs it once after installing (``elastoflow warmup``). Nothing is written but the cache.
 """
 
@@ -57,7 +58,77 @@ def warm_up(
         rgb_to_yuv420(np.ascontiguousarray(image[:height, :width]), planes)
         if report is not None:
             report(name, time.perf_counter() - began)
+    if scenes is None:
+        for name, warm in (("free surface", _free_surface), ("3D fluid", _fluid_3d),
+                           ("3D bodies", _bodies_3d)):
+            began = time.perf_counter()
+            warm()
+            if report is not None:
+                report(name, time.perf_counter() - began)
     return time.perf_counter() - start
+
+
+def _free_surface() -> None:
+    """Two dam-break steps of the Python API (no scene uses the free surface yet)."""
+    from elastoflow.fluid import (
+        DomainBoundaries,
+        FluidSolver,
+        FreeSurfaceSolver,
+        level_set_box,
+    )
+    from elastoflow.grid import Grid2D
+
+    grid = Grid2D(_GRID, _GRID // 2, 0.4 / _GRID)
+    for advection in ("semi_lagrangian", "maccormack"):
+        fluid = FluidSolver(grid, density=1000.0, viscosity=1e-6,
+                            boundaries=DomainBoundaries.closed_box(), gravity=(0.0, -9.81),
+                            advection=advection)
+        solver = FreeSurfaceSolver(fluid)
+        state = solver.state(level_set_box(grid, (0.0, 0.0, 0.1, 0.15)))
+        for _ in range(2):
+            solver.step(state, solver.stable_dt(state, cfl=0.8, dt_max=0.01))
+
+
+def _fluid_3d() -> None:
+    """Two steps of the 3D fluid with each advection scheme, on a grid above the kernels'
+    thread threshold."""
+    from elastoflow.fluid import DomainBoundaries3D, FluidSolver3D, FluidState3D, Inflow
+    from elastoflow.grid import Grid3D
+
+    grid = Grid3D(nx=40, ny=24, nz=24, h=1.0 / 24)
+    for advection in ("semi_lagrangian", "maccormack"):
+        solver = FluidSolver3D(grid, density=1.0, viscosity=1e-3,
+                               boundaries=DomainBoundaries3D.channel(Inflow(1.0)),
+                               gravity=(0.0, -1.0, 0.0), advection=advection)
+        state = FluidState3D.zeros(grid)
+        for index in range(2):
+            solver.step(state, 0.01, 0.01 * index)
+
+
+def _bodies_3d() -> None:
+    """A tetrahedral body's explicit step, and the 3D boundary map of its surface."""
+    import numpy as np
+
+    from elastoflow.coupling import (
+        build_boundary_map_3d,
+        cut_distances_3d,
+        face_open_fractions_3d,
+        solid_cells_3d,
+    )
+    from elastoflow.grid import Grid3D
+    from elastoflow.solid import ElasticBody3D, ExplicitFem, MaterialStVK, mesh_sphere
+
+    mesh = mesh_sphere(0.3, 0.1)
+    body = ElasticBody3D(mesh, MaterialStVK(1000.0, 1e5, 0.3), gravity=(0.0, -9.81, 0.0))
+    state_in, state_out = body.state(), body.state()
+    ExplicitFem().advance(body, state_in, state_out, 1e-3)
+    points = mesh.points + 0.5
+    surface = mesh.boundary_triangles
+    bmap = build_boundary_map_3d(Grid3D(nx=16, ny=16, nz=16, h=1.0 / 16), points,
+                                 np.zeros_like(points), surface)
+    solid_cells_3d(bmap)
+    face_open_fractions_3d(bmap)
+    cut_distances_3d(bmap)
 
 
 _KERNEL_MODULES = ("fluid", "linalg", "solid", "coupling", "render")
