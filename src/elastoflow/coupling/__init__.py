@@ -30,6 +30,7 @@ from elastoflow.coupling._forces import force_momentum_exchange, force_traction
 from elastoflow.coupling._interface import (
     InterfaceFlux,
     PressureCoupledBodies,
+    SparseRows,
     interface_flux,
 )
 from elastoflow.coupling._map import BoundaryMap, build_boundary_map
@@ -80,6 +81,7 @@ __all__ = [
     "PointClassification",
     "PressureCoupledBodies",
     "RigidMotion",
+    "SparseRows",
     "StaircaseInteriorBoundary",
     "boundary_treatment",
     "build_boundary_map",
