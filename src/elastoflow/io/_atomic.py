@@ -8,6 +8,7 @@ import os
 import re
 import secrets
 import shutil
+import threading
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -20,15 +21,26 @@ TEMPORARY_MARKER = ".tmp"
 # ``.tmp``.
 _TEMPORARY_NAME = re.compile(r"^\..+\.tmp(\.[A-Za-z0-9]+)?$")
 
+# The temporaries each thread has created and not yet renamed or deleted. A second Ctrl-C
+# raises KeyboardInterrupt between any two bytecodes, also where `atomic_path` cannot clean
+# up after itself (after the file is created but before its ``try``, or inside contextlib's
+# ``__enter__``, where the ``with`` has not started); `discard_unfinished_writes` removes those.
+# Registered before the file exists, so that no window is left. Per thread: runs in threads
+# of one process must not delete each other's writes in flight.
+_UNFINISHED: dict[int, set[Path]] = {}
+
 
 def _create_exclusive(directory: Path, prefix: str, suffix: str) -> Path:
     """Create a new empty file ``directory/prefix<random>suffix`` with mode 0666 less the
     umask (``tempfile.mkstemp`` would make it 0600, and the rename would keep that)."""
+    unfinished = _UNFINISHED.setdefault(threading.get_ident(), set())
     while True:
         path = directory / f"{prefix}{os.getpid()}.{secrets.token_hex(4)}{suffix}"
+        unfinished.add(path)
         try:
             handle = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)
         except FileExistsError:
+            unfinished.discard(path)
             continue
         os.close(handle)
         return path
@@ -59,8 +71,20 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
             raise interrupt from None
         raise
     finally:
-        if temporary.exists():
-            temporary.unlink()
+        temporary.unlink(missing_ok=True)
+        _UNFINISHED.get(threading.get_ident(), set()).discard(temporary)
+
+
+def discard_unfinished_writes() -> list[Path]:
+    """Delete the temporaries of this thread's atomic writes that an interrupt abandoned
+    (none exist once every write has ended normally or by an exception it could handle);
+    returns those that were there. Call it only when no write of this thread is in flight."""
+    removed = []
+    for path in sorted(_UNFINISHED.pop(threading.get_ident(), set())):
+        if path.exists():
+            path.unlink(missing_ok=True)
+            removed.append(path)
+    return removed
 
 
 def _interrupt_behind(error: BaseException) -> KeyboardInterrupt | None:

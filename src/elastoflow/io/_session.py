@@ -9,7 +9,7 @@ from typing import Any
 
 import numpy as np
 
-from elastoflow.io._atomic import write_text_atomic
+from elastoflow.io._atomic import discard_unfinished_writes, write_text_atomic
 from elastoflow.io._checkpoint import (
     checkpoint_path,
     checkpoints_by_step,
@@ -222,6 +222,8 @@ class OutputSession:
         if self._closed:
             return self.written
         self._closed = True
+        # A Ctrl-C that stopped a write mid-way can leave its temporary behind.
+        discard_unfinished_writes()
         errors: list[OSError] = []
 
         def attempt(action: Any) -> Any:

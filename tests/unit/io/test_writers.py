@@ -80,6 +80,23 @@ def test_atomic_write_replaces_whole_file_and_leaves_no_temporary(tmp_path) -> N
     assert [p.name for p in tmp_path.iterdir()] == ["a.txt"]
 
 
+def test_a_write_abandoned_before_its_with_block_is_discarded_later(tmp_path) -> None:
+    """A second Ctrl-C can land after the temporary is created but before the ``with`` body
+    starts (inside contextlib's ``__enter__``): nothing will ever run that write's cleanup,
+    so the session removes such leftovers when it closes."""
+    from elastoflow.io._atomic import discard_unfinished_writes
+
+    discard_unfinished_writes()
+    finished = tmp_path / "finished.txt"
+    write_text_atomic(finished, "kept")
+    abandoned = atomic_path(tmp_path / "b.npz")
+    temporary = abandoned.__enter__()  # and never __exit__, as after the interrupt
+    assert temporary.exists()
+    assert discard_unfinished_writes() == [temporary]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["finished.txt"]
+    assert discard_unfinished_writes() == []
+
+
 def test_fields_read_back_in_every_format(tmp_path) -> None:
     grid = Grid2D(6, 4, 0.25)
     sim = _fake_simulation(grid)
