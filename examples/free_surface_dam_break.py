@@ -28,8 +28,8 @@ def main(steps: int = 300, out: Path = Path("out/free_surface_dam_break.png")) -
     grid = Grid2D(160, 100, 0.0025)
     fluid = FluidSolver(grid, density=1000.0, viscosity=1e-6,
                         boundaries=DomainBoundaries.closed_box(), gravity=(0.0, -9.81),
-                        advection="semi_lagrangian")
-    solver = FreeSurfaceSolver(fluid)
+                        advection="maccormack")
+    solver = FreeSurfaceSolver(fluid)  # MacCormack with its fallback at walls and air
     state = solver.state(level_set_box(grid, (0.0, 0.0, 0.1, 0.2)))
     time = 0.0
     for _ in range(steps):

@@ -291,6 +291,21 @@ class FreeSurfaceWorkspace:
         self.viscosity_u, self.viscosity_v = (
             (np.zeros((m, n)), np.zeros((m - 1, n)), np.zeros((m, n - 1)), np.zeros((m, n)))
             for m, n in (grid.shape_faces_x, grid.shape_faces_y))
+        # MacCormack's passes (`FreeSurfaceSolver.advect`), allocated on first use: the
+        # forward and backward results of u and v, and four departure arrays per component
+        # (forward x, y; backward x, y), and the dye's semi-Lagrangian result.
+        self.maccormack: tuple[FloatArray, ...] | None = None
+        self.dye: FloatArray | None = None
+        self.liquid_faces = (np.zeros(grid.shape_faces_x, dtype=np.int32),
+                             np.zeros(grid.shape_faces_y, dtype=np.int32))
+
+    def maccormack_arrays(self, grid: Grid2D) -> tuple[FloatArray, ...]:
+        """The MacCormack scratch arrays (allocated once)."""
+        if self.maccormack is None:
+            fx, fy = grid.shape_faces_x, grid.shape_faces_y
+            self.maccormack = tuple(np.zeros(shape) for shape in (fx, fy, fx, fy)
+                                    + (fx,) * 4 + (fy,) * 4)
+        return self.maccormack
 
 
 @dataclass(frozen=True)
@@ -316,6 +331,8 @@ class FreeSurfaceStepReport:
 
 
 _WALLS = (WallNoSlip, WallFreeSlip, WallMoving)
+MACCORMACK_FALLBACKS = ("walls_and_air", "walls", "none")
+"""Choices of `FreeSurfaceSolver`'s ``maccormack_fallback``."""
 
 
 class FreeSurfaceSolver:
@@ -348,6 +365,14 @@ class FreeSurfaceSolver:
             `diffuse` over the whole grid, air included).
         extrapolation_layers: Layers of faces the velocity is extended into the air; must
             exceed the CFL number of the step, since back-traces sample that far.
+        maccormack_fallback: With the fluid's ``advection="maccormack"``, where the
+            velocity's correction is dropped for the semi-Lagrangian value
+            (`elastoflow.fluid._level_set_kernels.maccormack_correct_faces`):
+            "walls_and_air" (default), at the faces whose samples read a domain side's
+            ghost and at the faces in the air or whose forward sample reads an air face;
+            "walls", at the first only; "none", nowhere: the fluid's own MacCormack step
+            (`FluidSolver.advect`), which gains energy (kept for comparison;
+            docs/validation/free_surface.md).
     """
 
     def __init__(
@@ -358,6 +383,7 @@ class FreeSurfaceSolver:
         transport: LevelSetTransport | None = None,
         viscosity: ViscosityWholeGrid | ViscosityStressFree | None = None,
         extrapolation_layers: int = 5,
+        maccormack_fallback: str = "walls_and_air",
     ) -> None:
         if not isinstance(fluid, FluidSolver):
             raise ValueError(f"FreeSurfaceSolver fluid = {fluid!r}: must be a FluidSolver")
@@ -379,6 +405,12 @@ class FreeSurfaceSolver:
                 f"FreeSurfaceSolver extrapolation_layers = {extrapolation_layers!r}: "
                 "must be an int >= 1"
             )
+        if maccormack_fallback not in MACCORMACK_FALLBACKS:
+            raise ValueError(
+                f"FreeSurfaceSolver maccormack_fallback = {maccormack_fallback!r}: must be one "
+                f"of {MACCORMACK_FALLBACKS}"
+            )
+        self.maccormack_fallback = maccormack_fallback
         self.fluid = fluid
         self.grid = fluid.grid
         self.projection = projection if projection is not None else GhostFluidProjection()
@@ -413,6 +445,61 @@ class FreeSurfaceSolver:
         kernels.extrapolate_faces(state.fluid.velocity_y, workspace.valid_v, layers, 1,
                                   frontier, previous)
 
+    def advect(self, state: FreeSurfaceState, dt: float, marked: bool = False) -> None:
+        """Carry the velocity (and dye) by the velocity over ``dt`` [s], in place.
+
+        With the fluid's semi-Lagrangian advection, or ``maccormack_fallback="none"``, this
+        is `FluidSolver.advect`. Otherwise MacCormack with Selle's clamp, whose correction
+        is dropped (the semi-Lagrangian value kept) where ``maccormack_fallback`` says
+        (`maccormack_correct_faces`); air faces are those with no liquid on a side in
+        ``state.level_set``, or with ``marked`` those `step` marked in
+        ``workspace.liquid_faces`` before it moved the level set; the dye, if any, is
+        carried semi-Lagrangian.
+        """
+        fluid = self.fluid
+        if fluid.advection != "maccormack" or self.maccormack_fallback == "none":
+            fluid.advect(state.fluid, dt)
+            return
+        if not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0.0):
+            raise ValueError(f"time step dt = {dt!r}: must be a finite number > 0")
+        h = self.grid.h
+        u, v = state.fluid.velocity_x, state.fluid.velocity_y
+        (forward_u, forward_v, backward_u, backward_v, fux, fuy, bux, buy,
+         fvx, fvy, bvx, bvy) = self.workspace.maccormack_arrays(self.grid)
+        # The fluid's advection kernels without bodies (the free surface has none yet).
+        none = (fluid._no_solid, fluid._no_theta, fluid._no_cut)
+        ghosts = (fluid._modes_u, fluid._values_u, fluid._modes_v, fluid._values_v)
+        common = (*ghosts, False, *none, *none, fluid._near_everywhere, fluid._no_values)
+        fluid_kernels.advect_field_x(u, v, u, forward_u, dt, h, *common, 1, u, u, fux, fuy)
+        fluid_kernels.advect_field_y(u, v, v, forward_v, dt, h, *common, 1, v, v, fvx, fvy)
+        fluid_kernels.advect_field_x(u, v, forward_u, backward_u, -dt, h, *common, 1, u, u,
+                                     bux, buy)
+        fluid_kernels.advect_field_y(u, v, forward_v, backward_v, -dt, h, *common, 1, v, v,
+                                     bvx, bvy)
+        if fluid._carries_dye(state.fluid):
+            if self.workspace.dye is None:
+                self.workspace.dye = np.zeros(self.grid.shape_cells)
+            dye = state.fluid.dye
+            fluid_kernels.advect_cells(
+                u, v, dye, self.workspace.dye, dt, h, *ghosts, fluid._modes_dye,
+                fluid._values_dye, False, *none, *none, fluid._near_everywhere,
+                fluid._no_solid, 0, dye, dye, fluid._no_values, fluid._no_values)
+            fluid_kernels.copy_into(self.workspace.dye, dye)
+        # Into the backward arrays (each point reads its own backward value first), then
+        # copied: the clamp reads the source around the departure point.
+        air = self.maccormack_fallback == "walls_and_air"
+        liquid_u, liquid_v = self.workspace.liquid_faces
+        if air and not marked:
+            kernels.mark_liquid_faces(state.level_set, liquid_u, liquid_v)
+        kernels.maccormack_correct_faces(u, forward_u, backward_u, fux, fuy, bux, buy,
+                                         fluid._modes_u, fluid._values_u, liquid_u, air,
+                                         backward_u)
+        kernels.maccormack_correct_faces(v, forward_v, backward_v, fvx, fvy, bvx, bvy,
+                                         fluid._modes_v, fluid._values_v, liquid_v, air,
+                                         backward_v)
+        fluid_kernels.copy_into(backward_u, u)
+        fluid_kernels.copy_into(backward_v, v)
+
     def stable_dt(self, state: FreeSurfaceState, cfl: float, dt_max: float) -> float:
         """``min(dt_max, cfl h / max|u|)`` [s] over the faces, and at most the time in which
         gravity alone would reach that speed from rest (``sqrt(cfl h / |g|)``)."""
@@ -434,6 +521,11 @@ class FreeSurfaceSolver:
         fluid, grid, workspace = self.fluid, self.grid, self.workspace
         clock = _time.perf_counter
         t0 = clock()
+        # The liquid's faces before the level set moves: where the velocity is carried, not
+        # extrapolated (the MacCormack fallback, `advect`).
+        marked = self.fluid.advection == "maccormack" and self.maccormack_fallback == "walls_and_air"
+        if marked:
+            kernels.mark_liquid_faces(state.level_set, *workspace.liquid_faces)
         transport_level_set(
             self.transport, grid, state.level_set, state.fluid.velocity_x,
             state.fluid.velocity_y, dt, state.step_index, state.liquid_area,
@@ -442,7 +534,7 @@ class FreeSurfaceSolver:
         # The viscous surface's normal stress from the velocity the level set moved with.
         self.viscosity.surface_pressure(fluid, state.fluid, state.level_set, workspace.surface)
         t1 = clock()
-        fluid.advect(state.fluid, dt)
+        self.advect(state, dt, marked=marked)
         t2 = clock()
         viscosity_iterations = self.viscosity.diffuse(fluid, state.fluid, state.level_set, dt,
                                                       workspace)

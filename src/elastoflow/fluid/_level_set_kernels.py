@@ -15,6 +15,8 @@ import math
 import numpy as np
 from numba import njit, prange
 
+from elastoflow.fluid import _kernels as fluid_kernels
+
 # Per-axis crossing fraction of a liquid cell's centre to the interface, as the fraction of
 # the spacing h. 1e-3 is the fluid's cut-cell floor for bodies (`fluid._kernels.THETA_MIN`):
 # a clamped theta changes the liquid cell's pressure by at most theta_min h |grad p| (the
@@ -294,6 +296,72 @@ def extrapolate_faces(f, valid, layers, side_axis, frontier, previous):
             if valid[i, j] == 0 and not _is_side(i, j, m, n, side_axis):
                 f[i, j] = 0.0
                 valid[i, j] = layers + 1
+
+
+# -- the velocity's MacCormack correction ----------------------------------------------------
+
+@njit(cache=True, inline="always")
+def _reads_ghost(fx, fy, m, n):
+    """Whether a bilinear sample of an (m, n) array at index coordinates (fx, fy) reads a
+    point beyond the array's ends: a domain side's ghost value."""
+    i0 = int(math.floor(fx))
+    j0 = int(math.floor(fy))
+    return i0 < 0 or j0 < 0 or i0 + 1 >= m or j0 + 1 >= n
+
+
+@njit(cache=True, inline="always")
+def _reads_air(fx, fy, liquid):
+    """Whether a bilinear sample at (fx, fy) reads a point whose ``liquid`` mark is 0 (points
+    beyond the ends are taken at the nearest end)."""
+    m, n = liquid.shape
+    i0 = int(math.floor(fx))
+    j0 = int(math.floor(fy))
+    for k in range(4):
+        i = min(max(i0 + (k & 1), 0), m - 1)
+        j = min(max(j0 + (k >> 1), 0), n - 1)
+        if liquid[i, j] == 0:
+            return True
+    return False
+
+
+@njit(cache=True, parallel=True)
+def maccormack_correct_faces(source, forward, backward, forward_x, forward_y, backward_x,
+                             backward_y, modes, values, liquid, air, out):
+    """MacCormack's correction of one face field, with the semi-Lagrangian value where the
+    two steps do not see the same field (the free surface's velocity advection,
+    `FreeSurfaceSolver.advect`).
+
+    ``out = forward + (source - backward) / 2`` clamped to the range of the four ``source``
+    values around the forward departure point (Selle et al. 2008), except ``out = forward``
+    where
+
+    * the forward departure point's stencil (``forward_x``, ``forward_y``, index coordinates
+      in ``source``) or the backward step's (``backward_x``, ``backward_y``, in ``forward``)
+      reads beyond the array's ends, a domain side's ghost value. A no-slip wall's ghost is
+      the reflection ``-u``: liquid falling onto the floor has its backward step read it
+      while its forward step does not, and the "correction" accelerates the flow along the
+      floor (the dam break gained 60 % of its energy by T = 7; docs/method_notes.md item 12);
+    * with ``air``: the point itself, or a point of the forward stencil, has no liquid on
+      either side (``liquid`` 0, int32 marks of the step's starting level set): air values
+      are extrapolated afresh every step, not carried, so the two steps' difference there
+      is not the transport's error (a drop falling into a pool gained energy from them).
+
+    ``modes``, ``values``: the field's side ghosts, as in
+    `elastoflow.fluid._kernels.advect_field_x`. ``out`` may be ``backward``.
+    """
+    m, n = source.shape
+    for i in prange(m):
+        for j in range(n):
+            first = forward[i, j]
+            fx = forward_x[i, j]
+            fy = forward_y[i, j]
+            if (_reads_ghost(fx, fy, m, n) or _reads_ghost(backward_x[i, j], backward_y[i, j], m, n)
+                    or (air and (liquid[i, j] == 0 or _reads_air(fx, fy, liquid)))):
+                out[i, j] = first
+                continue
+            low, high = fluid_kernels._corner_range(source, fx, fy, modes, values)
+            corrected = first + 0.5 * (source[i, j] - backward[i, j])
+            out[i, j] = min(max(corrected, low), high)
 
 
 # -- level-set transport ---------------------------------------------------------------------

@@ -29,6 +29,7 @@ import math
 import time as _time
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -83,12 +84,13 @@ def surface_heights(state: FreeSurfaceState, grid: Grid2D) -> FloatArray:
 
 
 def _wave_solver(grid: Grid2D, viscosity: float, gravity: float,
-                 part: ViscosityStressFree | ViscosityWholeGrid | None) -> FreeSurfaceSolver:
+                 part: ViscosityStressFree | ViscosityWholeGrid | None,
+                 maccormack_fallback: str = "walls_and_air") -> FreeSurfaceSolver:
     wall = WallFreeSlip()
     fluid = FluidSolver(grid, density=WATER_DENSITY if viscosity == 0.0 else 1.0,
                         viscosity=viscosity, boundaries=DomainBoundaries(wall, wall, wall, wall),
                         gravity=(0.0, -gravity), advection="maccormack")
-    return FreeSurfaceSolver(fluid, viscosity=part)
+    return FreeSurfaceSolver(fluid, viscosity=part, maccormack_fallback=maccormack_fallback)
 
 
 def _redistanced(level_set: FloatArray, h: float) -> FloatArray:
@@ -318,10 +320,10 @@ def _peaks(time: FloatArray, signal: FloatArray) -> tuple[FloatArray, FloatArray
 def run_standing_wave(cells_per_length: int, *, viscous: bool = False,
                       periods: float = 3.0, cfl: float = 0.5,
                       viscosity_part: ViscosityStressFree | ViscosityWholeGrid | None = None,
-                      ) -> StandingWave:
+                      maccormack_fallback: str = "walls_and_air") -> StandingWave:
     """Run one standing wave (module docstring) with ``cells_per_length`` cells along the
     tank, for ``periods`` periods; ``viscosity_part``: the free-surface solver's viscosity
-    (None: its default)."""
+    (None: its default); ``maccormack_fallback``: the solver's (MacCormack velocity)."""
     if viscous:
         length, depth, height, amplitude = 1.0, 1.0, 1.25, 0.01
         gravity, viscosity = 50.0, 0.0182571749236
@@ -332,7 +334,7 @@ def run_standing_wave(cells_per_length: int, *, viscous: bool = False,
         wavenumber = math.pi / length
     h = length / cells_per_length
     grid = Grid2D(cells_per_length, int(round(height / h)), h)
-    solver = _wave_solver(grid, viscosity, gravity, viscosity_part)
+    solver = _wave_solver(grid, viscosity, gravity, viscosity_part, maccormack_fallback)
     phi = level_set_below(grid, lambda x: depth + amplitude * np.cos(wavenumber * x))
     state = solver.state(_redistanced(phi, h))
     if viscous:
@@ -376,9 +378,11 @@ def run_standing_wave(cells_per_length: int, *, viscous: bool = False,
         if len(peak_times) > 2:
             slope = np.polyfit(peak_times, np.log(peak_values), 1)[0]
             damping = -float(slope)
+    fallback = ("" if maccormack_fallback == "walls_and_air"
+                else f", MacCormack fallback {maccormack_fallback!r}")
     return StandingWave(
-        label=(f"viscous (Prosperetti set-up, no air), {_describe(solver.viscosity)}"
-               if viscous else "inviscid (air-water-vv)"),
+        label=(f"viscous (Prosperetti set-up, no air), {_describe(solver.viscosity)}{fallback}"
+               if viscous else f"inviscid (air-water-vv){fallback}"),
         cells=(grid.nx, grid.ny), h=h, dt=dt, time=time, amplitude=amplitude_series,
         omega=omega, omega_linear=omega_linear, omega_nonlinear=omega_nonlinear,
         damping=damping, damping_reference=damping_reference,
@@ -431,6 +435,14 @@ class DamBreak:
     step_seconds: list[float] = field(default_factory=list)
     advection: str = "semi_lagrangian"
     energy: FloatArray = field(default_factory=lambda: np.zeros(0))
+    maccormack_fallback: str = "walls_and_air"
+
+    @property
+    def advection_label(self) -> str:
+        """The velocity's advection, with MacCormack's fallback (`FreeSurfaceSolver`)."""
+        if self.advection != "maccormack":
+            return self.advection
+        return f"maccormack, fallback {self.maccormack_fallback}"
 
     def energies_at(self, times: tuple[float, ...] = (3.0, 5.0, 7.0)) -> list[float]:
         """E / E0 at Martin & Moyce's times T."""
@@ -484,14 +496,15 @@ def mechanical_energy(state: FreeSurfaceState, grid: Grid2D, density: float,
 
 def run_dam_break(cells_per_width: int, *, tank_widths: float = 16.0, end_time: float = 9.5,
                   volume_correction: bool = True, cfl: float = 0.8,
-                  advection: str = "semi_lagrangian",
+                  advection: str = "maccormack",
                   theta_min: float = GhostFluidProjection().theta_min,
-                  reference_path: Path | None = None) -> DamBreak:
+                  reference_path: Path | None = None,
+                  maccormack_fallback: str = "walls_and_air") -> DamBreak:
     """The column a wide and 2 a tall in the corner of a tank ``tank_widths`` a long and
     2.5 a tall (no-slip walls, water), with ``cells_per_width`` cells across a, run to
-    T = ``end_time``; ``advection``: the velocity's (the level set always uses MacCormack).
-    MacCormack for the velocity gains energy here (+59 % by T = 7 at a / 16; the page), so
-    the semi-Lagrangian step is the default."""
+    T = ``end_time``; ``advection``: the velocity's (the level set always uses MacCormack),
+    with `FreeSurfaceSolver`'s ``maccormack_fallback`` ("none", the fluid's own MacCormack
+    step, gains 60 % of the energy by T = 7 at a / 16; the page)."""
     a = MARTIN_MOYCE_A
     h = a / cells_per_width
     grid = Grid2D(int(round(tank_widths * cells_per_width)), int(round(2.5 * cells_per_width)), h)
@@ -499,7 +512,8 @@ def run_dam_break(cells_per_width: int, *, tank_widths: float = 16.0, end_time: 
                         boundaries=DomainBoundaries.closed_box(), gravity=(0.0, -GRAVITY),
                         advection=advection)
     solver = FreeSurfaceSolver(fluid, projection=GhostFluidProjection(theta_min=theta_min),
-                               transport=LevelSetTransport(volume_correction=volume_correction))
+                               transport=LevelSetTransport(volume_correction=volume_correction),
+                               maccormack_fallback=maccormack_fallback)
     state = solver.state(level_set_box(grid, (0.0, 0.0, a, 2.0 * a)))
     time_scale = math.sqrt(a / (2.0 * GRAVITY))  # t = T time_scale
     t_end = end_time * time_scale
@@ -530,8 +544,59 @@ def run_dam_break(cells_per_width: int, *, tank_widths: float = 16.0, end_time: 
         front=front, area=np.array(areas), pressure_iterations=np.array(iterations),
         reference=reference, front_error=measured - reference[usable, 1], seconds=seconds,
         theta_min=theta_min, step_seconds=step_seconds, advection=advection,
-        energy=np.array(energies),
+        energy=np.array(energies), maccormack_fallback=maccormack_fallback,
     )
+
+
+# -- a drop into a pool ------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class DropIntoPool:
+    """A drop (radius 0.12 m, centre at 0.75 m) falling into a pool 0.3 m deep in a closed
+    1 m box (no-slip walls, water), 1.5 s.
+
+    Attributes:
+        cells: Cells per side.
+        advection: The velocity's advection (with MacCormack's fallback).
+        largest: Largest E / E0 over the run (kinetic plus potential, `mechanical_energy`).
+        end: E / E0 at the end.
+        steps: Steps taken (CFL 0.8).
+        seconds: Wall time [s].
+    """
+
+    cells: int
+    advection: str
+    largest: float
+    end: float
+    steps: int
+    seconds: float
+
+
+def run_drop_into_pool(cells: int, advection: str = "maccormack",
+                       maccormack_fallback: str = "walls_and_air",
+                       end_time: float = 1.5) -> DropIntoPool:
+    """The drop of `DropIntoPool` on ``cells`` x ``cells`` cells."""
+    grid = Grid2D(cells, cells, 1.0 / cells)
+    fluid = FluidSolver(grid, density=WATER_DENSITY, viscosity=WATER_VISCOSITY,
+                        boundaries=DomainBoundaries.closed_box(), gravity=(0.0, -GRAVITY),
+                        advection=advection)
+    solver = FreeSurfaceSolver(fluid, maccormack_fallback=maccormack_fallback)
+    state = solver.state(level_set_from_function(
+        grid, lambda x, y: np.minimum(y - 0.3, np.hypot(x - 0.5, y - 0.75) - 0.12)))
+    initial = mechanical_energy(state, grid, WATER_DENSITY, GRAVITY)
+    largest, time, steps = 1.0, 0.0, 0
+    start = _time.perf_counter()
+    while time < end_time - 1e-12:
+        dt = min(solver.stable_dt(state, 0.8, 0.01), end_time - time)
+        solver.step(state, dt, time)
+        time += dt
+        steps += 1
+        largest = max(largest, mechanical_energy(state, grid, WATER_DENSITY, GRAVITY) / initial)
+    label = (advection if advection != "maccormack"
+             else f"maccormack, fallback {maccormack_fallback}")
+    return DropIntoPool(cells, label, largest,
+                        mechanical_energy(state, grid, WATER_DENSITY, GRAVITY) / initial, steps,
+                        _time.perf_counter() - start)
 
 
 # -- report ----------------------------------------------------------------------------------
@@ -579,7 +644,7 @@ def plot_dam_break(runs: list[DamBreak], path: Path) -> None:
     scale = math.sqrt(2.0 * GRAVITY / a)
     figure, axes = plt.subplots(1, 3, figsize=(15, 3.8))
     for run in runs:
-        label = (f"{run.cells[0]}x{run.cells[1]}, {run.advection}"
+        label = (f"{run.cells[0]}x{run.cells[1]}, {run.advection_label}"
                  + ("" if run.volume_correction else ", no volume correction")
                  + ("" if run.theta_min == GhostFluidProjection().theta_min
                     else f", theta_min {run.theta_min:g}"))
@@ -603,7 +668,8 @@ def plot_dam_break(runs: list[DamBreak], path: Path) -> None:
 
 def write_free_surface_report(path: Path, tanks: list[TankAtRest], waves: list[StandingWave],
                               dams: list[DamBreak], rotations: list[LevelSetRotation],
-                              notes: str = "") -> list[Path]:
+                              notes: str = "", drops: list[DropIntoPool] | None = None,
+                              ) -> list[Path]:
     """Write the Markdown page ``path`` and its plots beside it; returns the paths."""
     folder = path.parent
     folder.mkdir(parents=True, exist_ok=True)
@@ -662,7 +728,7 @@ def write_free_surface_report(path: Path, tanks: list[TankAtRest], waves: list[S
               "|---|---|---|---|---|---|---|---|---|---|---|"]
     for dam in dams:
         lines.append(
-            f"| {dam.cells[0]}x{dam.cells[1]} | {dam.advection} "
+            f"| {dam.cells[0]}x{dam.cells[1]} | {dam.advection_label} "
             f"| {'yes' if dam.volume_correction else 'no'} "
             f"| {dam.theta_min:g} | {np.mean(dam.front_error):+.2f} / "
             f"{np.max(np.abs(dam.front_error)):.2f} "
@@ -673,7 +739,8 @@ def write_free_surface_report(path: Path, tanks: list[TankAtRest], waves: list[S
             f"| {1000 * np.median(dam.step_seconds):.2f} | {dam.seconds:.1f} |")
     if dams:
         finest = max((dam for dam in dams
-                      if dam.volume_correction and dam.advection == "semi_lagrangian"),
+                      if dam.volume_correction and dam.advection == "maccormack"
+                      and dam.maccormack_fallback == "walls_and_air"),
                      key=lambda dam: dam.cells[0])
         scale = math.sqrt(2.0 * GRAVITY / MARTIN_MOYCE_A)
         lines += ["", f"Front at Martin & Moyce's times, {finest.cells[0]}x{finest.cells[1]}:", "",
@@ -685,6 +752,13 @@ def write_free_surface_report(path: Path, tanks: list[TankAtRest], waves: list[S
         plot_dam_break(dams, plot)
         written.append(plot)
         lines += ["", f"![dam break]({plot.name})"]
+    if drops:
+        lines += ["", "## A drop falling into a pool (energy)", "",
+                  "| cells | velocity advection | steps | largest E/E0 | E/E0 at 1.5 s "
+                  "| wall [s] |", "|---|---|---|---|---|---|"]
+        for drop in drops:
+            lines.append(f"| {drop.cells}x{drop.cells} | {drop.advection} | {drop.steps} "
+                         f"| {drop.largest:.3f} | {drop.end:.3f} | {drop.seconds:.1f} |")
     if notes:
         lines += ["", notes.strip()]
     write_text_atomic(path, "\n".join(lines) + "\n")
@@ -696,20 +770,26 @@ def main() -> None:
     root = Path(__file__).resolve().parents[3]
     tanks = [run_tank_at_rest(n) for n in (16, 32)]
     waves = [run_standing_wave(n) for n in (32, 64, 128)]
+    waves += [run_standing_wave(n, maccormack_fallback="none") for n in (32, 64)]
     waves += [run_standing_wave(n, viscous=True) for n in (32, 64, 128)]
     waves += [run_standing_wave(n, viscous=True, viscosity_part=ViscosityWholeGrid())
               for n in (32, 64)]
     waves += [run_standing_wave(n, viscous=True,
                                 viscosity_part=ViscosityStressFree(normal_stress=True))
               for n in (32, 64)]
-    dams = [run_dam_break(16), run_dam_break(32), run_dam_break(32, volume_correction=False),
-            run_dam_break(16, volume_correction=False), run_dam_break(16, theta_min=1e-2),
-            run_dam_break(16, theta_min=1e-4), run_dam_break(16, advection="maccormack"),
-            run_dam_break(32, advection="maccormack")]
+    choices: tuple[dict[str, Any], ...] = (
+        {}, {"maccormack_fallback": "walls"}, {"maccormack_fallback": "none"},
+        {"advection": "semi_lagrangian"})
+    dams = [run_dam_break(n, **options) for options in choices for n in (16, 32)]
+    dams += [run_dam_break(32, volume_correction=False), run_dam_break(16, volume_correction=False),
+             run_dam_break(16, theta_min=1e-2), run_dam_break(16, theta_min=1e-4)]
+    drops = [run_drop_into_pool(n, *choice) for n in (32, 48) for choice in (
+        ("maccormack", "walls_and_air"), ("maccormack", "walls"), ("maccormack", "none"),
+        ("semi_lagrangian", "walls_and_air"))]
     rotations = [run_level_set_rotation(n, advection)
                  for advection in ("semi_lagrangian", "maccormack") for n in (32, 64, 128)]
     write_free_surface_report(root / "docs" / "validation" / "free_surface.md", tanks, waves,
-                              dams, rotations, notes=NOTES)
+                              dams, rotations, notes=NOTES, drops=drops)
 
 
 NOTES = """
