@@ -7,7 +7,9 @@ fluid-to-solid force (``force_momentum_exchange``, the paper's eq. 8; ``force_tr
 stress integral). Static or rigidly moving obstacles (``Obstacle``) go through the same map.
 
 How the fluid sees the bodies is a swappable part (``BoundaryTreatment``): ``BoundaryCutCell``
-(open fractions and cut distances, the default) or ``BoundaryStaircase`` (cells by their
+(open fractions and cut distances, the default), ``BoundaryDualCell`` (the same with each
+face weighted by the fluid share of its dual cell, ``interior_boundary_dual_cell``: weights
+continuous in the bodies' positions) or ``BoundaryStaircase`` (cells by their
 centres, faces open or closed: ``interior_boundary_staircase``). ``classify_points_brute_force``
 tests every grid point against every element, the cost the map avoids. Bodies thinner than a
 cell, down to an open polyline of zero thickness (``obstacle_polyline``), cut the pressure
@@ -19,12 +21,20 @@ triangles with the grid lines along x, y and z (``LineCrossings``), and the cell
 (``face_open_fractions_3d``).
 """
 
-from elastoflow.coupling._area import DualFaceWeights, dual_face_weights
 from elastoflow.coupling._brute_force import classify_points_brute_force
 from elastoflow.coupling._classify import (
     PointClassification,
     classify_points,
     interior_boundary_from_map,
+)
+from elastoflow.coupling._dual import (
+    U_FACES,
+    V_FACES,
+    DualCellInteriorBoundary,
+    DualCover,
+    dual_cover,
+    interface_flux_dual,
+    interior_boundary_dual_cell,
 )
 from elastoflow.coupling._forces import force_momentum_exchange, force_traction
 from elastoflow.coupling._interface import (
@@ -61,6 +71,7 @@ from elastoflow.coupling._staircase import (
 from elastoflow.coupling._treatment import (
     BOUNDARY_TREATMENTS,
     BoundaryCutCell,
+    BoundaryDualCell,
     BoundaryStaircase,
     BoundaryTreatment,
     boundary_treatment,
@@ -69,12 +80,14 @@ from elastoflow.coupling._treatment import (
 __all__ = [
     "BOUNDARY_TREATMENTS",
     "BoundaryCutCell",
+    "BoundaryDualCell",
     "BoundaryMap",
     "BoundaryMap3D",
     "BoundaryStaircase",
     "BoundaryTreatment",
     "CutDistances3D",
-    "DualFaceWeights",
+    "DualCellInteriorBoundary",
+    "DualCover",
     "InterfaceFlux",
     "LineCrossings",
     "Obstacle",
@@ -83,6 +96,8 @@ __all__ = [
     "RigidMotion",
     "SparseRows",
     "StaircaseInteriorBoundary",
+    "U_FACES",
+    "V_FACES",
     "boundary_treatment",
     "build_boundary_map",
     "build_boundary_map_3d",
@@ -90,12 +105,14 @@ __all__ = [
     "classify_points_brute_force",
     "concatenate_boundaries",
     "cut_distances_3d",
-    "dual_face_weights",
+    "dual_cover",
     "face_open_fractions_3d",
     "force_momentum_exchange",
     "force_traction",
     "interface_flux",
+    "interface_flux_dual",
     "interface_flux_staircase",
+    "interior_boundary_dual_cell",
     "interior_boundary_from_map",
     "interior_boundary_staircase",
     "obstacle_circle",

@@ -22,13 +22,9 @@ them up to the polygon's lowest point, i.e. the polygon's area in cells, not the
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 from numba import njit
 
-from elastoflow.coupling._map import BoundaryMap
-from elastoflow.grid import Grid2D
 
 
 @njit(cache=True)
@@ -156,48 +152,3 @@ def segment_moments(segments, origin_x, origin_y, h, nx, ny, out):
             running_first += below_first[i, j]
             out[i, j, 0] += running_area
             out[i, j, 1] += running_first
-
-
-@dataclass(frozen=True)
-class DualFaceWeights:
-    """The fluid share of each face's dual cell (the h x h square centred on the face) and
-    the centroid of its covered part: the face weights of Batty, Bertails & Bridson's
-    variational projection, continuous in the bodies' positions (docs/method_notes.md item 9).
-
-    Attributes:
-        open_x: Fluid share of the u faces' dual cells, in [0, 1], (nx+1, ny).
-        open_y: Same for the v faces, (nx, ny+1).
-        centroid_x: Centroid [m] of the covered part of each u face's dual cell (the face
-            centre where nothing covers it), (nx+1, ny, 2).
-        centroid_y: Same for the v faces, (nx, ny+1, 2).
-    """
-
-    open_x: np.ndarray
-    open_y: np.ndarray
-    centroid_x: np.ndarray
-    centroid_y: np.ndarray
-
-
-def dual_face_weights(grid: Grid2D, bmap: BoundaryMap) -> DualFaceWeights:
-    """`DualFaceWeights` of the map's closed outlines (bodies on the left of their edges).
-    Overlapping outlines count their overlap twice (the share is clipped at 0)."""
-    if bmap.grid is not grid and bmap.grid != grid:
-        raise ValueError(f"boundary map grid {bmap.grid!r}: must be the grid {grid!r}")
-    h = grid.h
-    ox, oy = grid.origin
-    segments = np.ascontiguousarray(
-        np.concatenate([bmap.points[bmap.edges[:, 0]], bmap.points[bmap.edges[:, 1]]], axis=1))
-    results = []
-    for corner_x, corner_y, count_x, count_y in ((ox - 0.5 * h, oy, grid.nx + 1, grid.ny),
-                                                  (ox, oy - 0.5 * h, grid.nx, grid.ny + 1)):
-        moments = np.zeros((count_x, count_y, 3))
-        segment_moments(segments, corner_x, corner_y, h, count_x, count_y, moments)
-        area = moments[..., 0]
-        centre_x = corner_x + (np.arange(count_x) + 0.5) * h
-        centre_y = corner_y + (np.arange(count_y) + 0.5) * h
-        safe = np.where(area > 0.0, area, 1.0)
-        centroid = np.stack(np.broadcast_arrays(centre_x[:, None] + moments[..., 1] / safe,
-                                                centre_y[None, :] + moments[..., 2] / safe),
-                            axis=-1)
-        results.append((np.clip(1.0 - area / h**2, 0.0, 1.0), np.ascontiguousarray(centroid)))
-    return DualFaceWeights(results[0][0], results[1][0], results[0][1], results[1][1])

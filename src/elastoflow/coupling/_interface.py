@@ -491,6 +491,7 @@ def interface_flux(grid: Grid2D, bmap: BoundaryMap, interior: InteriorBoundary,
     if triangles is None or triangle_offsets is None:
         triangles = np.zeros((0, 3), dtype=np.int64)
         triangle_offsets = np.zeros(1, dtype=np.int64)
+    from elastoflow.coupling._dual import DualCellInteriorBoundary, interface_flux_dual
     from elastoflow.coupling._staircase import (
         StaircaseInteriorBoundary,
         interface_flux_staircase,
@@ -499,6 +500,9 @@ def interface_flux(grid: Grid2D, bmap: BoundaryMap, interior: InteriorBoundary,
     if isinstance(interior, StaircaseInteriorBoundary):
         # Its closed faces carry their whole length of flux, its open ones none.
         return interface_flux_staircase(grid, bmap, interior, triangles, triangle_offsets)
+    if isinstance(interior, DualCellInteriorBoundary) and interior.cover is not None:
+        return interface_flux_dual(grid, bmap, interior, interior.cover, triangles,
+                                   triangle_offsets)
     nx, ny, h = grid.nx, grid.ny, grid.h
     ox, oy = grid.origin
     u_faces = (nx + 1) * ny
@@ -566,8 +570,14 @@ def interface_flux(grid: Grid2D, bmap: BoundaryMap, interior: InteriorBoundary,
         scale = np.ones(faces.shape[0])
         scale[closed] = 1.0 / (1.0 - open_fraction[closed])
         data *= np.repeat(scale, np.diff(indptr))
-    matrix = SparseRows(indptr, indices, data, 2 * bmap.point_count)
-    # Cells on either side of each face.
+    return _with_cells(grid, faces, SparseRows(indptr, indices, data, 2 * bmap.point_count))
+
+
+def _with_cells(grid: Grid2D, faces: np.ndarray, matrix: SparseRows) -> InterfaceFlux:
+    """``W`` with the cells on either side of each of its faces."""
+    nx, ny = grid.nx, grid.ny
+    u_faces = (nx + 1) * ny
+    is_u = faces < u_faces
     u_index = faces
     v_index = faces - u_faces
     i = np.where(is_u, u_index // ny, v_index // (ny + 1))

@@ -5,6 +5,9 @@ hand to the fluid (and so in what the projection, advection and viscosity see):
 
 * `BoundaryCutCell` (the default, METHOD.md §6): open fractions of faces and cut distances
   from the map's crossings;
+* `BoundaryDualCell`: as the cut cell, with each face weighted by the fluid share of its dual
+  cell (Batty et al. 2007) instead of its segment, so that the weights, and the coupled
+  pressure's force, change continuously as bodies move (docs/method_notes.md item 9);
 * `BoundaryStaircase`: cells flagged by their centres, faces fully open or closed, no cut
   distances: the usual baseline the paper's future work names.
 
@@ -18,12 +21,13 @@ from dataclasses import dataclass
 from typing import Literal, Protocol
 
 from elastoflow.coupling._classify import interior_boundary_from_map
+from elastoflow.coupling._dual import interior_boundary_dual_cell
 from elastoflow.coupling._map import BoundaryMap
 from elastoflow.coupling._staircase import interior_boundary_staircase
 from elastoflow.fluid import InteriorBoundary
 from elastoflow.grid import Grid2D
 
-BoundaryName = Literal["cut_cell", "staircase"]
+BoundaryName = Literal["cut_cell", "dual_cell", "staircase"]
 
 
 class BoundaryTreatment(Protocol):
@@ -53,6 +57,18 @@ class BoundaryCutCell:
 
 
 @dataclass(frozen=True)
+class BoundaryDualCell:
+    """Dual-cell open fractions over the cut cell's flags and cuts
+    (`interior_boundary_dual_cell`)."""
+
+    name: str = "dual_cell"
+
+    def interior(self, grid: Grid2D, bmap: BoundaryMap, *,
+                 out: InteriorBoundary | None = None) -> InteriorBoundary:
+        return interior_boundary_dual_cell(grid, bmap, out=out)
+
+
+@dataclass(frozen=True)
 class BoundaryStaircase:
     """Cells by their centres, faces open or closed (`interior_boundary_staircase`)."""
 
@@ -63,15 +79,17 @@ class BoundaryStaircase:
         return interior_boundary_staircase(grid, bmap, out=out)
 
 
-BOUNDARY_TREATMENTS: dict[str, type[BoundaryCutCell] | type[BoundaryStaircase]] = {
+BOUNDARY_TREATMENTS: dict[str, type[BoundaryCutCell] | type[BoundaryDualCell]
+                          | type[BoundaryStaircase]] = {
     "cut_cell": BoundaryCutCell,
+    "dual_cell": BoundaryDualCell,
     "staircase": BoundaryStaircase,
 }
 """The treatments by their scene name."""
 
 
-def boundary_treatment(name: str) -> BoundaryCutCell | BoundaryStaircase:
-    """The treatment of a scene name ("cut_cell" or "staircase")."""
+def boundary_treatment(name: str) -> BoundaryCutCell | BoundaryDualCell | BoundaryStaircase:
+    """The treatment of a scene name ("cut_cell", "dual_cell" or "staircase")."""
     if name not in BOUNDARY_TREATMENTS:
         raise ValueError(f"boundary = {name!r}: must be one of {tuple(BOUNDARY_TREATMENTS)}")
     return BOUNDARY_TREATMENTS[name]()

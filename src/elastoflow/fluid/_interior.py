@@ -19,7 +19,10 @@ class InteriorBoundary:
         solid_faces_x: u point inside a body, bool, shape (nx+1, ny).
         solid_faces_y: v point inside a body, bool, shape (nx, ny+1).
         velocity_faces_x: Body x-velocity [m/s] at u points inside bodies and on faces with
-            open fraction exactly 0, 0 elsewhere, shape (nx+1, ny).
+            open fraction exactly 0, 0 elsewhere, shape (nx+1, ny); the dual-cell treatment
+            also gives it on partly open faces with their point in fluid (the mean body
+            velocity over the covered part of the face's dual cell), which the projection
+            reads where no crossing lies along the face.
         velocity_faces_y: Body y-velocity [m/s] at v points inside bodies and on faces with
             open fraction exactly 0, 0 elsewhere, shape (nx, ny+1).
         open_fraction_x: Fraction in [0, 1] of the x-face (the segment of length h through the

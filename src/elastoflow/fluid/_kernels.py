@@ -682,7 +682,10 @@ def _make_face_solid_velocity(loop):
                     elif t_high <= 0.5:
                         out[i, j] = cut_velocity[across_low + 1, i, j]
                     else:
-                        out[i, j] = 0.0
+                        # No crossing along the face: the body only covers the face's dual
+                        # cell (dual-cell weights), whose treatment says its velocity; 0
+                        # with the others.
+                        out[i, j] = body_velocity[i, j]
                 else:
                     out[i, j] = 0.0
     return kernel
@@ -700,7 +703,8 @@ def face_solid_velocity(solid, body_velocity, open_fraction, theta, cut_velocity
     Faces whose point is inside a body, or that are closed all along (open fraction exactly
     0: a body thinner than a cell cuts them), take ``body_velocity``; partly open faces with
     their point in fluid take the velocity at the nearer crossing along the face (directions
-    ``across_low`` and ``across_low + 1``, within half a spacing). A point whose block
+    ``across_low`` and ``across_low + 1``, within half a spacing), or ``body_velocity`` when
+    there is none (0 but where the dual-cell treatment covers the face's dual cell). A point whose block
     ``near[i + 1, j + 1]`` (`near_regions`) is False is fully open: 0, body arrays unread.
     """
     if solid.size > PARALLEL_MINIMUM:

@@ -622,10 +622,12 @@ class CouplingSpec(_Spec):
     newmark_gamma: Annotated[float, Field(ge=0.5, le=1.0)] = 0.55
     """Monolithic scheme, "newmark": Newmark's gamma (0.5: no numerical damping; more damps
     the modes the step does not resolve)."""
-    boundary: Literal["cut_cell", "staircase"] = "cut_cell"
+    boundary: Literal["cut_cell", "dual_cell", "staircase"] = "cut_cell"
     """How the fluid sees bodies and obstacles: "cut_cell" (open fractions of faces and cut
-    distances from the boundary map) or "staircase" (cells flagged by their centres, faces
-    fully open or closed; the baseline of docs/validation/boundary_study.md)."""
+    distances from the boundary map), "dual_cell" (the same, each face weighted by the fluid
+    share of its dual cell: weights and forces continuous as bodies move, docs/method_notes.md
+    item 9) or "staircase" (cells flagged by their centres, faces fully open or closed; the
+    baseline of docs/validation/boundary_study.md)."""
 
     @model_validator(mode="after")
     def _explicit_keys(self) -> CouplingSpec:

@@ -126,27 +126,36 @@ def _rectangle_map(top: float):
     return grid, bmap
 
 
-def test_dual_face_weights_change_continuously_where_segment_fractions_jump() -> None:
+def test_dual_cell_weights_change_continuously_where_segment_fractions_jump() -> None:
     """A body's top edge crossing the v-face line y = 0.5 (item 9's flip): the faces'
     segment fractions jump by the covered share of the face, the dual-cell weights move by
     the edge's travel over h; the centroid of the covered part lies inside the body."""
-    from elastoflow.coupling import dual_face_weights, interior_boundary_from_map
+    from elastoflow.coupling import (
+        V_FACES,
+        dual_cover,
+        interior_boundary_dual_cell,
+        interior_boundary_from_map,
+    )
 
     delta = 1e-7
     below, above = (_rectangle_map(0.5 + s * delta) for s in (-1.0, 1.0))
     segment_jump = np.abs(interior_boundary_from_map(*above).open_fraction_y
                           - interior_boundary_from_map(*below).open_fraction_y).max()
-    weights_below, weights_above = dual_face_weights(*below), dual_face_weights(*above)
-    dual_change = np.abs(weights_above.open_y - weights_below.open_y).max()
+    dual_below, dual_above = (interior_boundary_dual_cell(*below),
+                              interior_boundary_dual_cell(*above))
+    dual_change = np.abs(dual_above.open_fraction_y - dual_below.open_fraction_y).max()
     assert segment_jump > 0.5
     assert dual_change <= 2.0 * delta * 16 * 1.01
     grid = below[0]
-    inside = np.abs(weights_above.open_y - 1.0) > 1e-12
-    centroids = weights_above.centroid_y[inside]
+    cover = dual_cover(*above)
+    centroids = cover.centroid
     assert np.all((centroids[:, 0] >= 0.3 - 1e-12) & (centroids[:, 0] <= 0.7 + 1e-12))
     assert np.all((centroids[:, 1] >= 0.2 - 1e-12) & (centroids[:, 1] <= 0.5 + delta))
     # The body's area is the dual cells' covered areas summed (each family tiles the plane
-    # around the body).
+    # around the body), and the open fractions are what the cover leaves.
     area = 0.4 * (0.3 + delta)
-    assert np.isclose(((1.0 - weights_above.open_y) * grid.h**2).sum(), area, rtol=1e-12)
-    assert np.isclose(((1.0 - weights_above.open_x) * grid.h**2).sum(), area, rtol=1e-12)
+    for family, open_fraction in ((V_FACES, dual_above.open_fraction_y),
+                                  (1 - V_FACES, dual_above.open_fraction_x)):
+        mine = cover.axis == family
+        assert np.isclose(cover.share[mine].sum() * grid.h**2, area, rtol=1e-12)
+        assert np.isclose(((1.0 - open_fraction) * grid.h**2).sum(), area, rtol=1e-12)

@@ -1,5 +1,6 @@
 """The body side of the projection, ``W``: exact fluxes for rigid motion, and its transpose
-gives the pressure's force (zero for a uniform pressure, Archimedes for a hydrostatic one)."""
+gives the pressure's force (zero for a uniform pressure, Archimedes for a hydrostatic one);
+for both the cut-cell and the dual-cell face weights."""
 
 from __future__ import annotations
 
@@ -10,6 +11,7 @@ from elastoflow.coupling import (
     PressureCoupledBodies,
     build_boundary_map,
     interface_flux,
+    interior_boundary_dual_cell,
     interior_boundary_from_map,
     obstacle_circle,
     obstacle_rectangle,
@@ -20,20 +22,24 @@ from elastoflow.solid import mesh_from_polygon
 
 GRID = Grid2D(48, 40, 1.0 / 48.0)
 
+INTERIORS = {"cut_cell": interior_boundary_from_map, "dual_cell": interior_boundary_dual_cell}
+treatments = pytest.mark.parametrize("treatment", list(INTERIORS))
+
 
 def _outlines():
     yield obstacle_circle((0.47, 0.41), 0.173, segments=61)
     yield obstacle_rectangle((0.2031, 0.3117), (0.6452, 0.4483))
 
 
+@treatments
 @pytest.mark.parametrize("index", [0, 1])
-def test_rigid_translation_gives_the_solid_part_of_every_face(index: int) -> None:
+def test_rigid_translation_gives_the_solid_part_of_every_face(index: int, treatment: str) -> None:
     obstacle = list(_outlines())[index]
     points = obstacle.points_at(0.0)
     velocity = np.array([0.37, -1.21])
     velocities = np.tile(velocity, (points.shape[0], 1))
     bmap = build_boundary_map(GRID, points, velocities, obstacle.edges)
-    interior = interior_boundary_from_map(GRID, bmap)
+    interior = INTERIORS[treatment](GRID, bmap)
     flux = interface_flux(GRID, bmap, interior)
     face_flux = flux.face_flux(velocities)
     u_faces = (GRID.nx + 1) * GRID.ny
@@ -83,13 +89,13 @@ def _active_cells(grid, interior):
     return active
 
 
-def _pressure_forces(obstacle, pressure_of, gravity=(0.0, 0.0)):
+def _pressure_forces(obstacle, pressure_of, gravity=(0.0, 0.0), treatment="cut_cell"):
     """Nodal forces of a cell pressure field on the outline, meshed, as a held body."""
     mesh = mesh_from_polygon(obstacle.points_at(0.0), element_size=0.05)
     points = mesh.points
     zeros = np.zeros_like(points)
     bmap = build_boundary_map(GRID, points, zeros, mesh.boundary_edges)
-    interior = interior_boundary_from_map(GRID, bmap)
+    interior = INTERIORS[treatment](GRID, bmap)
     flux = interface_flux(GRID, bmap, interior, mesh.triangles,
                           np.array([0, mesh.triangle_count]))
     active = _active_cells(GRID, interior)
@@ -102,10 +108,12 @@ def _pressure_forces(obstacle, pressure_of, gravity=(0.0, 0.0)):
     return points, coupled.pressure_forces
 
 
+@treatments
 @pytest.mark.parametrize("index", [0, 1])
-def test_uniform_pressure_exerts_no_net_force_or_torque(index: int) -> None:
+def test_uniform_pressure_exerts_no_net_force_or_torque(index: int, treatment: str) -> None:
     obstacle = list(_outlines())[index]
-    points, forces = _pressure_forces(obstacle, lambda x, y: np.full(x.shape, 1.0e4))
+    points, forces = _pressure_forces(obstacle, lambda x, y: np.full(x.shape, 1.0e4),
+                                      treatment=treatment)
     centre = np.array([0.3, 0.5])
     arm = points - centre
     torque = np.sum(arm[:, 0] * forces[:, 1] - arm[:, 1] * forces[:, 0])
@@ -116,20 +124,22 @@ def test_uniform_pressure_exerts_no_net_force_or_torque(index: int) -> None:
     assert np.abs(forces).sum() > scale
 
 
+@treatments
 @pytest.mark.parametrize("index", [0, 1])
-def test_hydrostatic_pressure_gives_archimedes(index: int) -> None:
+def test_hydrostatic_pressure_gives_archimedes(index: int, treatment: str) -> None:
     """With the fluid's gravity named, the hydrostatic pressure's force is the exact
     Archimedes force of the polygon, whatever the cut cells; without it ``W`` alone is off by
     up to half a cell of height per straight edge lying inside a row (7 % on the rectangle)."""
     obstacle = list(_outlines())[index]
     rho_g = 1000.0 * 9.81
-    _, forces = _pressure_forces(obstacle, lambda x, y: rho_g * (1.0 - y), (0.0, -9.81))
+    _, forces = _pressure_forces(obstacle, lambda x, y: rho_g * (1.0 - y), (0.0, -9.81),
+                                 treatment)
     outline = obstacle.points_at(0.0)
     area = 0.5 * np.sum(outline[:, 0] * np.roll(outline[:, 1], -1)
                         - np.roll(outline[:, 0], -1) * outline[:, 1])
     assert abs(forces[:, 0].sum()) < 1e-9 * rho_g * area
     assert forces[:, 1].sum() == pytest.approx(rho_g * area, rel=1e-9)
-    _, plain = _pressure_forces(obstacle, lambda x, y: rho_g * (1.0 - y))
+    _, plain = _pressure_forces(obstacle, lambda x, y: rho_g * (1.0 - y), treatment=treatment)
     assert plain[:, 1].sum() == pytest.approx(rho_g * area, rel=0.1)
 
 
@@ -148,9 +158,10 @@ def _exact_force_and_torque(points, edges, pressure_of, centre):
     return force, torque
 
 
+@treatments
 @pytest.mark.parametrize("field", ["linear", "swirl"])
 def test_pressure_force_and_torque_on_a_slender_body_match_the_boundary_integral(
-        field: str) -> None:
+        field: str, treatment: str) -> None:
     """The windmill (four blades 3.5 cm wide, 9 cells at 256^2) in a smooth pressure field:
     ``h (DW)^T p`` gives the exact ``-∮ p n ds`` and its torque about the hub within 1 %
     (measured 0.0 % and 0.5 %). The coupled scheme moves the body with this force, so its
@@ -164,7 +175,7 @@ def test_pressure_force_and_torque_on_a_slender_body_match_the_boundary_integral
     points = mesh.points
     zeros = np.zeros_like(points)
     bmap = build_boundary_map(grid, points, zeros, mesh.boundary_edges)
-    interior = interior_boundary_from_map(grid, bmap)
+    interior = INTERIORS[treatment](grid, bmap)
     flux = interface_flux(grid, bmap, interior, mesh.triangles,
                           np.array([0, mesh.triangle_count]))
     active = _active_cells(grid, interior)
@@ -190,7 +201,8 @@ def test_pressure_force_and_torque_on_a_slender_body_match_the_boundary_integral
         assert torque == pytest.approx(exact_torque, rel=0.01)
 
 
-def test_each_covered_face_takes_the_velocity_of_the_body_that_covers_it() -> None:
+@treatments
+def test_each_covered_face_takes_the_velocity_of_the_body_that_covers_it(treatment: str) -> None:
     """An elastic disc below a wall (as the windmill below its pipe): rows of faces that
     cross the disc come before rows that cross only the wall. Every face row must use the
     nodes of the body whose outline covers the face; a winding left over from the disc's
@@ -206,7 +218,7 @@ def test_each_covered_face_takes_the_velocity_of_the_body_that_covers_it() -> No
     edge_body = np.concatenate([np.zeros(len(disc.boundary_edges), dtype=np.int64),
                                 np.ones(len(wall.edges), dtype=np.int64)])
     bmap = build_boundary_map(grid, points, np.zeros_like(points), edges, edge_body)
-    interior = interior_boundary_from_map(grid, bmap)
+    interior = INTERIORS[treatment](grid, bmap)
     flux = interface_flux(grid, bmap, interior, disc.triangles,
                           np.array([0, disc.triangle_count]))
     u_faces = (grid.nx + 1) * grid.ny

@@ -1,0 +1,299 @@
+"""The dual-cell boundary treatment: face weights continuous in the bodies' positions.
+
+The cut-cell treatment weights a face by the fluid share of its *segment*; a body edge lying
+along a face line (the perpendicular flap's tip, a flag's long sides at its turns) switches
+that share between 1 and the uncovered part from one step to the next, and the coupled
+pressure answers with a jump of the force (docs/method_notes.md item 9). Here a face is
+weighted by the fluid share of its *dual cell*, the h x h square centred on the face, as in
+Batty, Bertails & Bridson's variational projection (2007): an edge parallel to the face then
+changes the weight linearly over one cell of travel.
+
+Three consistent parts, all from the same exact clipped areas (`segment_moments`):
+
+* the open fractions ``A_f = 1 - (covered area) / h^2`` of the fluid's `InteriorBoundary`;
+* ``W``'s rows (the body flux through a face): ``(covered area of body b) / h^2`` times body
+  b's velocity at the centroid of its covered part (barycentric inside an elastic body, so
+  the row is exact for affine motion, the nearest boundary point for an obstacle);
+* the thin-body cuts of the cut-cell treatment (a body thinner than a cell separating two
+  cells), which no area share closes: kept as they are.
+
+Solid flags and cut distances (advection, viscosity) are the cut-cell treatment's. Faces on
+the domain's edge keep the segment share (their dual cells reach out of the domain, and the
+walls, not the weights, close them).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+from elastoflow.coupling._area import segment_moments
+from elastoflow.coupling._classify import interior_boundary_from_map
+from elastoflow.coupling._interface import (
+    InterfaceFlux,
+    SparseRows,
+    _active_cells,
+    _csr_by_rows,
+    _next_to_active,
+    _sample_weights,
+    _with_cells,
+    _with_thin_cuts,
+)
+from elastoflow.coupling._map import BoundaryMap
+from elastoflow.fluid import OPEN_MIN, InteriorBoundary
+from elastoflow.grid import Grid2D
+
+U_FACES = 0
+V_FACES = 1
+
+
+@dataclass(frozen=True)
+class DualCover:
+    """What each body covers of the faces' dual cells: one entry per (face, body) pair with
+    a covered area, sorted by family, face and body.
+
+    Attributes:
+        axis: `U_FACES` or `V_FACES`, int8, shape (N,).
+        i, j: The face's index in its family, int64, shape (N,).
+        body: The covering body (``BoundaryMap.edge_body``'s index), int64, shape (N,).
+        share: Covered area over h^2, in (0, 1], shape (N,).
+        centroid: Centroid [m] of the covered part, shape (N, 2).
+        windows: The index boxes ``(i_begin, i_end, j_begin, j_end)`` (half-open, in the index
+            space of `InteriorBoundary.regions`) that hold every face of every body's
+            entries, int64, shape (K, 4).
+    """
+
+    axis: np.ndarray
+    i: np.ndarray
+    j: np.ndarray
+    body: np.ndarray
+    share: np.ndarray
+    centroid: np.ndarray
+    windows: np.ndarray
+
+
+def _window(low: float, high: float, corner: float, h: float, count: int) -> tuple[int, int]:
+    """The squares ``[corner + k h, corner + (k+1) h)`` that ``[low, high]`` meets, clipped
+    to ``0 <= k < count``; half-open."""
+    first = max(int(np.floor((low - corner) / h)), 0)
+    last = min(int(np.floor((high - corner) / h)), count - 1)
+    return first, last + 1
+
+
+def dual_cover(grid: Grid2D, bmap: BoundaryMap) -> DualCover:
+    """The `DualCover` of the map's closed outlines (each body on the left of its edges).
+
+    Cost: per body, the squares of its bounding box (plus one on each side), for both face
+    families; the clipping itself follows the outline's length (`segment_moments`).
+    """
+    if bmap.grid is not grid and bmap.grid != grid:
+        raise ValueError(f"boundary map grid {bmap.grid!r}: must be the grid {grid!r}")
+    h = grid.h
+    ox, oy = grid.origin
+    families = ((U_FACES, ox - 0.5 * h, oy, grid.nx + 1, grid.ny),
+                (V_FACES, ox, oy - 0.5 * h, grid.nx, grid.ny + 1))
+    edges, edge_body = bmap.edges, bmap.edge_body
+    segments = np.ascontiguousarray(
+        np.concatenate([bmap.points[edges[:, 0]], bmap.points[edges[:, 1]]], axis=1))
+    parts: list[tuple[np.ndarray, ...]] = []
+    windows = []
+    order = np.argsort(edge_body, kind="stable")
+    bounds = np.searchsorted(edge_body[order], np.arange(int(edge_body.max(initial=-1)) + 2))
+    for body in range(bounds.shape[0] - 1):
+        mine = np.ascontiguousarray(segments[order[bounds[body]:bounds[body + 1]]])
+        if not mine.shape[0]:
+            continue
+        x_low = min(mine[:, 0].min(), mine[:, 2].min())
+        x_high = max(mine[:, 0].max(), mine[:, 2].max())
+        y_low = min(mine[:, 1].min(), mine[:, 3].min())
+        y_high = max(mine[:, 1].max(), mine[:, 3].max())
+        for axis, corner_x, corner_y, count_x, count_y in families:
+            i0, i1 = _window(x_low, x_high, corner_x, h, count_x)
+            j0, j1 = _window(y_low, y_high, corner_y, h, count_y)
+            if i1 <= i0 or j1 <= j0:
+                continue
+            windows.append((i0, i1, j0, j1))
+            moments = np.zeros((i1 - i0, j1 - j0, 3))
+            segment_moments(mine, corner_x + i0 * h, corner_y + j0 * h, h, i1 - i0, j1 - j0,
+                            moments)
+            area = moments[:, :, 0]
+            # Round-off of the running sums leaves areas of 1e-16 h^2 beside an edge.
+            ii, jj = np.nonzero(area > 1e-12 * h * h)
+            if not ii.shape[0]:
+                continue
+            covered = area[ii, jj]
+            centroid = np.column_stack((
+                corner_x + (i0 + ii + 0.5) * h + moments[ii, jj, 1] / covered,
+                corner_y + (j0 + jj + 0.5) * h + moments[ii, jj, 2] / covered))
+            parts.append((np.full(ii.shape[0], axis, np.int8), (i0 + ii).astype(np.int64),
+                          (j0 + jj).astype(np.int64), np.full(ii.shape[0], body, np.int64),
+                          np.minimum(covered / (h * h), 1.0), centroid))
+    if not parts:
+        return DualCover(np.zeros(0, np.int8), np.zeros(0, np.int64), np.zeros(0, np.int64),
+                         np.zeros(0, np.int64), np.zeros(0), np.zeros((0, 2)),
+                         np.zeros((0, 4), np.int64))
+    axes, i, j, bodies, share, centroid = (np.concatenate(p) for p in zip(*parts, strict=True))
+    ranked = np.lexsort((bodies, j, i, axes))
+    return DualCover(axes[ranked], i[ranked], j[ranked], bodies[ranked], share[ranked],
+                     np.ascontiguousarray(centroid[ranked]),
+                     np.array(windows, dtype=np.int64).reshape(-1, 4))
+
+
+@njit(cache=True)
+def _open_dual(windows, axis, i, j, share, open_x, open_y):
+    """Open fractions from the cover inside ``windows``: 1 less the covered shares, at
+    least 0; faces on the domain's edge are left as they are."""
+    nx, ny = open_y.shape[0], open_x.shape[1]
+    for w in range(windows.shape[0]):
+        for a in range(windows[w, 0], windows[w, 1]):
+            for b in range(windows[w, 2], windows[w, 3]):
+                if 0 < a < nx and b < ny:
+                    open_x[a, b] = 1.0
+                if a < nx and 0 < b < ny:
+                    open_y[a, b] = 1.0
+    for k in range(axis.shape[0]):
+        a, b = i[k], j[k]
+        if axis[k] == 0:
+            if 0 < a < nx:
+                open_x[a, b] = max(open_x[a, b] - share[k], 0.0)
+        elif 0 < b < ny:
+            open_y[a, b] = max(open_y[a, b] - share[k], 0.0)
+
+
+@njit(cache=True)
+def _covered_velocity(axis, i, j, share, velocity, solid_x, solid_y, open_x, open_y,
+                      total, weight, out_x, out_y):
+    """The share-weighted mean body velocity over each face's covered part, written on the
+    partly open faces whose point is fluid (the projection's ``u_s`` there when no crossing
+    lies along the face); ``total`` and ``weight`` are zeroed scratch of ``open``'s shape
+    per family, stacked: (2, nx + 1, ny + 1)."""
+    for k in range(axis.shape[0]):
+        family = axis[k]
+        total[family, i[k], j[k]] += share[k] * velocity[k]
+        weight[family, i[k], j[k]] += share[k]
+    for k in range(axis.shape[0]):
+        a, b = i[k], j[k]
+        if axis[k] == 0:
+            if not solid_x[a, b] and 0.0 < open_x[a, b] < 1.0:
+                out_x[a, b] = total[0, a, b] / weight[0, a, b]
+        elif not solid_y[a, b] and 0.0 < open_y[a, b] < 1.0:
+            out_y[a, b] = total[1, a, b] / weight[1, a, b]
+
+
+def _fill_covered_velocity(grid: Grid2D, bmap: BoundaryMap, cover: DualCover,
+                           interior: InteriorBoundary) -> None:
+    """``velocity_faces`` on the partly open fluid faces from the covering bodies' boundary
+    velocity nearest to each covered part's centroid (the interior has no triangles; the
+    strongly coupled scheme's ``W`` samples them)."""
+    count = cover.axis.shape[0]
+    if not count or not np.any(bmap.velocities):
+        return
+    nodes = np.zeros((count, 3), dtype=np.int64)
+    weights = np.zeros((count, 3))
+    _sample_weights(cover.centroid, cover.body, bmap.points, bmap.edges, bmap.edge_body,
+                    np.zeros((0, 3), dtype=np.int64), np.zeros(1, dtype=np.int64), nodes,
+                    weights)
+    component = cover.axis.astype(np.int64)
+    velocity = np.einsum("kc,kc->k", weights, bmap.velocities[nodes, component[:, None]])
+    scratch = np.zeros((2, grid.nx + 1, grid.ny + 1))
+    _covered_velocity(cover.axis, cover.i, cover.j, cover.share, velocity,
+                      interior.solid_faces_x, interior.solid_faces_y, interior.open_fraction_x,
+                      interior.open_fraction_y, scratch, np.zeros_like(scratch),
+                      interior.velocity_faces_x, interior.velocity_faces_y)
+
+
+@dataclass(frozen=True)
+class DualCellInteriorBoundary(InteriorBoundary):
+    """An `InteriorBoundary` built by `interior_boundary_dual_cell`; ``cover`` is the step's
+    `DualCover`, which `interface_flux` reads for ``W``'s rows."""
+
+    cover: DualCover | None = None
+
+
+def interior_boundary_dual_cell(grid: Grid2D, bmap: BoundaryMap, *,
+                                out: InteriorBoundary | None = None
+                                ) -> DualCellInteriorBoundary:
+    """The fluid's `InteriorBoundary` with dual-cell open fractions (module docstring).
+
+    As `interior_boundary_from_map` (whose flags, cut distances and thin cuts it keeps, and
+    whose ``out`` reuse it follows), with the open fractions of the faces whose dual cells a
+    body covers replaced by their fluid share; ``regions`` also holds the cover's windows.
+    """
+    base = interior_boundary_from_map(grid, bmap, out=out)
+    cover = dual_cover(grid, bmap)
+    _open_dual(cover.windows, cover.axis, cover.i, cover.j, cover.share,
+               base.open_fraction_x, base.open_fraction_y)
+    cuts = bmap.thin_cuts
+    if cuts.count:
+        is_u = cuts.axis == 0
+        base.open_fraction_x[cuts.i[is_u], cuts.j[is_u]] = 0.0
+        base.open_fraction_y[cuts.i[~is_u], cuts.j[~is_u]] = 0.0
+    _fill_covered_velocity(grid, bmap, cover, base)
+    regions = base.regions
+    if regions is not None:
+        regions = np.concatenate([regions[np.any(regions != 0, axis=1)], cover.windows])
+    fields = {f.name: getattr(base, f.name) for f in dataclasses.fields(InteriorBoundary)}
+    fields["regions"] = regions
+    return DualCellInteriorBoundary(**fields, cover=cover)
+
+
+def interface_flux_dual(grid: Grid2D, bmap: BoundaryMap, interior: InteriorBoundary,
+                        cover: DualCover, triangles: np.ndarray,
+                        triangle_offsets: np.ndarray) -> InterfaceFlux:
+    """``W`` of the dual-cell treatment (module docstring): each body's covered
+    share of a face's dual cell times its velocity at the centroid of that part; rows scaled
+    to the face's solid share ``1 - A`` (all of it on faces the fluid closes), which only
+    changes rows where outlines overlap (a flag clamped inside a cylinder counts the overlap
+    twice); the thin cuts' rows as in the cut-cell treatment."""
+    nx, ny = grid.nx, grid.ny
+    u_faces = (nx + 1) * ny
+    flat = np.where(cover.axis == 0, cover.i * ny + cover.j,
+                    u_faces + cover.i * (ny + 1) + cover.j)
+    near = _next_to_active(flat, interior.open_fraction_x, interior.open_fraction_y)
+    flat, share, component = flat[near], cover.share[near], cover.axis[near].astype(np.int64)
+    samples = np.ascontiguousarray(cover.centroid[near])
+    # A face the fluid closes carries the body's whole flux at the face itself: sampled at its
+    # centre, so that a uniform pressure on the closed faces around the cells the pressure
+    # equation drops gives no torque (their centroids sit off centre by the sliver of fluid).
+    i, j = cover.i[near], cover.j[near]
+    is_u = component == 0
+    open_here = np.where(is_u, interior.open_fraction_x[np.minimum(i, nx), np.minimum(j, ny - 1)],
+                         interior.open_fraction_y[np.minimum(i, nx - 1), np.minimum(j, ny)])
+    closed = open_here < OPEN_MIN
+    h = grid.h
+    ox, oy = grid.origin
+    samples[closed, 0] = ox + (i[closed] + np.where(is_u[closed], 0.0, 0.5)) * h
+    samples[closed, 1] = oy + (j[closed] + np.where(is_u[closed], 0.5, 0.0)) * h
+    nodes = np.zeros((flat.shape[0], 3), dtype=np.int64)
+    weights = np.zeros((flat.shape[0], 3))
+    _sample_weights(samples, cover.body[near], bmap.points, bmap.edges, bmap.edge_body,
+                    np.ascontiguousarray(triangles, dtype=np.int64),
+                    np.ascontiguousarray(triangle_offsets, dtype=np.int64), nodes, weights)
+    rows = np.repeat(flat, 3)
+    cols = (2 * nodes + component[:, None]).ravel()
+    values = (weights * share[:, None]).ravel()
+    cuts = bmap.thin_cuts
+    thin = np.zeros(0, dtype=np.int64)
+    if cuts.count:
+        active = np.zeros((nx + 2, ny + 2), dtype=np.bool_)
+        _active_cells(interior.open_fraction_x, interior.open_fraction_y, active[1:-1, 1:-1])
+        rows, cols, values = _with_thin_cuts(grid, bmap, cuts, active, rows, cols, values)
+        is_u = cuts.axis == 0
+        thin = np.where(is_u, cuts.i * ny + cuts.j, u_faces + cuts.i * (ny + 1) + cuts.j)
+    faces, indptr, indices, data = _csr_by_rows(rows, cols, values)
+    if faces.shape[0]:
+        is_u = faces < u_faces
+        open_fraction = np.where(
+            is_u,
+            interior.open_fraction_x.reshape(-1)[np.minimum(faces, u_faces - 1)],
+            interior.open_fraction_y.reshape(-1)[np.maximum(faces - u_faces, 0)],
+        )
+        target = np.where(open_fraction < OPEN_MIN, 1.0, 1.0 - open_fraction)
+        # Barycentric and edge weights sum to 1: a row's sum is its covered share.
+        carried = np.add.reduceat(data, indptr[:-1])
+        scale = np.where((carried > 0.0) & ~np.isin(faces, thin), target / carried, 1.0)
+        data *= np.repeat(scale, np.diff(indptr))
+    return _with_cells(grid, faces, SparseRows(indptr, indices, data, 2 * bmap.point_count))
