@@ -26,7 +26,8 @@ FIELD_FORMATS: tuple[str, ...] = ("npz", "vtk", "xdmf")
 
 def snapshot_arrays(grid: Any, state: Any, bodies: Sequence[tuple[Any, Any]] = (),
                     obstacles: Sequence[Any] = (), *, time: float = 0.0, step: int = 0,
-                    solid_cells: np.ndarray | None = None) -> dict[str, np.ndarray]:
+                    solid_cells: np.ndarray | None = None,
+                    level_set: np.ndarray | None = None) -> dict[str, np.ndarray]:
     """Everything a saved frame holds, as named arrays (the ``.npz`` keys).
 
     Keys: ``velocity`` (nx, ny, 2) [m/s] at cell centres, ``velocity_x`` (nx+1, ny),
@@ -34,7 +35,8 @@ def snapshot_arrays(grid: Any, state: Any, bodies: Sequence[tuple[Any, Any]] = (
     (nx, ny) unless stated; ``time`` [s], ``step``, ``h`` [m], ``origin`` (2,);
     ``body{k}_points`` (n, 2) [m], ``body{k}_triangles`` (m, 3), ``body{k}_velocities`` (n, 2);
     ``obstacle{k}_points`` (p, 2) [m]. A rod has no triangles (m = 0): its points are its
-    polyline in order (VTK: line cells).
+    polyline in order (VTK: line cells). With a free surface also ``level_set`` (nx, ny) [m],
+    liquid where negative (VTK and XDMF: a cell field of that name).
 
     ``state`` is the fluid state, ``bodies`` a (model, `elastoflow.solid.BodyState`) pair
     per body.
@@ -53,6 +55,8 @@ def snapshot_arrays(grid: Any, state: Any, bodies: Sequence[tuple[Any, Any]] = (
         "h": np.array(float(grid.h)),
         "origin": np.asarray(grid.origin, dtype=np.float64),
     }
+    if level_set is not None:
+        data["level_set"] = np.array(level_set, dtype=np.float64)
     for index, (body, body_state) in enumerate(bodies):
         data[f"body{index}_points"] = np.array(body_state.positions)
         data[f"body{index}_triangles"] = np.array(body.mesh.triangles)
@@ -77,13 +81,16 @@ def _cell_mesh(nx: int, ny: int, h: float, origin: Sequence[float]) -> tuple[np.
 
 def _cell_data(data: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
     velocity = data["velocity"].reshape(-1, 2)
-    return {
+    cells = {
         "velocity": np.column_stack((velocity, np.zeros(len(velocity)))),
         "pressure": data["pressure"].ravel(),
         "dye": data["dye"].ravel(),
         "vorticity": data["vorticity"].ravel(),
         "solid": data["solid"].ravel().astype(np.int32),
     }
+    if "level_set" in data:
+        cells["level_set"] = data["level_set"].ravel()
+    return cells
 
 
 _XDMF_TAIL = "  </Grid>\n</Domain>\n</Xdmf>\n"
@@ -110,10 +117,12 @@ class FieldWriter:
         formats: Any of ``"npz"``, ``"vtk"``, ``"xdmf"``.
         resume_step: Keep the saved frames up to this step and delete later ones (a resumed
             run); None starts fresh.
+        level_set: The snapshots hold a free surface's ``level_set`` (the XDMF series names
+            it among its cell fields).
     """
 
     def __init__(self, folder: str | Path, grid: Any, formats: Sequence[str] = ("npz",),
-                 resume_step: int | None = None) -> None:
+                 resume_step: int | None = None, level_set: bool = False) -> None:
         unknown = [f for f in formats if f not in FIELD_FORMATS]
         if unknown:
             raise ValueError(f"field formats {unknown}: must be among {FIELD_FORMATS}")
@@ -121,6 +130,8 @@ class FieldWriter:
         self.folder.mkdir(parents=True, exist_ok=True)
         self.grid = grid
         self.formats = tuple(dict.fromkeys(formats))
+        self._attributes = _XDMF_ATTRIBUTES + ((("level_set", "Scalar", 0),) if level_set
+                                               else ())
         self._points, self._quads = _cell_mesh(grid.nx, grid.ny, grid.h, grid.origin)
         self._index: list[tuple[int, float]] = []
         self._body_count = 0
@@ -190,7 +201,7 @@ class FieldWriter:
                  '      <xi:include xpointer="xpointer(//Grid[@Name=&quot;mesh&quot;]/*[self::'
                  'Topology or self::Geometry])"/>',
                  f'      <Time Value="{time!r}"/>']
-        for name, kind, width in _XDMF_ATTRIBUTES:
+        for name, kind, width in self._attributes:
             dimensions = f"{cells} {width}" if width else f"{cells}"
             number = ('DataType="Int" Precision="4"' if name == "solid"
                       else 'DataType="Float" Precision="8"')

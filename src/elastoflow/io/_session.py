@@ -97,8 +97,10 @@ class OutputSession:
                                          resume_step=resume_step)
         self._fields = None
         if self.outputs.fields is not None:
-            self._fields = FieldWriter(self.out_dir / "fields", simulation.grid,
-                                       self.outputs.fields.formats, resume_step=resume_step)
+            self._fields = FieldWriter(
+                self.out_dir / "fields", simulation.grid, self.outputs.fields.formats,
+                resume_step=resume_step,
+                level_set=getattr(simulation, "level_set", None) is not None)
         if resume_step is not None:
             _drop_later_meshes(self.out_dir / "meshes", resume_step)
         self._probes = None
@@ -132,6 +134,7 @@ class OutputSession:
                 sim.grid, sim.state.fluid, list(zip(sim.bodies, sim.state.bodies)),
                 sim.obstacles, time=sim.time, step=step,
                 solid_cells=None if interior is None else interior.solid_cells,
+                level_set=getattr(sim, "level_set", None),
             ))
             self._written_at["fields"] = step
         if (out.meshes is not None and sim.bodies
@@ -152,14 +155,22 @@ class OutputSession:
 
         ``out``: an earlier frame's array to draw into (see `render_frame`).
         """
-        from elastoflow.render import default_value_range, render_frame, view_values
+        from elastoflow.render import (
+            default_value_range,
+            liquid_values,
+            render_frame,
+            view_values,
+        )
 
         sim = self.simulation
         values = view_values(sim.grid, sim.state.fluid, view)
-        low, high = default_value_range(values, view)
+        level_set = getattr(sim, "level_set", None)
+        shown = values if level_set is None else liquid_values(values, level_set)
+        low, high = default_value_range(shown, view)
         return render_frame(sim.grid, sim.state.fluid, sim.body_geometry(), sim.obstacles,
                             view, sim.time,
-                            value_range=self._range.update(low, high), values=values, out=out)
+                            value_range=self._range.update(low, high), values=values, out=out,
+                            level_set=level_set)
 
     def after_step(self, simulation: Any, report: Any) -> None:
         """The per-step callback: writes whatever is due at this step."""

@@ -13,6 +13,7 @@ from elastoflow.render._colormap import COLORMAP_BY_VIEW, colormap_lut
 from elastoflow.render._fields import speed_at_cells, vorticity_at_cells
 from elastoflow.render._kernels import (
     color_field,
+    draw_liquid,
     draw_segments,
     draw_triangle_edges,
     fill_polygon,
@@ -26,6 +27,10 @@ BODY_EDGE_COLOR = np.array([40, 40, 40], dtype=np.uint8)
 OBSTACLE_FILL_COLOR = np.array([128, 128, 128], dtype=np.uint8)
 OBSTACLE_EDGE_COLOR = np.array([20, 20, 20], dtype=np.uint8)
 PANEL_COLOR = (255, 255, 255)
+AIR_COLOR = np.array([255, 255, 255], dtype=np.uint8)
+SURFACE_COLOR = np.array([20, 50, 120], dtype=np.uint8)
+SURFACE_LINE_PIXELS = 2.0
+"""Width of the free surface's line [pixels]."""
 _LABELS = {"speed": "speed [m/s]", "vorticity": "vorticity [1/s]", "pressure": "pressure [Pa]",
            "dye": "dye"}
 
@@ -41,6 +46,12 @@ def view_values(grid: Any, state: Any, view: str) -> np.ndarray:
     if view == "dye":
         return np.asarray(state.dye)
     raise ValueError(f"view = {view!r}: must be one of {VIEWS}")
+
+
+def liquid_values(values: np.ndarray, level_set: np.ndarray) -> np.ndarray:
+    """``values`` (nx, ny) with the air cells (level set >= 0) NaN: what a colour range of
+    the liquid alone is taken from (`default_value_range` skips NaN)."""
+    return np.where(np.asarray(level_set) < 0.0, values, np.nan)
 
 
 def default_value_range(values: np.ndarray, view: str) -> tuple[float, float]:
@@ -123,6 +134,7 @@ def render_frame(
     colorbar: bool = True,
     values: np.ndarray | None = None,
     out: np.ndarray | None = None,
+    level_set: np.ndarray | None = None,
 ) -> np.ndarray:
     """Draw the fluid field with bodies and obstacles on top.
 
@@ -148,13 +160,20 @@ def render_frame(
         out: Image to draw into and return, (H, W, 3) uint8 C-contiguous of the result's
             shape, e.g. the previous frame's, so that a frame per step allocates nothing; a new
             array when None (or when the shape differs).
+        level_set: A free surface's level set (nx, ny) [m], liquid where negative: the
+            liquid keeps the field's colours, the air is blank (white) and the surface is a
+            dark line ``SURFACE_LINE_PIXELS`` wide; the default colour range is then the
+            liquid cells' (`liquid_values`).
 
     Returns:
         RGB image, shape (H, W, 3) uint8, H and W even (video encoders need that).
     """
     if values is None:
         values = view_values(grid, state, view)
-    low, high = value_range if value_range is not None else default_value_range(values, view)
+    if value_range is None:
+        shown = values if level_set is None else liquid_values(values, level_set)
+        value_range = default_value_range(shown, view)
+    low, high = value_range
     low, high = float(low), float(high)
     scale = default_scale(grid) if scale is None else int(scale)
     colormap = COLORMAP_BY_VIEW[view]
@@ -175,6 +194,9 @@ def render_frame(
     # C-contiguous array ~1.5x faster than the strided field view.
     color_field(image, np.asarray(values, dtype=np.float64), low, high, colormap_lut(colormap),
                 scale)
+    if level_set is not None:
+        draw_liquid(image, np.ascontiguousarray(level_set, dtype=np.float64), scale,
+                    0.5 * SURFACE_LINE_PIXELS * grid.h / scale, AIR_COLOR, SURFACE_COLOR)
     if out_height > height:
         image[height:] = PANEL_COLOR
 

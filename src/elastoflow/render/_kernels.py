@@ -241,3 +241,41 @@ def speed_from_faces(velocity_x: np.ndarray, velocity_y: np.ndarray, out: np.nda
             ux = 0.5 * (velocity_x[i, j] + velocity_x[i + 1, j])
             vy = 0.5 * (velocity_y[i, j] + velocity_y[i, j + 1])
             out[i, j] = math.sqrt(ux * ux + vy * vy)
+
+
+@njit(cache=True, parallel=True)
+def draw_liquid(image: np.ndarray, phi: np.ndarray, scale: int, line_width: float,
+                air_color: np.ndarray, line_color: np.ndarray) -> None:
+    """Blank the air and draw the free surface over the field coloured by `color_field`.
+
+    ``phi`` (nx, ny) is the level set at the cell centres (liquid where negative), in cells
+    of ``scale`` pixels; each pixel of the top-left (ny * scale, nx * scale) block samples it
+    bilinearly at its centre (clamped at the ends): pixels with ``|phi| <= line_width`` (in
+    the level set's unit) take ``line_color``, the other air pixels (``phi >= 0``)
+    ``air_color``, the liquid keeps its colour.
+    """
+    nx, ny = phi.shape
+    height = ny * scale
+    width = nx * scale
+    inverse = 1.0 / scale
+    for row in prange(height):
+        y = (height - row - 0.5) * inverse - 0.5
+        y = min(max(y, 0.0), ny - 1.0)
+        j = min(int(y), max(ny - 2, 0))
+        ty = y - j
+        j1 = min(j + 1, ny - 1)
+        for col in range(width):
+            x = (col + 0.5) * inverse - 0.5
+            x = min(max(x, 0.0), nx - 1.0)
+            i = min(int(x), max(nx - 2, 0))
+            tx = x - i
+            i1 = min(i + 1, nx - 1)
+            low = phi[i, j] + tx * (phi[i1, j] - phi[i, j])
+            high = phi[i, j1] + tx * (phi[i1, j1] - phi[i, j1])
+            value = low + ty * (high - low)
+            if abs(value) <= line_width:
+                for c in range(3):
+                    image[row, col, c] = line_color[c]
+            elif value >= 0.0:
+                for c in range(3):
+                    image[row, col, c] = air_color[c]

@@ -11,7 +11,12 @@ from typing import Any
 import numpy as np
 
 from elastoflow.io._checkpoint import damage
-from elastoflow.render._frame import default_value_range, render_frame, view_values
+from elastoflow.render._frame import (
+    default_value_range,
+    liquid_values,
+    render_frame,
+    view_values,
+)
 from elastoflow.render._video import VideoWriter
 
 
@@ -45,7 +50,10 @@ def render_saved_frames(folder: str | Path, output: str | Path, *, view: str = "
                              "render one run's")
         state = SimpleNamespace(velocity_x=data["velocity_x"], velocity_y=data["velocity_y"],
                                 pressure=data["pressure"], dye=data["dye"])
-        a, b = default_value_range(view_values(grid, state, view), view)
+        values = view_values(grid, state, view)
+        if "level_set" in data:
+            values = liquid_values(values, data["level_set"])
+        a, b = default_value_range(values, view)
         low, high = min(low, a), max(high, b)
         snapshots.append((grid, state, data))
     # Every snapshot is read and checked before the video starts; a failure while writing it
@@ -58,7 +66,8 @@ def render_saved_frames(folder: str | Path, output: str | Path, *, view: str = "
                       for k in range(_count(data, _BODY))]
             obstacles = [data[f"obstacle{k}_points"] for k in range(_count(data, _OBSTACLE))]
             video.append(render_frame(grid, state, bodies, obstacles, view, float(data["time"]),
-                                      value_range=(low, high)))
+                                      value_range=(low, high),
+                                      level_set=data.get("level_set")))
     except BaseException:
         video.abort()
         raise

@@ -53,7 +53,36 @@ def characteristic_speed(scene: Scene) -> float:
     for obstacle in scene.obstacles:
         if obstacle.motion is not None:
             speeds.append(math.hypot(*obstacle.motion.velocity))
+    if scene.liquid is not None:
+        speeds.append(_free_fall_speed(scene))
     return max(speeds)
+
+
+def _liquid_top(scene: Scene) -> float:
+    """The highest point of the initial liquid [m] (``liquid.height`` sampled at the cell
+    centres' x when it is an expression)."""
+    from elastoflow.scenes._expression import Expression
+
+    liquid = scene.liquid
+    assert liquid is not None
+    tops = [box[3] for box in liquid.boxes]
+    if isinstance(liquid.height, str):
+        nx, _ = scene.domain.cells
+        x = scene.domain.origin[0] + (np.arange(nx) + 0.5) * scene.domain.cell_size
+        values = Expression(liquid.height).evaluate({"x": x})
+        finite = values[np.isfinite(values)]
+        if finite.size:
+            tops.append(float(finite.max()))
+    elif liquid.height is not None:
+        tops.append(float(liquid.height))
+    return min(max(tops, default=scene.domain.bounds[1]), scene.domain.bounds[3])
+
+
+def _free_fall_speed(scene: Scene) -> float:
+    """``sqrt(2 |g| H)`` [m/s], H from the liquid's highest point to the domain's bottom: the
+    speed of water falling that far (a dam break's surge runs at about this)."""
+    g = math.hypot(*scene.fluid.gravity)
+    return math.sqrt(2.0 * g * max(_liquid_top(scene) - scene.domain.bounds[1], 0.0))
 
 
 def time_step(scene: Scene) -> float:
@@ -63,8 +92,8 @@ def time_step(scene: Scene) -> float:
     speed = characteristic_speed(scene)
     if speed <= 0.0:
         raise SceneError([(
-            f"time.cfl = {scene.time.cfl}: needs a characteristic speed (inflow, moving wall or "
-            "jet); this scene has none, give time.dt instead"
+            f"time.cfl = {scene.time.cfl}: needs a characteristic speed (inflow, moving wall, "
+            "jet, or liquid under gravity); this scene has none, give time.dt instead"
         )], scene.source)
     dt = float(scene.time.cfl) * scene.domain.cell_size / speed  # type: ignore[arg-type]
     if not (dt > 0.0 and math.isfinite(dt)):
@@ -163,6 +192,68 @@ def _initial_state(scene: Scene, grid: Grid2D) -> Any:
     state = FluidState.zeros(grid)
     state.velocity_x[...], state.velocity_y[...] = initial_velocity(scene, grid)
     return state
+
+
+def liquid_level_set(scene: Scene, grid: Grid2D) -> np.ndarray:
+    """The level set [m] (nx, ny) of the scene's initial liquid (``[liquid]``), negative in the
+    water: the union of its boxes and of the layer below its height, redistanced when a
+    height is given (``y - height(x)`` is a distance only for a flat surface).
+
+    Raises:
+        SceneError: A height expression that is not finite, or water that covers no cell
+            centre.
+    """
+    from elastoflow.fluid import RedistanceFastSweeping, level_set_box, level_set_below
+    from elastoflow.scenes._expression import Expression
+
+    liquid = scene.liquid
+    assert liquid is not None
+    parts = [level_set_box(grid, box) for box in liquid.boxes]
+    if liquid.height is not None:
+        height = liquid.height
+        if isinstance(height, str):
+            x, _ = grid.cell_centers()
+            values = Expression(height).evaluate({"x": x[:, 0]})
+            bad = ~np.isfinite(values)
+            if bad.any():
+                i = int(np.argwhere(bad)[0][0])
+                raise SceneError([(f"liquid.height = {height!r}: is {values[i]} at x = "
+                                   f"{x[i, 0]:.6g}; must be finite over the domain")],
+                                 scene.source)
+            below = level_set_below(grid, lambda _: values[:, None])
+        else:
+            below = level_set_below(grid, float(height))
+        phi = below.copy()
+        RedistanceFastSweeping().redistance(below, grid.h, phi,
+                                            np.zeros(grid.shape_cells, dtype=np.bool_))
+        parts.append(phi)
+    level_set = np.minimum.reduce(parts) if len(parts) > 1 else parts[0]
+    if not np.any(level_set < 0.0):
+        raise SceneError([("liquid: no cell centre lies in the water (boxes and height as "
+                           f"given, cells of side {grid.h:g} m); give the water at least one "
+                           "cell")], scene.source)
+    return np.ascontiguousarray(level_set)
+
+
+def build_free_surface(scene: Scene, fluid_solver: Any) -> Any:
+    """The `elastoflow.simulation.FreeSurfaceScheme` of the scene's ``[liquid]``."""
+    from elastoflow import fluid
+    from elastoflow.simulation import FreeSurfaceScheme
+
+    liquid = scene.liquid
+    assert liquid is not None
+    viscosity = (fluid.ViscosityWholeGrid() if liquid.viscosity == "whole_grid"
+                 else fluid.ViscosityStressFree())
+    solver = fluid.FreeSurfaceSolver(
+        fluid_solver,
+        projection=fluid.GhostFluidProjection(theta_min=liquid.theta_min),
+        transport=fluid.LevelSetTransport(redistance_interval=liquid.redistance_interval,
+                                          volume_correction=liquid.volume_correction),
+        viscosity=viscosity,
+        extrapolation_layers=liquid.extrapolation_layers,
+        maccormack_fallback=liquid.maccormack_fallback,
+    )
+    return FreeSurfaceScheme(solver)
 
 
 def _side(spec: Any) -> Any:
@@ -497,6 +588,14 @@ def build_simulation(scene: Scene, *, steps: int | None = None,
     except (ValueError, ArithmeticError) as error:
         raise SceneError([f"fluid: {error}"], scene.source) from None
     state = _initial_state(scene, grid)
+    if scene.liquid is not None:
+        level_set = liquid_level_set(scene, grid)
+        try:
+            return Simulation(grid, fluid_solver, state=state, cfl_limit=scene.time.cfl_limit,
+                              dt=dt, coupling=build_free_surface(scene, fluid_solver),
+                              level_set=level_set)
+        except (ValueError, ArithmeticError) as error:
+            raise SceneError([f"liquid: {error}"], scene.source) from None
     try:
         return Simulation(
             grid,

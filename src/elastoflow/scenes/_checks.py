@@ -151,6 +151,45 @@ def check_rods(scene: Scene) -> list[str]:
     return problems
 
 
+def check_liquid(scene: Scene) -> list[str]:
+    """A scene with a free surface (``[liquid]``): the fluid alone, walls on every side, a
+    whole-pressure projection, and the water's boxes inside the domain. Bodies in the water
+    are not supported yet (issue 15: the coupling is being reworked)."""
+    liquid = scene.liquid
+    if liquid is None:
+        return []
+    problems = []
+    for key, items in (("bodies", scene.bodies), ("obstacles", scene.obstacles),
+                       ("jets", scene.jets)):
+        if items:
+            problems.append(
+                f"{key}: {len(items)} given with [liquid]; a free surface with {key} is not "
+                f"supported yet (only the liquid alone); remove the {key} or the [liquid] table")
+    b = scene.boundaries
+    for name, side in (("left", b.left), ("right", b.right), ("bottom", b.bottom),
+                       ("top", b.top)):
+        if isinstance(side, InflowSpec | OutflowSpec):
+            problems.append(
+                f"boundaries.{name} = {side.type}: a scene with [liquid] needs walls on every "
+                "side; must be \"no_slip\", \"free_slip\" or \"moving\"")
+    if scene.fluid.incremental_pressure:
+        problems.append("fluid.incremental_pressure = true: not available with [liquid] (the "
+                        "free surface's projection solves for the whole pressure); set it false")
+    if scene.fluid.viscosity_scheme == "bdf2":
+        problems.append('fluid.viscosity_scheme = "bdf2": not available with [liquid]; must be '
+                        '"backward_euler" or "crank_nicolson"')
+    x0, y0, x1, y1 = scene.domain.bounds
+    for index, box in enumerate(liquid.boxes):
+        if box[0] < x0 or box[1] < y0 or box[2] > x1 or box[3] > y1:
+            problems.append(
+                f"liquid.boxes.{index} = [{', '.join(f'{c:g}' for c in box)}]: must lie inside "
+                f"the domain [{x0:g}, {x1:g}] x [{y0:g}, {y1:g}]")
+    if isinstance(liquid.height, int | float) and not y0 < liquid.height <= y1:
+        problems.append(f"liquid.height = {liquid.height:g}: must lie in ({y0:g}, {y1:g}], "
+                        "above the domain's bottom and not above its top")
+    return problems
+
+
 # --------------------------------------------------------------------------------------------
 # polygons and shapes written in the scene
 

@@ -270,10 +270,16 @@ def check_scene(scene: Scene) -> list[str]:
     """Cross-field problems pydantic cannot see: geometry outside the domain, bad references,
     polygons that are not simple, a closed domain whose inflows do not balance, numerical
     choices that contradict each other."""
-    from elastoflow.scenes._checks import check_flow, check_numerics, check_outlines, check_rods
+    from elastoflow.scenes._checks import (
+        check_flow,
+        check_liquid,
+        check_numerics,
+        check_outlines,
+        check_rods,
+    )
 
     problems: list[str] = (check_flow(scene) + check_outlines(scene) + check_numerics(scene)
-                           + check_rods(scene))
+                           + check_rods(scene) + check_liquid(scene))
     domain = scene.domain.bounds
     if not all(math.isfinite(c) for c in domain):
         return problems + [(f"domain.origin = {_show(list(scene.domain.origin))}: with lx = "

@@ -329,3 +329,59 @@ def _reeds() -> dict:
             "checkpoint": {"every": 100},
         },
     }
+
+
+# Martin & Moyce's (1952) n^2 = 2 column (../shared/reference/free_surface.json,
+# "martin_moyce_1952_dam_break"): a = 2.25 in, the column a wide and 2 a tall.
+_DAM_A = 2.25 * 0.0254
+
+
+@_register("dam_break")
+def _dam_break() -> dict:
+    """Free surface: Martin & Moyce's water column (a = 2.25 in, 2 a tall) collapsing in a tank.
+
+    The tank is 8 a long and 4 a tall, 256 x 128 cells (a / 32), no-slip walls, water in air
+    (a void at pressure 0). The surge runs along the floor, hits the far wall at about
+    0.35 s and runs up it. The surge front against the experiment:
+    docs/validation/free_surface.md.
+    """
+    a = _DAM_A
+    return {
+        "domain": {"lx": 8 * a, "ly": 4 * a, "nx": 256},
+        "fluid": {"density": 1000.0, "viscosity": 1e-6, "gravity": (0.0, -9.81),
+                  "advection": "maccormack"},
+        "liquid": {"boxes": [(0.0, 0.0, a, 2 * a)]},
+        "boundaries": {"left": "no_slip", "right": "no_slip", "bottom": "no_slip",
+                       "top": "no_slip"},
+        "time": {"cfl": 0.5, "duration": 1.0},
+        "outputs": {
+            "video": {"view": "speed", "fps": 30, "every": 4},
+            "probes": [{"kind": "kinetic_energy"}, {"kind": "pressure_iterations"}],
+            "checkpoint": {"every": 500},
+        },
+    }
+
+
+@_register("sloshing")
+def _sloshing() -> dict:
+    """Free surface: the first sloshing mode in a tank (air-water-vv: 0.1 m tank, 5 mm wave).
+
+    Tank 0.1 m x 0.1 m, water 0.05 m deep with a cosine surface of amplitude 5 mm
+    (../shared/reference/free_surface.json, "standing_wave_linear_dispersion"), free-slip
+    walls, 64 x 64 cells; the period of the linear dispersion relation is 0.374 s
+    (docs/validation/free_surface.md: the frequency within 0.7 % at this resolution).
+    """
+    return {
+        "domain": {"lx": 0.1, "ly": 0.1, "nx": 64},
+        "fluid": {"density": 1000.0, "viscosity": 0.0, "gravity": (0.0, -9.81),
+                  "advection": "maccormack"},
+        "liquid": {"height": "0.05 + 0.005 * cos(pi * x / 0.1)"},
+        "boundaries": {"left": "free_slip", "right": "free_slip", "bottom": "free_slip",
+                       "top": "free_slip"},
+        "time": {"dt": 0.002, "duration": 1.2},
+        "outputs": {
+            "video": {"view": "speed", "fps": 30, "every": 2},
+            "probes": [{"kind": "kinetic_energy"}, {"kind": "pressure_iterations"}],
+            "checkpoint": {"every": 200},
+        },
+    }

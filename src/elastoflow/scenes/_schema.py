@@ -13,6 +13,7 @@ import math
 from typing import Annotated, Any, ClassVar, Literal
 
 from pydantic import (
+    AfterValidator,
     BaseModel,
     ConfigDict,
     Discriminator,
@@ -189,6 +190,55 @@ class FluidSpec(_Spec):
                                  "{ x = ..., y = ... }")
             return {"x": value[0], "y": value[1]}
         return value
+
+
+class LiquidSpec(_Spec):
+    """A liquid with a free surface (issue 15): the fluid fills the regions given here and
+    the rest of the domain is air, a void at pressure 0 (`elastoflow.fluid.FreeSurfaceSolver`;
+    docs/method_notes.md item 12). The liquid is the union of ``boxes`` and of the layer
+    below ``height``. Every side must be a wall; bodies, obstacles and jets are not supported
+    with a free surface yet.
+    """
+
+    boxes: Annotated[list[Annotated[Box, AfterValidator(_check_box)]], Strict(False)] = Field(
+        default_factory=list)
+    """Rectangles of water at t = 0, each ``[x0, y0, x1, y1]`` [m]."""
+    height: float | str | None = None
+    """Water below ``y = height`` at t = 0 [m]: a number, or an expression in ``x`` (as for
+    ``fluid.initial_velocity``), e.g. ``"0.05 + 0.005 * cos(pi * x / 0.1)"``."""
+    viscosity: Literal["stress_free", "whole_grid"] = "stress_free"
+    """How viscosity meets the surface: "stress_free" (implicit on the liquid's faces, zero
+    shear stress at the surface; `elastoflow.fluid.ViscosityStressFree`) or "whole_grid"
+    (the fluid's own viscosity over the whole grid, the air holding the extrapolated
+    velocity; `elastoflow.fluid.ViscosityWholeGrid`)."""
+    maccormack_fallback: Literal["walls_and_air", "walls", "none"] = "walls_and_air"
+    """With ``fluid.advection = "maccormack"``: where the velocity's MacCormack correction
+    gives way to the semi-Lagrangian value (`FreeSurfaceSolver`); "none" gains energy
+    (docs/validation/free_surface.md)."""
+    theta_min: Annotated[float, Field(gt=0.0, le=1.0)] = 1e-3
+    """Floor of the surface's distance from a liquid cell centre, in cells (ghost fluid)."""
+    volume_correction: bool = True
+    """Shift the level set every step so that the liquid's area stays the initial one."""
+    redistance_interval: PositiveInt = 1
+    """Steps between two redistancings of the level set."""
+    extrapolation_layers: Annotated[int, Field(ge=1, le=64)] = 5
+    """Layers of faces the velocity is extended into the air (must exceed the CFL number)."""
+
+    @field_validator("height")
+    @classmethod
+    def _expression(cls, value: float | str | None) -> float | str | None:
+        if isinstance(value, str):
+            from elastoflow.scenes._expression import Expression
+
+            Expression(value)
+        return value
+
+    @model_validator(mode="after")
+    def _some_liquid(self) -> LiquidSpec:
+        if not self.boxes and self.height is None:
+            raise ValueError("give boxes (rectangles of water) or height (water below it), "
+                             "or both")
+        return self
 
 
 # --------------------------------------------------------------------------------------------
@@ -753,6 +803,8 @@ class Scene(_Spec):
     description: str = ""
     domain: DomainSpec
     fluid: FluidSpec = Field(default_factory=FluidSpec)
+    liquid: LiquidSpec | None = None
+    """A liquid with a free surface in air (left out: the fluid fills the domain)."""
     boundaries: BoundariesSpec = Field(default_factory=BoundariesSpec)
     jets: Annotated[list[JetSpec], Strict(False)] = Field(default_factory=list)
     obstacles: Annotated[list[ObstacleSpec], Strict(False)] = Field(default_factory=list)

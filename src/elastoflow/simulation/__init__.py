@@ -3,6 +3,7 @@ body states, time), the coupling schemes that step one state into the next, and 
 each new state must pass."""
 
 from elastoflow.simulation._checks import CflLimit, FiniteFields, StepCheck, cfl_number
+from elastoflow.simulation._free_surface import FreeSurfaceScheme
 from elastoflow.simulation._report import SimulationBlowUp, StepReport
 from elastoflow.simulation._schemes import (
     COUPLING_SCHEMES,
@@ -23,6 +24,7 @@ __all__ = [
     "CouplingScheme",
     "ExplicitCoupling",
     "FiniteFields",
+    "FreeSurfaceScheme",
     "MonolithicCoupling",
     "Simulation",
     "SimulationBlowUp",

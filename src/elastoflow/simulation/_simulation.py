@@ -9,6 +9,7 @@ from elastoflow.coupling import BoundaryMap, BoundaryTreatment, Obstacle, bounda
 from elastoflow.fluid import FluidSolver, FluidState, InteriorBoundary
 from elastoflow.grid import Grid2D
 from elastoflow.simulation._checks import CflLimit, FiniteFields, StepCheck, cfl_number
+from elastoflow.simulation._free_surface import FreeSurfaceScheme
 from elastoflow.simulation._report import SimulationBlowUp, StepReport
 from elastoflow.simulation._schemes import (
     COUPLING_SCHEMES,
@@ -54,6 +55,8 @@ class Simulation:
         boundary: How the fluid sees bodies and obstacles: "cut_cell" (default: open
             fractions and cut distances from the boundary map), "staircase" (cells by their
             centres, faces open or closed), or a `elastoflow.coupling.BoundaryTreatment`.
+        level_set: With ``coupling`` a `FreeSurfaceScheme`: the initial level set [m]
+            (nx, ny), liquid where negative (required then, refused otherwise).
     """
 
     def __init__(
@@ -74,6 +77,7 @@ class Simulation:
         coupling: str | CouplingScheme = "explicit",
         checks: Sequence[StepCheck] | None = None,
         boundary: str | BoundaryTreatment = "cut_cell",
+        level_set: np.ndarray | None = None,
     ) -> None:
         if not (dt > 0.0 and np.isfinite(dt)):
             raise ValueError(f"dt = {dt!r}: must be a finite positive time step [s]")
@@ -101,6 +105,14 @@ class Simulation:
             [FiniteFields(), CflLimit(cfl_limit)] if checks is None else list(checks)
         )
         self.state: CoupledState = self.model.state(state)
+        if isinstance(scheme, FreeSurfaceScheme):
+            scheme.check_model(self.model)
+            if level_set is None:
+                raise ValueError("a free-surface simulation needs level_set (the initial "
+                                 "liquid, where it is negative)")
+            scheme.prepare(self.state, level_set)
+        elif level_set is not None:
+            raise ValueError("level_set needs coupling = FreeSurfaceScheme(...)")
         self._next: CoupledState | None = None
         self.last_report: StepReport | None = None
 
@@ -142,6 +154,12 @@ class Simulation:
     def step_index(self) -> int:
         """Steps taken to reach the current state."""
         return self.state.step_index
+
+    @property
+    def level_set(self) -> np.ndarray | None:
+        """The liquid's level set [m] (nx, ny), negative in the liquid; None without a free
+        surface."""
+        return self.state.level_set
 
     @property
     def body_forces(self) -> list[np.ndarray]:

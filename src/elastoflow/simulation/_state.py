@@ -28,6 +28,8 @@ from elastoflow.solid import BodyModel, BodyState
 
 NOT_SAVED = {"checkpoint": False}
 """Field metadata of derived data a checkpoint leaves out (rebuilt by the next step)."""
+OPTIONAL = {"checkpoint": "optional"}
+"""Field metadata of data only some runs have (None otherwise): saved when present."""
 
 
 @dataclass(eq=False)
@@ -52,6 +54,9 @@ class CoupledState:
         body_forces: The fluid force each body received in the last step [N/m], (n, 2).
         previous_velocities: Each body's velocities at the start of the last step (the
             explicit scheme's added-mass estimate differentiates them).
+        level_set: A free-surface run's level set [m] (nx, ny), liquid where negative
+            (`elastoflow.fluid.FreeSurfaceState`); None without a free surface.
+        liquid_area: The liquid area [m^2] its volume correction keeps; None without.
         boundary: The boundary geometry of the last step (None before the first step and
             after a restore); not saved.
     """
@@ -62,6 +67,8 @@ class CoupledState:
     step_index: int = 0
     body_forces: list[np.ndarray] = field(default_factory=list)
     previous_velocities: list[np.ndarray] = field(default_factory=list)
+    level_set: np.ndarray | None = field(default=None, metadata=OPTIONAL)
+    liquid_area: float | None = field(default=None, metadata=OPTIONAL)
     boundary: StepBoundary | None = field(default=None, metadata=NOT_SAVED)
 
     def copy(self) -> CoupledState:
@@ -73,6 +80,8 @@ class CoupledState:
             step_index=self.step_index,
             body_forces=[force.copy() for force in self.body_forces],
             previous_velocities=[v.copy() for v in self.previous_velocities],
+            level_set=None if self.level_set is None else self.level_set.copy(),
+            liquid_area=self.liquid_area,
             boundary=self.boundary,
         )
 
@@ -86,6 +95,13 @@ class CoupledState:
             target[...] = source
         for target, source in zip(self.previous_velocities, other.previous_velocities):
             target[...] = source
+        if other.level_set is None:
+            self.level_set = None
+        elif self.level_set is None or self.level_set.shape != other.level_set.shape:
+            self.level_set = other.level_set.copy()
+        else:
+            self.level_set[...] = other.level_set
+        self.liquid_area = other.liquid_area
         self.time = other.time
         self.step_index = other.step_index
 

@@ -192,7 +192,8 @@ class Viewer:
         sim = self.simulation
         image = render_frame(sim.grid, sim.state.fluid, sim.body_geometry(), sim.obstacles,
                              self.view,
-                             sim.time, scale=self.scale)
+                             sim.time, scale=self.scale,
+                             level_set=getattr(sim, "level_set", None))
         self._frame = image
         return image
 

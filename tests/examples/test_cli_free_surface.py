@@ -1,0 +1,108 @@
+"""The free-surface scenes (``[liquid]``) from the command line: dam_break and sloshing run a
+few steps with video, fields and checkpoints; a resume is bit for bit; bad input is one line."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import meshio
+import numpy as np
+from typer.testing import CliRunner
+
+from elastoflow.cli import app
+
+runner = CliRunner()
+
+
+def _invoke(*args: object):
+    result = runner.invoke(app, [str(a) for a in args])
+    return result, result.output
+
+
+def test_dam_break_runs_with_video_fields_and_checkpoints(tmp_path) -> None:
+    out = tmp_path / "dam"
+    result, text = _invoke("run", "dam_break", "--steps", "4", "--out", out, "--fields",
+                           "npz,vtk,xdmf", "--every", "2", "--checkpoint-every", "2")
+    assert result.exit_code == 0, text
+    assert "4/4" in text  # the progress bar reached the end
+    assert (out / "video.mp4").stat().st_size > 0
+    with np.load(out / "fields" / "step_000004.npz") as frame:
+        phi = frame["level_set"]
+        assert phi.shape == (256, 128)
+        liquid = phi < 0.0
+        # The column a / 32 cells wide and twice as tall: 32 x 64 cells of water.
+        assert 0.9 * 32 * 64 < np.count_nonzero(liquid) < 1.1 * 32 * 64
+        assert np.all(frame["pressure"][~liquid] == 0.0)
+    mesh = meshio.read(out / "fields" / "fluid_000004.vtu")
+    np.testing.assert_array_equal(mesh.cell_data["level_set"][0], phi.ravel())
+    assert "level_set" in (out / "fields" / "fluid.xdmf").read_text()
+    with np.load(out / "checkpoints" / "checkpoint_00000004.npz") as checkpoint:
+        np.testing.assert_array_equal(checkpoint["level_set"], phi)
+        assert float(checkpoint["liquid_area"]) > 0.0
+
+
+def test_sloshing_resume_is_bit_for_bit(tmp_path) -> None:
+    straight, split = tmp_path / "straight", tmp_path / "split"
+    args = ("--no-video", "--no-probes", "--quiet", "--fields", "none")
+    result, text = _invoke("run", "sloshing", "--out", straight, "--steps", "6", *args)
+    assert result.exit_code == 0, text
+    assert _invoke("run", "sloshing", "--out", split, "--steps", "3", *args)[0].exit_code == 0
+    result, text = _invoke("run", "sloshing", "--out", split, "--steps", "6", "--resume", *args)
+    assert result.exit_code == 0 and "resuming from" in text, text
+    with np.load(straight / "checkpoints" / "checkpoint_00000006.npz") as a, \
+            np.load(split / "checkpoints" / "checkpoint_00000006.npz") as b:
+        assert set(a.files) == set(b.files)
+        assert "level_set" in a.files
+        for key in a.files:
+            np.testing.assert_array_equal(a[key], b[key], err_msg=key)
+
+
+_LIQUID = """
+[domain]
+lx = 1.0
+ly = 0.5
+nx = 16
+[fluid]
+gravity = [0.0, -9.81]
+[liquid]
+boxes = [[0.0, 0.0, 0.25, 0.25]]
+[time]
+dt = 0.01
+steps = 2
+"""
+
+
+def _validate(tmp_path: Path, text: str) -> tuple[int, list[str]]:
+    path = tmp_path / "scene.toml"
+    path.write_text(text)
+    result, output = _invoke("validate", path)
+    return result.exit_code, output.strip().splitlines()
+
+
+def test_liquid_scene_errors_are_one_line_each(tmp_path) -> None:
+    code, lines = _validate(tmp_path, _LIQUID)
+    assert code == 0, lines
+    code, lines = _validate(tmp_path, _LIQUID + """
+[[bodies]]
+shape = { type = "rectangle", box = [0.5, 0.1, 0.6, 0.2], divisions = [2, 2] }
+material = { density = 500.0, young_modulus = 1e5, poisson_ratio = 0.3 }
+""")
+    assert code == 2 and len(lines) == 1, lines
+    assert "scene.toml: bodies: 1 given with [liquid]" in lines[0]
+    assert "not supported yet" in lines[0]
+    code, lines = _validate(tmp_path, _LIQUID.replace("[[0.0, 0.0, 0.25, 0.25]]",
+                                                      "[[0.0, 0.0, 1.5, 0.25]]"))
+    assert code == 2 and len(lines) == 1, lines
+    assert "scene.toml: liquid.boxes.0 = [0, 0, 1.5, 0.25]: must lie inside the domain" in lines[0]
+    code, lines = _validate(tmp_path, _LIQUID.replace("[time]", '[boundaries]\ntop = "outflow"\n'
+                                                      "[time]"))
+    assert code == 2 and len(lines) == 1, lines
+    assert "boundaries.top = outflow: a scene with [liquid] needs walls" in lines[0]
+    code, lines = _validate(tmp_path, _LIQUID.replace("boxes = [[0.0, 0.0, 0.25, 0.25]]",
+                                                      'viscosity = "air"'))
+    assert code == 2 and len(lines) == 1, lines
+    assert "liquid.viscosity = 'air': must be 'stress_free' or 'whole_grid'" in lines[0]
+    code, lines = _validate(tmp_path, _LIQUID.replace("boxes = [[0.0, 0.0, 0.25, 0.25]]",
+                                                      'viscosity = "whole_grid"'))
+    assert code == 2 and len(lines) == 1, lines
+    assert "liquid = " in lines[0] and "give boxes" in lines[0]

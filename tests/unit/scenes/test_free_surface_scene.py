@@ -1,0 +1,91 @@
+"""Scenes with a free surface (``[liquid]``): the initial level set, the time step, the
+built simulation, its drawing and its checkpoint."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from elastoflow.render import render_frame
+from elastoflow.render._frame import AIR_COLOR, SURFACE_COLOR
+from elastoflow.scenes import SceneError, build_simulation, get_scene, parse_scene
+from elastoflow.scenes._build import characteristic_speed, liquid_level_set, time_step
+
+
+def _scene(**liquid: object) -> dict:
+    return {"domain": {"lx": 1.0, "ly": 0.5, "nx": 32}, "fluid": {"gravity": (0.0, -9.81)},
+            "liquid": liquid, "time": {"cfl": 0.5, "steps": 3}}
+
+
+def test_level_set_is_the_union_of_boxes_and_the_layer_below_height() -> None:
+    scene = parse_scene(_scene(boxes=[(0.0, 0.0, 0.25, 0.4)],
+                               height="0.1 + 0.02 * cos(pi * x)"))
+    sim = build_simulation(scene)
+    phi = liquid_level_set(scene, sim.grid)
+    x, y = sim.grid.cell_centers()
+    inside = ((x < 0.25) & (y < 0.4)) | (y < 0.1 + 0.02 * np.cos(np.pi * x))
+    far = np.abs(phi) > sim.grid.h  # cells whose side is not decided by sub-cell position
+    np.testing.assert_array_equal((phi < 0.0)[far], inside[far])
+    np.testing.assert_array_equal(sim.level_set, phi)
+    assert sim.state.liquid_area == pytest.approx(0.25 * 0.4 + 0.75 * 0.1, rel=0.05)
+
+
+def test_time_step_from_the_free_fall_speed() -> None:
+    """cfl with a liquid: the speed of water falling from its top to the floor."""
+    scene = parse_scene(_scene(boxes=[(0.0, 0.0, 0.25, 0.4)]))
+    assert characteristic_speed(scene) == pytest.approx(math.sqrt(2 * 9.81 * 0.4))
+    assert time_step(scene) == pytest.approx(0.5 * (1.0 / 32) / math.sqrt(2 * 9.81 * 0.4))
+
+
+def test_water_that_covers_no_cell_is_refused() -> None:
+    scene = parse_scene(_scene(boxes=[(0.0, 0.0, 0.01, 0.4)]))
+    with pytest.raises(SceneError, match="liquid: no cell centre lies in the water"):
+        build_simulation(scene)
+
+
+def test_bodies_in_the_water_are_refused_in_one_line() -> None:
+    data = _scene(boxes=[(0.0, 0.0, 0.25, 0.4)])
+    data["bodies"] = [{"shape": {"type": "rectangle", "box": (0.5, 0.1, 0.6, 0.2),
+                                 "divisions": (2, 2)},
+                       "material": {"density": 500.0, "young_modulus": 1e5,
+                                    "poisson_ratio": 0.3}}]
+    with pytest.raises(SceneError) as error:
+        parse_scene(data, source="float.toml")
+    assert error.value.problems == [
+        "bodies: 1 given with [liquid]; a free surface with bodies is not supported yet "
+        "(only the liquid alone); remove the bodies or the [liquid] table"]
+
+
+def test_the_frame_draws_liquid_air_and_surface() -> None:
+    sim = build_simulation(get_scene("sloshing"))
+    sim.run(2)
+    image = render_frame(sim.grid, sim.state.fluid, (), (), "speed", None, scale=4,
+                         colorbar=False, level_set=sim.level_set)
+    height = sim.grid.ny * 4
+    column = image[:height, 2 * 4]            # a column of pixels near the left wall
+    air = np.all(column == AIR_COLOR, axis=1)
+    line = np.all(column == SURFACE_COLOR, axis=1)
+    # Top to bottom: air, the surface line near y = 0.055 m (the crest at the left wall),
+    # then liquid in the colour map's shades.
+    rows = np.nonzero(line)[0]
+    assert rows.size >= 1 and air[: rows[0]].all() and not air[rows[-1] + 1:].any()
+    surface_y = (height - rows.mean()) / 4 * sim.grid.h
+    assert surface_y == pytest.approx(0.055, abs=2 * sim.grid.h)
+
+
+def test_checkpoint_round_trip_is_bit_exact() -> None:
+    sim = build_simulation(get_scene("sloshing"))
+    sim.run(3)
+    saved = sim.checkpoint()
+    assert {"level_set", "liquid_area"} <= set(saved)
+    sim.run(3)
+    after = sim.checkpoint()
+    other = build_simulation(get_scene("sloshing"))
+    other.restore(saved)
+    other.run(3)
+    again = other.checkpoint()
+    assert set(again) == set(after)
+    for key in after:
+        np.testing.assert_array_equal(again[key], after[key], err_msg=key)
