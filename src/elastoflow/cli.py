@@ -515,6 +515,8 @@ def validate(
                                              "0.5 on the inflow peak).")] = None,
     scheme: Annotated[str, typer.Option(help="Benchmark: coupling scheme, monolithic or "
                                         "explicit.")] = "monolithic",
+    boundary: Annotated[str, typer.Option(help="Benchmark: how the fluid sees the bodies, "
+                                          "cut_cell, dual_cell or staircase.")] = "cut_cell",
     out: Annotated[Path, typer.Option("--out", help="Benchmark: folder for the CSV and PNG.")]
     = Path("out/validation"),
     json_file: Annotated[bool, typer.Option("--json", help="Benchmark: also write the "
@@ -556,7 +558,7 @@ def validate(
         _boundary_study(case, out)
         return
     if scene in BENCHMARKS:
-        _benchmark(scene, case, resolution, duration, dt, scheme, out, json_file)
+        _benchmark(scene, case, resolution, duration, dt, scheme, out, json_file, boundary)
         return
     if case is not None:
         _fail(f"{case!r}: a scene takes no case (benchmarks: {', '.join(BENCHMARKS)})")
@@ -579,7 +581,8 @@ def validate(
 
 
 def _benchmark(name: str, case: str | None, resolution: int, duration: float | None,
-               dt: float | None, scheme: str, out: Path, json_file: bool) -> None:
+               dt: float | None, scheme: str, out: Path, json_file: bool,
+               boundary: str = "cut_cell") -> None:
     """Run one case of a published benchmark with a progress bar; print and write its results."""
     from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 
@@ -600,23 +603,25 @@ def _benchmark(name: str, case: str | None, resolution: int, duration: float | N
         if name == "perpendicular-flap":
             if case is not None:
                 _fail(f"{case!r}: the perpendicular flap has one case (leave it out)")
-            setup = flap_setup(resolution, duration=duration, dt=dt, scheme=scheme)
+            setup = flap_setup(resolution, duration=duration, dt=dt, scheme=scheme,
+                               boundary=boundary)
             title = "flap"
 
             def run(progress: Any) -> Any:
                 return run_flap(resolution, duration=setup.duration, dt=setup.dt,
-                                scheme=scheme, progress=progress)
+                                scheme=scheme, progress=progress, boundary=boundary)
         else:
             if case is None:
                 _fail(f"{name}: name the case ({', '.join(CASES)})")
             chosen = get_case(case)
             check_resolution(resolution)
-            setup = default_setup(chosen, resolution, duration=duration, dt=dt, scheme=scheme)
+            setup = default_setup(chosen, resolution, duration=duration, dt=dt, scheme=scheme,
+                                  boundary=boundary)
             title = chosen.name
 
             def run(progress: Any) -> Any:
                 return run_case(chosen.name, resolution, duration=setup.duration, dt=setup.dt,
-                                scheme=scheme, progress=progress)
+                                scheme=scheme, progress=progress, boundary=boundary)
     except ValueError as error:
         _fail(str(error))
     _output_folder(out, "--out")

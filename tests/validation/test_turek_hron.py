@@ -161,6 +161,7 @@ def test_cli_runs_a_case_and_writes_csv_png_json(tmp_path: Path) -> None:
         (["turek-hron", "FSI1", "--resolution", "400"], "in 5..200"),
         (["turek-hron", "FSI1", "--dt", "-1"], "dt = -1.0"),
         (["turek-hron", "FSI1", "--scheme", "magic"], "scheme"),
+        (["perpendicular-flap", "--boundary", "voxel"], "boundary = 'voxel'"),
         (["flag", "FSI1"], "a scene takes no case"),
     ],
 )
@@ -182,6 +183,18 @@ def test_perpendicular_flap_start_bends_downstream() -> None:
     assert 0.05 < ux.max() < 0.3
     assert np.all(ux[len(ux) // 4:] > 0.0)
     assert np.abs(uy).max() < 0.3 * ux.max()
+
+
+def test_benchmark_runs_with_the_dual_cell_treatment() -> None:
+    """``--boundary`` reaches the benchmark's simulation (the measurements of
+    docs/method_notes.md item 9 come from these runs)."""
+    from elastoflow.validation._perpendicular_flap import flap_simulation
+
+    simulation, _, _ = flap_simulation(flap_setup(5, duration=0.01, boundary="dual_cell"))
+    assert simulation.model.boundary.name == "dual_cell"
+    simulation.step()
+    result = run_flap(5, duration=0.02, boundary="dual_cell")
+    assert np.isfinite(result.series["ux_tip"]).all()
 
 
 def test_perpendicular_flap_grid_keeps_the_flap_sides_off_the_grid_lines() -> None:

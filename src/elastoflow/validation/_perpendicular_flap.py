@@ -22,7 +22,14 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from elastoflow.validation._turek_hron import Case, Progress, Result, Setup, evaluate
+from elastoflow.validation._turek_hron import (
+    Case,
+    Progress,
+    Result,
+    Setup,
+    check_boundary,
+    evaluate,
+)
 
 if TYPE_CHECKING:
     from elastoflow.simulation import Simulation
@@ -53,7 +60,7 @@ def cells_high(resolution: int) -> int:
 
 
 def flap_setup(resolution: int, *, duration: float | None = None, dt: float | None = None,
-               scheme: str = "monolithic") -> Setup:
+               scheme: str = "monolithic", boundary: str = "cut_cell") -> Setup:
     """h = 4 / `cells_high`, flap elements about as large as the cells (at least 2 across),
     dt from a CFL number of 0.5 on the inflow speed."""
     h = 4.0 / cells_high(resolution)
@@ -65,8 +72,9 @@ def flap_setup(resolution: int, *, duration: float | None = None, dt: float | No
         raise ValueError(f"dt = {dt!r}: must be a finite positive time step [s]")
     if scheme not in ("monolithic", "explicit"):
         raise ValueError(f"scheme = {scheme!r}: must be 'monolithic' or 'explicit'")
+    check_boundary(boundary)
     layers = max(2, round(0.1 / h))
-    return Setup(FLAP_CASE, resolution, h, float(dt), float(duration), scheme, layers)
+    return Setup(FLAP_CASE, resolution, h, float(dt), float(duration), scheme, layers, boundary)
 
 
 def flap_simulation(setup: Setup) -> tuple[Simulation, int, np.ndarray]:
@@ -95,15 +103,17 @@ def flap_simulation(setup: Setup) -> tuple[Simulation, int, np.ndarray]:
     body = ElasticBody(mesh, material, fixed_nodes=np.flatnonzero(mesh.points[:, 1] <= 1e-12))
     tip = int(np.argmin(np.linalg.norm(mesh.points - np.asarray(TIP), axis=1)))
     coupling = MonolithicCoupling() if setup.scheme == "monolithic" else "explicit"
-    simulation = Simulation(grid, solver, bodies=[body], dt=setup.dt, coupling=coupling)
+    simulation = Simulation(grid, solver, bodies=[body], dt=setup.dt, coupling=coupling,
+                            boundary=setup.boundary)
     simulation.state.fluid.velocity_x[...] = SPEED
     return simulation, tip, mesh.points[tip].copy()
 
 
 def run_flap(resolution: int = 20, *, duration: float | None = None, dt: float | None = None,
-             scheme: str = "monolithic", progress: Progress | None = None) -> Result:
+             scheme: str = "monolithic", progress: Progress | None = None,
+             boundary: str = "cut_cell") -> Result:
     """Run the perpendicular flap and evaluate the tip's oscillation."""
-    setup = flap_setup(resolution, duration=duration, dt=dt, scheme=scheme)
+    setup = flap_setup(resolution, duration=duration, dt=dt, scheme=scheme, boundary=boundary)
     simulation, tip, rest = flap_simulation(setup)
     grid = simulation.grid
     mesh_triangles = simulation.bodies[0].mesh.triangle_count

@@ -189,7 +189,7 @@ def rigid_flag_polygon(segments: int) -> np.ndarray:
 
 @dataclass
 class Setup:
-    """What a case is run with: resolution, time step, scheme."""
+    """What a case is run with: resolution, time step, scheme, boundary treatment."""
 
     case: Case
     resolution: int
@@ -198,6 +198,7 @@ class Setup:
     duration: float
     scheme: str
     layers: int
+    boundary: str = "cut_cell"
 
     @property
     def steps(self) -> int:
@@ -205,7 +206,8 @@ class Setup:
 
 
 def default_setup(case: Case, resolution: int, *, duration: float | None = None,
-                  dt: float | None = None, scheme: str = "monolithic") -> Setup:
+                  dt: float | None = None, scheme: str = "monolithic",
+                  boundary: str = "cut_cell") -> Setup:
     """Resolution N -> h = 0.41 / `cells_across` (N), about N/5 flag layers; dt from a CFL
     number of 0.5 on the inflow peak (fluid cases), 0.005 s (CSM3, the benchmark's own
     step)."""
@@ -221,8 +223,18 @@ def default_setup(case: Case, resolution: int, *, duration: float | None = None,
         raise ValueError(f"dt = {dt!r}: must be a finite positive time step [s]")
     if scheme not in ("monolithic", "explicit"):
         raise ValueError(f"scheme = {scheme!r}: must be 'monolithic' or 'explicit'")
+    check_boundary(boundary)
     return Setup(case, resolution, h, float(dt), float(duration), scheme,
-                 max(2, round(resolution / 5)))
+                 max(2, round(resolution / 5)), boundary)
+
+
+def check_boundary(boundary: str) -> None:
+    """Refuse a boundary treatment name that `elastoflow.coupling` does not know."""
+    from elastoflow.coupling import BOUNDARY_TREATMENTS
+
+    if boundary not in BOUNDARY_TREATMENTS:
+        raise ValueError(f"boundary = {boundary!r}: must be one of "
+                         f"{', '.join(BOUNDARY_TREATMENTS)}")
 
 
 @dataclass
@@ -263,7 +275,7 @@ Progress = Callable[[int, int], None]
 
 def run_case(name: str, resolution: int = 20, *, duration: float | None = None,
              dt: float | None = None, scheme: str = "monolithic",
-             progress: Progress | None = None) -> Result:
+             progress: Progress | None = None, boundary: str = "cut_cell") -> Result:
     """Run one Turek-Hron case and evaluate its quantities.
 
     Args:
@@ -273,9 +285,11 @@ def run_case(name: str, resolution: int = 20, *, duration: float | None = None,
         dt: Fluid time step [s] (default: CFL 0.5 on the inflow peak).
         scheme: Coupling scheme of the FSI cases ("monolithic" or "explicit").
         progress: Called with (steps done, steps in all) as the run goes.
+        boundary: How the fluid sees the bodies (`elastoflow.coupling.BOUNDARY_TREATMENTS`).
     """
     case = get_case(name)
-    setup = default_setup(case, resolution, duration=duration, dt=dt, scheme=scheme)
+    setup = default_setup(case, resolution, duration=duration, dt=dt, scheme=scheme,
+                          boundary=boundary)
     began = _time.perf_counter()
     if case.kind == "CSM":
         time, series, elements, steps = _run_solid(setup, progress)
@@ -397,7 +411,7 @@ def case_simulation(setup: Setup) -> tuple[Simulation, int | None]:
         bodies.append(body)
     scheme = MonolithicCoupling() if setup.scheme == "monolithic" else "explicit"
     simulation = Simulation(grid, solver, bodies=bodies, obstacles=obstacles, dt=setup.dt,
-                            coupling=scheme)
+                            coupling=scheme, boundary=setup.boundary)
     return simulation, node_a
 
 
