@@ -2,7 +2,8 @@
 
 Case: Martin & Moyce's column (width a = 2.25 in, height 2 a) in a tank 8 a long and 4 a tall,
 h = a / 32 (256x128 cells), water (nu = 1e-6, no-slip walls), semi-Lagrangian velocity
-advection (MacCormack gains energy next to a free surface, docs/validation/free_surface.md;
+advection (chosen when the fluid's MacCormack step gained energy next to a free surface; the
+free surface's MacCormack with its fallback, the scenes' default since, is not timed here;
 the level set keeps MacCormack), dt at CFL 0.8 from the fastest face (at most
 sqrt(0.8 h / g)). After warm-up steps that let the column
 start falling, steps are timed; reported per step: total ms, ms per phase, pressure

@@ -38,10 +38,12 @@ def frame(simulation: Any, view: str = "speed", **options: Any) -> np.ndarray:
     Args:
         simulation: A `Simulation`.
         view: "speed", "vorticity", "pressure" or "dye".
-        **options: Passed to `elastoflow.render.render_frame` (value_range, scale, colorbar).
+        **options: Passed to `elastoflow.render.render_frame` (value_range, scale, colorbar);
+            a free surface's level set is passed unless given.
     """
     from elastoflow.render import render_frame
 
+    options.setdefault("level_set", getattr(simulation, "level_set", None))
     return render_frame(
         simulation.grid, simulation.state.fluid, simulation.body_geometry(),
         simulation.obstacles, view, simulation.time, **options,

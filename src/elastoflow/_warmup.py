@@ -5,7 +5,7 @@ cache (``__pycache__`` beside the sources, or ``NUMBA_CACHE_DIR``). A fresh inst
 spends about a minute of its first step compiling on two cores. `warm_up` runs every built-in
 scene for two steps on a grid just large enough to reach the threaded variants of the kernels
 and draws a frame of every view, then steps the parts no scene uses yet (the free surface, the
-3D fluid, tetrahedral bodies and the 3D map), so that a later run finds everything compiled; ``make``
+3D fluid, tetrahedral bodies and the 3D map; the free surface's semi-Lagrangian step), so that a later run finds everything compiled; ``make``
 runs it once after installing (``elastoflow warmup``). Nothing is written but the cache.
 """
 
@@ -69,7 +69,8 @@ def warm_up(
 
 
 def _free_surface() -> None:
-    """Two dam-break steps of the Python API (no scene uses the free surface yet)."""
+    """Two dam-break steps of the Python API with each advection scheme (the scenes
+    dam_break and sloshing take MacCormack)."""
     from elastoflow.fluid import (
         DomainBoundaries,
         FluidSolver,
