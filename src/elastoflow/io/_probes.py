@@ -46,8 +46,22 @@ def _kinetic_energy(body: int | None) -> tuple[list[str], Sampler]:
     def sample_fluid(sim: Any, report: Any) -> list[float]:
         state, h = sim.state.fluid, sim.grid.h
         density = sim.fluid_solver.density
-        energy = 0.5 * density * h * h * (np.sum(state.velocity_x**2) + np.sum(state.velocity_y**2))
-        return [float(energy)]
+        level_set = getattr(sim, "level_set", None)
+        if level_set is None:
+            squares = np.sum(state.velocity_x**2) + np.sum(state.velocity_y**2)
+        else:
+            # A free surface: the faces with liquid on a side (the air's velocity is only
+            # extrapolated).
+            liquid = np.asarray(level_set) < 0.0
+            faces_x = np.zeros(state.velocity_x.shape, dtype=bool)
+            faces_x[:-1] |= liquid
+            faces_x[1:] |= liquid
+            faces_y = np.zeros(state.velocity_y.shape, dtype=bool)
+            faces_y[:, :-1] |= liquid
+            faces_y[:, 1:] |= liquid
+            squares = (np.sum(state.velocity_x[faces_x] ** 2)
+                       + np.sum(state.velocity_y[faces_y] ** 2))
+        return [float(0.5 * density * h * h * squares)]
 
     return ["fluid_kinetic_energy [J/m]"], sample_fluid
 

@@ -738,7 +738,8 @@ class ProbeSpec(_Spec):
     applied to a body), ``force`` and ``torque`` (the fluid's traction integrated over the
     listed ``bodies`` and ``obstacles`` together: drag and lift; torque about ``about``),
     ``pressure`` and ``velocity`` at ``point``, ``pressure_difference`` between ``points``,
-    ``kinetic_energy`` (a body's, else the fluid's), ``pressure_iterations``.
+    ``kinetic_energy`` (a body's, else the fluid's: with ``[liquid]`` the faces with liquid on a
+    side), ``pressure_iterations``.
     """
 
     kind: Literal["node_displacement", "body_force", "force", "torque", "pressure", "velocity",

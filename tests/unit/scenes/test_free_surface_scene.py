@@ -89,3 +89,24 @@ def test_checkpoint_round_trip_is_bit_exact() -> None:
     assert set(again) == set(after)
     for key in after:
         np.testing.assert_array_equal(again[key], after[key], err_msg=key)
+
+
+def test_kinetic_energy_probe_counts_the_liquid_only() -> None:
+    """With a free surface the fluid's kinetic energy probe sums the faces with liquid on a
+    side (`mark_liquid_faces`), not the extrapolated air velocities."""
+    from elastoflow.fluid._level_set_kernels import mark_liquid_faces
+    from elastoflow.io._probes import _kinetic_energy
+
+    sim = build_simulation(get_scene("sloshing"))
+    sim.run(3)
+    _, sample = _kinetic_energy(None)
+    fluid = sim.state.fluid
+    valid_u = np.zeros(fluid.velocity_x.shape, dtype=np.int32)
+    valid_v = np.zeros(fluid.velocity_y.shape, dtype=np.int32)
+    mark_liquid_faces(sim.level_set, valid_u, valid_v)
+    expected = 0.5 * 1000.0 * sim.grid.h ** 2 * (
+        np.sum(fluid.velocity_x[valid_u == 1] ** 2) + np.sum(fluid.velocity_y[valid_v == 1] ** 2))
+    assert sample(sim, None)[0] == pytest.approx(expected, rel=1e-12)
+    everywhere = 0.5 * 1000.0 * sim.grid.h ** 2 * (
+        np.sum(fluid.velocity_x ** 2) + np.sum(fluid.velocity_y ** 2))
+    assert expected < everywhere
