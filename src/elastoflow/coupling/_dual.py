@@ -163,46 +163,41 @@ def _open_dual(windows, axis, i, j, share, open_x, open_y):
             open_y[a, b] = max(open_y[a, b] - share[k], 0.0)
 
 
-@njit(cache=True)
-def _covered_velocity(axis, i, j, share, velocity, solid_x, solid_y, open_x, open_y,
-                      total, weight, out_x, out_y):
-    """The share-weighted mean body velocity over each face's covered part, written on the
-    partly open faces whose point is fluid (the projection's ``u_s`` there when no crossing
-    lies along the face); ``total`` and ``weight`` are zeroed scratch of ``open``'s shape
-    per family, stacked: (2, nx + 1, ny + 1)."""
-    for k in range(axis.shape[0]):
-        family = axis[k]
-        total[family, i[k], j[k]] += share[k] * velocity[k]
-        weight[family, i[k], j[k]] += share[k]
-    for k in range(axis.shape[0]):
-        a, b = i[k], j[k]
-        if axis[k] == 0:
-            if not solid_x[a, b] and 0.0 < open_x[a, b] < 1.0:
-                out_x[a, b] = total[0, a, b] / weight[0, a, b]
-        elif not solid_y[a, b] and 0.0 < open_y[a, b] < 1.0:
-            out_y[a, b] = total[1, a, b] / weight[1, a, b]
-
-
 def _fill_covered_velocity(grid: Grid2D, bmap: BoundaryMap, cover: DualCover,
                            interior: InteriorBoundary) -> None:
-    """``velocity_faces`` on the partly open fluid faces from the covering bodies' boundary
-    velocity nearest to each covered part's centroid (the interior has no triangles; the
-    strongly coupled scheme's ``W`` samples them)."""
-    count = cover.axis.shape[0]
-    if not count or not np.any(bmap.velocities):
+    """``velocity_faces`` on the partly open faces whose point is fluid: the share-weighted
+    mean, over the bodies covering the face's dual cell, of each one's boundary velocity
+    nearest to its part's centroid (the interior has no triangles; the strongly coupled
+    scheme's ``W`` samples them). The projection reads it where no crossing lies along the
+    face (`elastoflow.fluid` ``face_solid_velocity``)."""
+    if not cover.axis.shape[0] or not np.any(bmap.velocities):
         return
-    nodes = np.zeros((count, 3), dtype=np.int64)
-    weights = np.zeros((count, 3))
-    _sample_weights(cover.centroid, cover.body, bmap.points, bmap.edges, bmap.edge_body,
-                    np.zeros((0, 3), dtype=np.int64), np.zeros(1, dtype=np.int64), nodes,
-                    weights)
-    component = cover.axis.astype(np.int64)
+    is_u = cover.axis == U_FACES
+    nx, ny = grid.nx, grid.ny
+    i, j = cover.i, cover.j
+    open_here = np.where(is_u, interior.open_fraction_x[np.minimum(i, nx), np.minimum(j, ny - 1)],
+                         interior.open_fraction_y[np.minimum(i, nx - 1), np.minimum(j, ny)])
+    solid_here = np.where(is_u, interior.solid_faces_x[np.minimum(i, nx), np.minimum(j, ny - 1)],
+                          interior.solid_faces_y[np.minimum(i, nx - 1), np.minimum(j, ny)])
+    wanted = np.flatnonzero((open_here > 0.0) & (open_here < 1.0) & ~solid_here)
+    if not wanted.shape[0]:
+        return
+    nodes = np.zeros((wanted.shape[0], 3), dtype=np.int64)
+    weights = np.zeros((wanted.shape[0], 3))
+    _sample_weights(np.ascontiguousarray(cover.centroid[wanted]), cover.body[wanted],
+                    bmap.points, bmap.edges, bmap.edge_body, np.zeros((0, 3), dtype=np.int64),
+                    np.zeros(1, dtype=np.int64), nodes, weights)
+    component = cover.axis[wanted].astype(np.int64)
+    share = cover.share[wanted]
     velocity = np.einsum("kc,kc->k", weights, bmap.velocities[nodes, component[:, None]])
-    scratch = np.zeros((2, grid.nx + 1, grid.ny + 1))
-    _covered_velocity(cover.axis, cover.i, cover.j, cover.share, velocity,
-                      interior.solid_faces_x, interior.solid_faces_y, interior.open_fraction_x,
-                      interior.open_fraction_y, scratch, np.zeros_like(scratch),
-                      interior.velocity_faces_x, interior.velocity_faces_y)
+    # Entries are sorted by face: one group per face.
+    face = (cover.axis[wanted].astype(np.int64) * (nx + 1) + i[wanted]) * (ny + 1) + j[wanted]
+    starts = np.flatnonzero(np.r_[True, face[1:] != face[:-1]])
+    mean = np.add.reduceat(share * velocity, starts) / np.add.reduceat(share, starts)
+    first = wanted[starts]
+    u_face = cover.axis[first] == U_FACES
+    interior.velocity_faces_x[i[first][u_face], j[first][u_face]] = mean[u_face]
+    interior.velocity_faces_y[i[first][~u_face], j[first][~u_face]] = mean[~u_face]
 
 
 @dataclass(frozen=True)
