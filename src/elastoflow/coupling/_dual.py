@@ -53,7 +53,7 @@ V_FACES = 1
 @dataclass(frozen=True)
 class DualCover:
     """What each body covers of the faces' dual cells: one entry per (face, body) pair with
-    a covered area, sorted by family, face and body.
+    a covered area, body by body, each body's u faces then its v faces.
 
     Attributes:
         axis: `U_FACES` or `V_FACES`, int8, shape (N,).
@@ -75,12 +75,65 @@ class DualCover:
     windows: np.ndarray
 
 
-def _window(low: float, high: float, corner: float, h: float, count: int) -> tuple[int, int]:
+@njit(cache=True)
+def _window(low, high, corner, h, count):
     """The squares ``[corner + k h, corner + (k+1) h)`` that ``[low, high]`` meets, clipped
     to ``0 <= k < count``; half-open."""
     first = max(int(np.floor((low - corner) / h)), 0)
     last = min(int(np.floor((high - corner) / h)), count - 1)
     return first, last + 1
+
+
+@njit(cache=True)
+def _cover_entries(segments, bounds, origin_x, origin_y, h, nx, ny, fill, axis, i, j, body,
+                   share, centroid, windows):
+    """Count (``fill`` False) or write the cover's entries and windows; returns (entries,
+    windows). ``segments`` (E, 4) grouped by body, body b's rows ``bounds[b]:bounds[b+1]``."""
+    count = 0
+    window_count = 0
+    floor = 1e-12 * h * h  # round-off of the running sums beside an edge
+    for b in range(bounds.shape[0] - 1):
+        lo, hi = bounds[b], bounds[b + 1]
+        if hi <= lo:
+            continue
+        mine = segments[lo:hi]
+        x_low = min(mine[:, 0].min(), mine[:, 2].min())
+        x_high = max(mine[:, 0].max(), mine[:, 2].max())
+        y_low = min(mine[:, 1].min(), mine[:, 3].min())
+        y_high = max(mine[:, 1].max(), mine[:, 3].max())
+        for family in range(2):
+            corner_x = origin_x - 0.5 * h if family == U_FACES else origin_x
+            corner_y = origin_y if family == U_FACES else origin_y - 0.5 * h
+            count_x = nx + 1 if family == U_FACES else nx
+            count_y = ny if family == U_FACES else ny + 1
+            i0, i1 = _window(x_low, x_high, corner_x, h, count_x)
+            j0, j1 = _window(y_low, y_high, corner_y, h, count_y)
+            if i1 <= i0 or j1 <= j0:
+                continue
+            if fill:
+                windows[window_count, 0] = i0
+                windows[window_count, 1] = i1
+                windows[window_count, 2] = j0
+                windows[window_count, 3] = j1
+            window_count += 1
+            moments = np.zeros((i1 - i0, j1 - j0, 3))
+            segment_moments(mine, corner_x + i0 * h, corner_y + j0 * h, h, i1 - i0, j1 - j0,
+                            moments)
+            for a in range(i1 - i0):
+                for c in range(j1 - j0):
+                    covered = moments[a, c, 0]
+                    if covered <= floor:
+                        continue
+                    if fill:
+                        axis[count] = family
+                        i[count] = i0 + a
+                        j[count] = j0 + c
+                        body[count] = b
+                        share[count] = min(covered / (h * h), 1.0)
+                        centroid[count, 0] = corner_x + (i0 + a + 0.5) * h + moments[a, c, 1] / covered
+                        centroid[count, 1] = corner_y + (j0 + c + 0.5) * h + moments[a, c, 2] / covered
+                    count += 1
+    return count, window_count
 
 
 def dual_cover(grid: Grid2D, bmap: BoundaryMap) -> DualCover:
@@ -93,53 +146,22 @@ def dual_cover(grid: Grid2D, bmap: BoundaryMap) -> DualCover:
         raise ValueError(f"boundary map grid {bmap.grid!r}: must be the grid {grid!r}")
     h = grid.h
     ox, oy = grid.origin
-    families = ((U_FACES, ox - 0.5 * h, oy, grid.nx + 1, grid.ny),
-                (V_FACES, ox, oy - 0.5 * h, grid.nx, grid.ny + 1))
     edges, edge_body = bmap.edges, bmap.edge_body
-    segments = np.ascontiguousarray(
-        np.concatenate([bmap.points[edges[:, 0]], bmap.points[edges[:, 1]]], axis=1))
-    parts: list[tuple[np.ndarray, ...]] = []
-    windows = []
     order = np.argsort(edge_body, kind="stable")
-    bounds = np.searchsorted(edge_body[order], np.arange(int(edge_body.max(initial=-1)) + 2))
-    for body in range(bounds.shape[0] - 1):
-        mine = np.ascontiguousarray(segments[order[bounds[body]:bounds[body + 1]]])
-        if not mine.shape[0]:
-            continue
-        x_low = min(mine[:, 0].min(), mine[:, 2].min())
-        x_high = max(mine[:, 0].max(), mine[:, 2].max())
-        y_low = min(mine[:, 1].min(), mine[:, 3].min())
-        y_high = max(mine[:, 1].max(), mine[:, 3].max())
-        for axis, corner_x, corner_y, count_x, count_y in families:
-            i0, i1 = _window(x_low, x_high, corner_x, h, count_x)
-            j0, j1 = _window(y_low, y_high, corner_y, h, count_y)
-            if i1 <= i0 or j1 <= j0:
-                continue
-            windows.append((i0, i1, j0, j1))
-            moments = np.zeros((i1 - i0, j1 - j0, 3))
-            segment_moments(mine, corner_x + i0 * h, corner_y + j0 * h, h, i1 - i0, j1 - j0,
-                            moments)
-            area = moments[:, :, 0]
-            # Round-off of the running sums leaves areas of 1e-16 h^2 beside an edge.
-            ii, jj = np.nonzero(area > 1e-12 * h * h)
-            if not ii.shape[0]:
-                continue
-            covered = area[ii, jj]
-            centroid = np.column_stack((
-                corner_x + (i0 + ii + 0.5) * h + moments[ii, jj, 1] / covered,
-                corner_y + (j0 + jj + 0.5) * h + moments[ii, jj, 2] / covered))
-            parts.append((np.full(ii.shape[0], axis, np.int8), (i0 + ii).astype(np.int64),
-                          (j0 + jj).astype(np.int64), np.full(ii.shape[0], body, np.int64),
-                          np.minimum(covered / (h * h), 1.0), centroid))
-    if not parts:
-        return DualCover(np.zeros(0, np.int8), np.zeros(0, np.int64), np.zeros(0, np.int64),
-                         np.zeros(0, np.int64), np.zeros(0), np.zeros((0, 2)),
-                         np.zeros((0, 4), np.int64))
-    axes, i, j, bodies, share, centroid = (np.concatenate(p) for p in zip(*parts, strict=True))
-    ranked = np.lexsort((bodies, j, i, axes))
-    return DualCover(axes[ranked], i[ranked], j[ranked], bodies[ranked], share[ranked],
-                     np.ascontiguousarray(centroid[ranked]),
-                     np.array(windows, dtype=np.int64).reshape(-1, 4))
+    segments = np.ascontiguousarray(np.concatenate(
+        [bmap.points[edges[order, 0]], bmap.points[edges[order, 1]]], axis=1))
+    bounds = np.searchsorted(edge_body[order],
+                             np.arange(int(edge_body.max(initial=-1)) + 2)).astype(np.int64)
+    none_i, none_f = np.zeros(0, np.int64), np.zeros(0)
+    count, window_count = _cover_entries(
+        segments, bounds, ox, oy, h, grid.nx, grid.ny, False, np.zeros(0, np.int8), none_i,
+        none_i, none_i, none_f, np.zeros((0, 2)), np.zeros((0, 4), np.int64))
+    cover = DualCover(np.zeros(count, np.int8), np.zeros(count, np.int64),
+                      np.zeros(count, np.int64), np.zeros(count, np.int64), np.zeros(count),
+                      np.zeros((count, 2)), np.zeros((window_count, 4), np.int64))
+    _cover_entries(segments, bounds, ox, oy, h, grid.nx, grid.ny, True, cover.axis, cover.i,
+                   cover.j, cover.body, cover.share, cover.centroid, cover.windows)
+    return cover
 
 
 @njit(cache=True)
@@ -182,6 +204,8 @@ def _fill_covered_velocity(grid: Grid2D, bmap: BoundaryMap, cover: DualCover,
     wanted = np.flatnonzero((open_here > 0.0) & (open_here < 1.0) & ~solid_here)
     if not wanted.shape[0]:
         return
+    # Grouped by face (the cover lists each body's faces in turn).
+    wanted = wanted[np.lexsort((j[wanted], i[wanted], cover.axis[wanted]))]
     nodes = np.zeros((wanted.shape[0], 3), dtype=np.int64)
     weights = np.zeros((wanted.shape[0], 3))
     _sample_weights(np.ascontiguousarray(cover.centroid[wanted]), cover.body[wanted],
@@ -190,7 +214,6 @@ def _fill_covered_velocity(grid: Grid2D, bmap: BoundaryMap, cover: DualCover,
     component = cover.axis[wanted].astype(np.int64)
     share = cover.share[wanted]
     velocity = np.einsum("kc,kc->k", weights, bmap.velocities[nodes, component[:, None]])
-    # Entries are sorted by face: one group per face.
     face = (cover.axis[wanted].astype(np.int64) * (nx + 1) + i[wanted]) * (ny + 1) + j[wanted]
     starts = np.flatnonzero(np.r_[True, face[1:] != face[:-1]])
     mean = np.add.reduceat(share * velocity, starts) / np.add.reduceat(share, starts)
