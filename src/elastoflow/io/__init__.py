@@ -1,5 +1,6 @@
-"""Writing results: field snapshots (npz, VTK, XDMF), extruded meshes (OBJ, PLY), probes (CSV,
-PNG), checkpoints, and the output session that runs them between steps.
+"""Writing results: field snapshots (npz, VTK, XDMF; 3D fields as VTK image data), extruded
+meshes (OBJ, PLY), probes (CSV, PNG), checkpoints, and the output session that runs them
+between steps.
 
 Every file is complete at any time: data files are written atomically (a temporary file in the
 same folder, then ``os.replace``), the probes CSV and the XDMF series are streams extended by
@@ -25,6 +26,13 @@ from elastoflow.io._checkpoint import (
     save_checkpoint,
 )
 from elastoflow.io._folder import OutputFolderBusy, folder_name, lock_output_folder
+from elastoflow.io._image_data import (
+    ImageData,
+    ImageDataSeries,
+    fluid_cell_fields_3d,
+    read_image_data,
+    write_image_data,
+)
 from elastoflow.io._fields import FIELD_FORMATS, FieldWriter, saved_frames, snapshot_arrays
 from elastoflow.io._meshes import (
     boundary_edges_of,
@@ -47,6 +55,8 @@ __all__ = [
     "FIELD_FORMATS",
     "CheckpointError",
     "FieldWriter",
+    "ImageData",
+    "ImageDataSeries",
     "OutputFolderBusy",
     "OutputSession",
     "ProbeRecorder",
@@ -59,12 +69,14 @@ __all__ = [
     "extrude_polyline",
     "extrude_surface",
     "find_resume_checkpoint",
+    "fluid_cell_fields_3d",
     "folder_name",
     "latest_checkpoint",
     "load_checkpoint",
     "lock_output_folder",
     "plot_probes",
     "read_checkpoint",
+    "read_image_data",
     "read_probes",
     "remove_temporaries",
     "run_record",
@@ -73,6 +85,7 @@ __all__ = [
     "snapshot_arrays",
     "write_bytes_atomic",
     "write_extruded_meshes",
+    "write_image_data",
     "write_obj",
     "write_tetrahedral_mesh",
     "write_ply",
