@@ -498,12 +498,13 @@ def list_command() -> None:
 def validate(
     scene: Annotated[str, typer.Argument(help="Scene TOML file (or built-in name), or a "
                                          "benchmark: turek-hron, perpendicular-flap, "
-                                         "dfg-2d-2, boundary-study.")],
+                                         "dfg-2d-2, boundary-study, force-smoothness.")],
     case: Annotated[str | None, typer.Argument(help="The benchmark's case: CFD1-3, CSM1-3, "
                                                "FSI1-3 (turek-hron); the study's part, "
                                                "default all (boundary-study: poisson, "
                                                "leakage, spurious, force_jump, dfg, "
-                                               "speed, stability).")
+                                               "speed, stability; force-smoothness: disc, "
+                                               "flap10, flap20, fsi2).")
                     ] = None,
     resolution: Annotated[int, typer.Option(help="Benchmark: about this many cells per "
                                             "cylinder diameter (turek-hron) or metre "
@@ -556,6 +557,9 @@ def validate(
         return
     if scene == "boundary-study":
         _boundary_study(case, out)
+        return
+    if scene == "force-smoothness":
+        _force_smoothness(case, out)
         return
     if scene in BENCHMARKS:
         _benchmark(scene, case, resolution, duration, dt, scheme, out, json_file, boundary)
@@ -672,6 +676,26 @@ def _dfg_benchmark(case: str | None, resolution: int, duration: float | None,
     _report_benchmark(describe(result), format_quantities(result),
                       lambda: write_dfg_report(result, out, json_file=json_file), out,
                       result.failure is not None)
+
+
+def _force_smoothness(case: str | None, out: Path) -> None:
+    """Issue 12's force smoothness: every case (or the one named) with the cut-cell and the
+    dual-cell boundary; print the table and write the report."""
+    from elastoflow.validation._force_smoothness import (
+        CASES,
+        force_smoothness_table,
+        run_force_smoothness,
+        write_force_smoothness_report,
+    )
+
+    if case is not None and case not in CASES:
+        _fail(f"{case!r}: the force-smoothness cases are {', '.join(CASES)}")
+    _output_folder(out, "--out")
+    study = run_force_smoothness(CASES if case is None else (case,))
+    for line in force_smoothness_table(study):
+        typer.echo(line)
+    for path in write_force_smoothness_report(study, out):
+        typer.echo(f"wrote {path}")
 
 
 def _boundary_study(part: str | None, out: Path) -> None:
