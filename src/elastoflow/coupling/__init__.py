@@ -18,7 +18,8 @@ connections their mid-line crosses (``elastoflow.coupling._thin``), so no fluid 
 In 3D (``BoundaryMap3D``, ``build_boundary_map_3d``): the crossings of closed surface
 triangles with the grid lines along x, y and z (``LineCrossings``), and the cells inside
 (``solid_cells_3d``), the cut distances of the velocity points (``cut_distances_3d``), and the fluid share of every face from the bodies' exact cross-sections
-(``face_open_fractions_3d``).
+(``face_open_fractions_3d``); from them the 3D fluid's ``InteriorBoundary3D``
+(``interior_boundary_3d``) and the traction on the surface triangles (``force_traction_3d``).
 """
 
 from elastoflow.coupling._brute_force import classify_points_brute_force
@@ -43,6 +44,7 @@ from elastoflow.coupling._interface import (
     SparseRows,
     interface_flux,
 )
+from elastoflow.coupling._interior3d import force_traction_3d, interior_boundary_3d
 from elastoflow.coupling._map import BoundaryMap, build_boundary_map
 from elastoflow.coupling._map3d import (
     BoundaryMap3D,
@@ -109,10 +111,12 @@ __all__ = [
     "face_open_fractions_3d",
     "force_momentum_exchange",
     "force_traction",
+    "force_traction_3d",
     "interface_flux",
     "interface_flux_dual",
     "interface_flux_staircase",
     "interior_boundary_dual_cell",
+    "interior_boundary_3d",
     "interior_boundary_from_map",
     "interior_boundary_staircase",
     "obstacle_circle",

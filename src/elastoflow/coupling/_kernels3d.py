@@ -20,6 +20,10 @@ import numpy as np
 from numba import njit
 
 from elastoflow.coupling._area import segment_areas
+from elastoflow.fluid._interior_kernels3d import _sample_bodies
+
+# A box of solid points that covers every index: the samples read the solid flags.
+_EVERYWHERE = np.array([[-(2**62), 2**62, -(2**62), 2**62, -(2**62), 2**62]], dtype=np.int64)
 
 # A crossing's sign: walking the line towards +a, the line enters or leaves a body there.
 ENTERING = 1
@@ -321,3 +325,195 @@ def _crossing_velocity(triangles, velocities, t, weights, e, component):
     return (weights[e, 0] * velocities[triangles[t, 0], component]
             + weights[e, 1] * velocities[triangles[t, 1], component]
             + weights[e, 2] * velocities[triangles[t, 2], component])
+
+
+@njit(cache=True)
+def inside_along_lines(offsets, coordinate, sign, triangle_of, weights, triangles, velocities,
+                       component, lines_v, line_u0, line_v0, count_u, count_v, origin, shift,
+                       h, count, solid, velocity):
+    """For the points ``origin + (i + shift) h`` along the lines ``(line_u0 + 2 p, line_v0 +
+    2 q)``: whether each lies inside a body (winding number > 0, a point exactly on a
+    crossing counting it as passed) and, inside, the ``component`` of the body velocity
+    interpolated linearly between the crossings before and after it on the line (METHOD.md
+    §5.4: exact for rigid motion along the line); 0 outside.
+
+    Outputs are indexed ``[i, p, q]``, shape ``(count, count_u, count_v)``.
+    """
+    for p in range(count_u):
+        for q in range(count_v):
+            line = (line_u0 + 2 * p) * lines_v + line_v0 + 2 * q
+            begin = offsets[line]
+            end = offsets[line + 1]
+            entry = begin
+            winding = 0
+            for i in range(count):
+                position = origin + (i + shift) * h
+                while entry < end and coordinate[entry] <= position:
+                    winding += sign[entry]
+                    entry += 1
+                inside = winding > 0
+                solid[i, p, q] = inside
+                velocity[i, p, q] = 0.0
+                if inside and entry > begin and entry < end:
+                    before = entry - 1
+                    low = _crossing_velocity(triangles, velocities, triangle_of[before],
+                                             weights, before, component)
+                    high = _crossing_velocity(triangles, velocities, triangle_of[entry],
+                                              weights, entry, component)
+                    span = coordinate[entry] - coordinate[before]
+                    t = (position - coordinate[before]) / span if span > 0.0 else 0.5
+                    velocity[i, p, q] = low + t * (high - low)
+
+
+@njit(cache=True)
+def _sample_fluid(f, fx, fy, fz, solid):
+    """Trilinear sample of ``f`` at index coordinates ``(fx, fy, fz)`` over its corners that
+    lie in the array and outside bodies (``solid`` False), weights renormalised:
+    ``(value, weight sum)``; the weight sum is 0 when no corner is fluid."""
+    m, n, l = f.shape
+    i0 = int(np.floor(fx))
+    j0 = int(np.floor(fy))
+    k0 = int(np.floor(fz))
+    a = fx - i0
+    b = fy - j0
+    c = fz - k0
+    total = 0.0
+    weight_sum = 0.0
+    for corner in range(8):
+        i = i0 + (corner & 1)
+        j = j0 + ((corner >> 1) & 1)
+        k = k0 + (corner >> 2)
+        if i < 0 or i >= m or j < 0 or j >= n or k < 0 or k >= l or solid[i, j, k]:
+            continue
+        weight = ((a if corner & 1 else 1.0 - a) * (b if (corner >> 1) & 1 else 1.0 - b)
+                  * (c if corner >> 2 else 1.0 - c))
+        total += weight * f[i, j, k]
+        weight_sum += weight
+    if weight_sum < 1e-12:
+        return 0.0, 0.0
+    return total / weight_sum, weight_sum
+
+
+@njit(cache=True)
+def _velocity_sample(u, v, w, solid_u, solid_v, solid_w, theta_u, theta_v, theta_w, cut_u,
+                     cut_v, cut_w, x, y, z, inv_h, modes, values):
+    """The three velocity components at ``(x, y, z)`` (relative to the grid origin), corners
+    inside bodies replaced by the cut-distance ghosts of the fluid's advection (no slip at
+    the crossing), so that a sample near the wall sees the wall's value where it is."""
+    su, _, _ = _sample_bodies(u, x * inv_h, y * inv_h - 0.5, z * inv_h - 0.5, modes, values, 0,
+                              solid_u, theta_u, cut_u, _EVERYWHERE, 0, False, False)
+    sv, _, _ = _sample_bodies(v, x * inv_h - 0.5, y * inv_h, z * inv_h - 0.5, modes, values, 0,
+                              solid_v, theta_v, cut_v, _EVERYWHERE, 0, False, False)
+    sw, _, _ = _sample_bodies(w, x * inv_h - 0.5, y * inv_h - 0.5, z * inv_h, modes, values, 0,
+                              solid_w, theta_w, cut_w, _EVERYWHERE, 0, False, False)
+    return np.array((su, sv, sw))
+
+
+@njit(cache=True)
+def traction_triangles(points, velocities, triangles, u, v, w, p, solid_u, solid_v, solid_w,
+                       theta_u, theta_v, theta_w, cut_u, cut_v, cut_w, solid_cells, origin_x, origin_y, origin_z, h, density, mu, gravity_x,
+                       gravity_y, gravity_z, distances, pressure_distances, force):
+    """Add the fluid's traction force on every triangle to its three vertices' rows of
+    ``force`` (P, 3): see `elastoflow.coupling.force_traction_3d` for the formula. Each
+    triangle is cut into ``s^2`` similar pieces (``s`` its longest edge over h, rounded
+    up), one sample at each piece's centroid, its force split by barycentric weights."""
+    inv_h = 1.0 / h
+    d0 = distances[0]
+    d1 = distances[1]
+    pressure_d0 = pressure_distances[0]
+    pressure_d1 = pressure_distances[1]
+    # Beyond the domain's sides the velocity samples copy the nearest inside value.
+    modes = np.zeros((1, 6), dtype=np.int64)
+    values = np.zeros((1, 6))
+    for t in range(triangles.shape[0]):
+        ia = triangles[t, 0]
+        ib = triangles[t, 1]
+        ic = triangles[t, 2]
+        e1 = points[ib] - points[ia]
+        e2 = points[ic] - points[ia]
+        normal = np.cross(e1, e2)
+        twice_area = np.sqrt(normal[0] ** 2 + normal[1] ** 2 + normal[2] ** 2)
+        if twice_area == 0.0:
+            continue
+        n = normal / twice_area
+        # Surface gradient of the wall velocity, L_ij = sum over vertices v_i dphi/dx_j, with
+        # grad phi_a = n x (c - b) / 2A and cyclically.
+        grad_a = np.cross(n, points[ic] - points[ib]) / twice_area
+        grad_b = np.cross(n, points[ia] - points[ic]) / twice_area
+        grad_c = np.cross(n, points[ib] - points[ia]) / twice_area
+        surface = np.zeros((3, 3))
+        for r in range(3):
+            for q in range(3):
+                surface[r, q] = (velocities[ia, r] * grad_a[q] + velocities[ib, r] * grad_b[q]
+                                 + velocities[ic, r] * grad_c[q])
+        trace = surface[0, 0] + surface[1, 1] + surface[2, 2]
+        transposed_n = surface.T @ n
+        longest = max(np.sqrt(e1 @ e1), np.sqrt(e2 @ e2),
+                      np.sqrt((points[ic] - points[ib]) @ (points[ic] - points[ib])))
+        s = max(1, int(np.ceil(longest * inv_h - 1e-9)))
+        piece_area = 0.5 * twice_area / (s * s)
+        for piece in range(s * s):
+            # Pieces: upward (i + 1/3, j + 1/3) for i + j <= s - 1, then downward
+            # (i + 2/3, j + 2/3) for i + j <= s - 2, enumerated row by row.
+            up_count = s * (s + 1) // 2
+            if piece < up_count:
+                index = piece
+                offset = 1.0 / 3.0
+                rows = s
+            else:
+                index = piece - up_count
+                offset = 2.0 / 3.0
+                rows = s - 1
+            i = 0
+            while index >= rows - i:
+                index -= rows - i
+                i += 1
+            j = index
+            beta = (i + offset) / s
+            gamma = (j + offset) / s
+            alpha = 1.0 - beta - gamma
+            x = points[ia] + beta * e1 + gamma * e2
+            wall = alpha * velocities[ia] + beta * velocities[ib] + gamma * velocities[ic]
+            rx = x[0] - origin_x
+            ry = x[1] - origin_y
+            rz = x[2] - origin_z
+            traction = np.zeros(3)
+            # Pressure over fluid cells at two distances, minus its hydrostatic part
+            # rho g.x, then the quadratic with zero normal derivative at the wall through
+            # them; one sample alone is carried at constant value.
+            hydrostatic = density * (gravity_x * n[0] + gravity_y * n[1] + gravity_z * n[2])
+            near, near_weight = _sample_fluid(
+                p, (rx + pressure_d0 * n[0]) * inv_h - 0.5, (ry + pressure_d0 * n[1]) * inv_h
+                - 0.5, (rz + pressure_d0 * n[2]) * inv_h - 0.5, solid_cells)
+            far, far_weight = _sample_fluid(
+                p, (rx + pressure_d1 * n[0]) * inv_h - 0.5, (ry + pressure_d1 * n[1]) * inv_h
+                - 0.5, (rz + pressure_d1 * n[2]) * inv_h - 0.5, solid_cells)
+            near -= pressure_d0 * hydrostatic
+            far -= pressure_d1 * hydrostatic
+            if near_weight > 0.0 and far_weight > 0.0:
+                traction -= ((pressure_d1 ** 2 * near - pressure_d0 ** 2 * far)
+                             / (pressure_d1 ** 2 - pressure_d0 ** 2)) * n
+            elif near_weight > 0.0:
+                traction -= near * n
+            elif far_weight > 0.0:
+                traction -= far * n
+            if mu > 0.0:
+                first = _velocity_sample(u, v, w, solid_u, solid_v, solid_w, theta_u, theta_v,
+                                         theta_w, cut_u, cut_v, cut_w, rx + d0 * n[0],
+                                         ry + d0 * n[1], rz + d0 * n[2], inv_h, modes,
+                                         values) - wall
+                second = _velocity_sample(u, v, w, solid_u, solid_v, solid_w, theta_u, theta_v,
+                                          theta_w, cut_u, cut_v, cut_w, rx + d1 * n[0],
+                                          ry + d1 * n[1], rz + d1 * n[2], inv_h, modes,
+                                          values) - wall
+                # One-sided second order through the wall value: u = g d + c d^2.
+                normal_gradient = ((d1 * d1 * first - d0 * d0 * second)
+                                   / (d0 * d1 * (d1 - d0)))
+                tangential = normal_gradient - (normal_gradient @ n) * n
+                # (grad u + grad u^T) n with grad u = L + g_n n^T and g_n.n = -tr L.
+                traction += mu * (tangential + transposed_n - 2.0 * trace * n)
+            piece_force = traction * piece_area
+            for r in range(3):
+                force[ia, r] += alpha * piece_force[r]
+                force[ib, r] += beta * piece_force[r]
+                force[ic, r] += gamma * piece_force[r]

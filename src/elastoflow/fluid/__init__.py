@@ -7,7 +7,7 @@ with cut-distance boundary conditions. ``divergence_faces_to_cells`` and
 ``gradient_cells_to_faces`` are the discrete operators the projection is built from.
 ``FreeSurfaceSolver`` adds a free surface (a level set in ``FreeSurfaceState``, a ghost-fluid
 projection, ``LevelSetTransport``). In 3D: ``FluidSolver3D`` on a ``FluidState3D`` with
-``DomainBoundaries3D`` (no bodies yet). Validation: docs/validation_fluid.md, and for the free
+``DomainBoundaries3D``, bodies through ``InteriorBoundary3D``. Validation: docs/validation_fluid.md, and for the free
 surface docs/validation/free_surface.md, for 3D docs/validation/three_d.md.
 """
 
@@ -35,6 +35,7 @@ from elastoflow.fluid._boundaries3d import (
     inflow_profile_3d,
 )
 from elastoflow.fluid._interior import InteriorBoundary
+from elastoflow.fluid._interior3d import InteriorBoundary3D
 from elastoflow.fluid._kernels import OPEN_MIN
 from elastoflow.fluid._level_set import (
     LevelSetTransport,
@@ -73,6 +74,7 @@ __all__ = [
     "GhostFluidProjection",
     "Inflow",
     "InteriorBoundary",
+    "InteriorBoundary3D",
     "Jet",
     "Jet3D",
     "LevelSetTransport",

@@ -10,6 +10,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from elastoflow.fluid import _interior_kernels3d as body_kernels
 from elastoflow.fluid import _kernels3d as kernels
 from elastoflow.fluid._boundaries import Inflow, Outflow, WallNoSlip
 from elastoflow.fluid._boundaries3d import (
@@ -18,6 +19,7 @@ from elastoflow.fluid._boundaries3d import (
     WallMoving3D,
     inflow_profile_3d,
 )
+from elastoflow.fluid._interior3d import InteriorBoundary3D
 from elastoflow.fluid._solver import FluidStepReport
 from elastoflow.fluid._state3d import FluidState3D
 from elastoflow.grid import Grid3D
@@ -83,6 +85,11 @@ class FluidSolver3D:
     advect (semi-Lagrangian, midpoint back-trace, trilinear sampling with side ghosts;
     or MacCormack), apply forces (gravity, side values), diffuse (implicit, one 7-point
     solve per velocity component), project (7-point pressure Poisson equation).
+
+    Bodies enter every phase through an `InteriorBoundary3D` (``interior=``; None: no
+    bodies), as in 2D (METHOD.md §5-6): open face fractions weight the pressure equation,
+    points inside bodies hold the body velocity, cut distances give the no-slip ghosts of
+    the viscosity and the advection.
 
     Guarantees: after `project`, the divergence ``h * div u`` of every cell is zero up to the
     pressure solver's tolerance relative to its value before (for a closed box, when the
@@ -235,6 +242,12 @@ class FluidSolver3D:
         self._pressure_operator: Operator7Point | None = None
         self._viscosity_operators: dict[tuple[int, float], Operator7Point] = {}
         self._viscosity_rhs = tuple(np.zeros(shape) for shape in shapes[:3])
+        # With bodies: the face velocities u_s, and the last weighted pressure operator with
+        # the open fractions it was built from (kept while they do not change).
+        self._solid_velocity: tuple[Array, Array, Array] = (
+            np.zeros(shapes[0]), np.zeros(shapes[1]), np.zeros(shapes[2]))
+        self._bodies_operator: Operator7Point | None = None
+        self._bodies_fractions: tuple[Array, ...] = ()
 
     def rest_state(self) -> FluidState3D:
         """Fluid at rest with the pressure [Pa] that balances gravity (hydrostatic in a
@@ -260,8 +273,12 @@ class FluidSolver3D:
 
     # -- operators ---------------------------------------------------------------------------
 
-    def pressure_operator(self) -> Operator7Point:
-        """The operator ``A p = -h^2 lap p`` of the pressure equation (assembled once)."""
+    def pressure_operator(self, interior: InteriorBoundary3D | None = None) -> Operator7Point:
+        """The operator ``A p = -h^2 div(A grad p)`` of the pressure equation: unit weights
+        without bodies (assembled once), the faces' open fractions with them (kept while the
+        fractions do not change, so that the solver keeps its multigrid levels)."""
+        if interior is not None:
+            return self._pressure_operator_bodies(interior)
         if self._pressure_operator is None:
             nx, ny, nz = self.grid.shape_cells
             diagonal = np.empty((nx, ny, nz))
@@ -271,16 +288,69 @@ class FluidSolver3D:
             self._pressure_operator = Operator7Point(diagonal, *weights)
         return self._pressure_operator
 
+    def _pressure_operator_bodies(self, interior: InteriorBoundary3D) -> Operator7Point:
+        fractions = (interior.open_fraction_x, interior.open_fraction_y,
+                     interior.open_fraction_z)
+        if self._bodies_operator is not None and all(
+                np.array_equal(new, old)
+                for new, old in zip(fractions, self._bodies_fractions, strict=True)):
+            return self._bodies_operator
+        nx, ny, nz = self.grid.shape_cells
+        diagonal = np.empty((nx, ny, nz))
+        weights = (np.empty((nx - 1, ny, nz)), np.empty((nx, ny - 1, nz)),
+                   np.empty((nx, ny, nz - 1)))
+        body_kernels.build_pressure_operator_bodies_3d(*fractions, self._outflow, diagonal,
+                                                       *weights)
+        self._bodies_operator = Operator7Point(diagonal, *weights)
+        self._bodies_fractions = tuple(fraction.copy() for fraction in fractions)
+        return self._bodies_operator
+
+    def _solid_face_velocities(self, interior: InteriorBoundary3D) -> tuple[Array, Array, Array]:
+        """Body velocity u_s on the faces that are not fully open (buffers, overwritten)."""
+        for axis, out in enumerate(self._solid_velocity):
+            body_kernels.face_solid_velocity_3d(
+                interior.solid_faces(axis), interior.velocity_faces(axis),
+                interior.open_fraction(axis), interior.cut_theta(axis),
+                interior.cut_velocity(axis), axis, out)
+        u, v, w = self._solid_velocity
+        return u, v, w
+
+    def _subtract_gradient(self, state: FluidState3D, pressure: Array, dt: float,
+                           interior: InteriorBoundary3D | None) -> None:
+        """``u -= dt / rho grad p``; with bodies closed faces take u_s (in the buffers)."""
+        scale = dt / (self.density * self.grid.h)
+        if interior is None:
+            kernels.subtract_pressure_gradient_3d(*state.velocity(), pressure, scale,
+                                                  self._outflow)
+            return
+        body_kernels.subtract_pressure_gradient_bodies_3d(
+            *state.velocity(), pressure, scale, self._outflow, interior.open_fraction_x,
+            interior.open_fraction_y, interior.open_fraction_z, *self._solid_velocity)
+
     def _fixed_ends(self, axis: int) -> tuple[bool, bool]:
         """Whether the boundary faces of component ``axis`` are held (not outflow)."""
         return (not bool(self._outflow[2 * axis]), not bool(self._outflow[2 * axis + 1]))
 
-    def viscosity_system(self, field: Array, axis: int, dt: float) -> tuple[Operator7Point, Array]:
+    def viscosity_system(self, field: Array, axis: int, dt: float,
+                         interior: InteriorBoundary3D | None = None
+                         ) -> tuple[Operator7Point, Array]:
         """``(I - nu dt lap)`` for component ``axis`` (0 u, 1 v, 2 w) and its right-hand
-        side for the values ``field``; the operator depends on dt only and is kept."""
+        side for the values ``field``; without bodies the operator depends on dt only and is
+        kept. With bodies, points inside them are held and the cut distances give the
+        no-slip ghosts (METHOD.md §6)."""
         c = self.viscosity * dt / self.grid.h**2
         fixed_low, fixed_high = self._fixed_ends(axis)
         rhs = self._viscosity_rhs[axis]
+        if interior is not None:
+            m, n, l = field.shape
+            diagonal = np.empty((m, n, l))
+            weights = (np.empty((m - 1, n, l)), np.empty((m, n - 1, l)),
+                       np.empty((m, n, l - 1)))
+            body_kernels.build_viscosity_system_bodies_3d(
+                field, c, axis, fixed_low, fixed_high, self._tangential_modes,
+                self._velocity_values[axis], interior.solid_faces(axis),
+                interior.cut_theta(axis), interior.cut_velocity(axis), diagonal, *weights, rhs)
+            return Operator7Point(diagonal, *weights), rhs
         operator = self._viscosity_operators.get((axis, dt))
         if operator is not None:
             kernels.viscosity_rhs_3d(field, c, axis, fixed_low, fixed_high,
@@ -301,18 +371,31 @@ class FluidSolver3D:
 
     # -- phases ------------------------------------------------------------------------------
 
-    def _check(self, state: FluidState3D, dt: float) -> None:
+    def _check(self, state: FluidState3D, dt: float,
+               interior: InteriorBoundary3D | None = None) -> None:
         _check_dt(dt)
         if not isinstance(state, FluidState3D):
             raise ValueError(f"state = {state!r}: must be a FluidState3D")
         state.check(self.grid)
+        if interior is not None:
+            if not isinstance(interior, InteriorBoundary3D):
+                raise ValueError(f"interior = {interior!r}: must be an InteriorBoundary3D")
+            interior.check(self.grid)
 
-    def advect(self, state: FluidState3D, dt: float) -> None:
-        """Transport velocity and dye by the current velocity over ``dt`` [s], in place."""
-        self._check(state, dt)
+    def advect(self, state: FluidState3D, dt: float,
+               interior: InteriorBoundary3D | None = None) -> None:
+        """Transport velocity and dye by the current velocity over ``dt`` [s], in place.
+
+        With bodies (``interior``): velocity points inside them take the body velocity, dye
+        there 0; samples whose corners lie inside a body use cut-distance ghosts (velocity)
+        or the fluid corners only (dye), in the trace as in the transported field."""
+        self._check(state, dt, interior)
         fields = (*state.velocity(), state.dye)
         for field, source in zip(fields, self._sources, strict=True):
             kernels.copy_into_3d(field, source)
+        if interior is not None:
+            self._advect_bodies(fields, dt, interior)
+            return
         u, v, w = self._sources[:3]
         h = self.grid.h
         for index, (field, source) in enumerate(zip(fields, self._sources, strict=True)):
@@ -337,26 +420,69 @@ class FluidSolver3D:
                                          h, self._velocity_modes, self._velocity_values, modes,
                                          values)
 
-    def diffuse(self, state: FluidState3D, dt: float) -> int:
+    def _advect_bodies(self, fields: tuple[Array, ...], dt: float,
+                       interior: InteriorBoundary3D) -> None:
+        u, v, w = self._sources[:3]
+        h = self.grid.h
+        body = (interior.solid_faces_x, interior.solid_faces_y, interior.solid_faces_z,
+                interior.cut_theta_x, interior.cut_theta_y, interior.cut_theta_z,
+                interior.cut_velocity_x, interior.cut_velocity_y, interior.cut_velocity_z)
+        # Where the solid points are: samples whose cell misses the box read no solid flag.
+        boxes = np.empty((4, 6), dtype=np.int64)
+        for index, solid in enumerate((interior.solid_faces_x, interior.solid_faces_y,
+                                       interior.solid_faces_z, interior.solid_cells)):
+            body_kernels.solid_box(solid, boxes[index])
+        for index, (field, source) in enumerate(zip(fields, self._sources, strict=True)):
+            is_dye = index == _CELLS
+            if is_dye:
+                modes, values = self._dye_modes, self._dye_values
+                own = (interior.solid_cells, interior.cut_theta_x, interior.cut_velocity_x,
+                       field)
+            else:
+                modes = self._velocity_modes[index:index + 1]
+                values = self._velocity_values[index:index + 1]
+                own = (interior.solid_faces(index), interior.cut_theta(index),
+                       interior.cut_velocity(index), interior.velocity_faces(index))
+            ox, oy, oz = _OFFSETS[index]
+            ghosts = (self._velocity_modes, self._velocity_values, modes, values)
+            if self.advection == "semi_lagrangian":
+                body_kernels.advect_bodies_3d(u, v, w, source, field, source, source, ox, oy,
+                                              oz, dt, h, *ghosts, *body, *own, boxes, index, is_dye, False)
+                continue
+            forward, backward = self._forward[index], self._backward[index]
+            body_kernels.advect_bodies_3d(u, v, w, source, forward, source, source, ox, oy, oz,
+                                          dt, h, *ghosts, *body, *own, boxes, index, is_dye, False)
+            body_kernels.advect_bodies_3d(u, v, w, forward, backward, source, source, ox, oy,
+                                          oz, -dt, h, *ghosts, *body, *own, boxes, index, is_dye, False)
+            body_kernels.advect_bodies_3d(u, v, w, source, field, forward, backward, ox, oy,
+                                          oz, dt, h, *ghosts, *body, *own, boxes, index, is_dye, True)
+
+    def diffuse(self, state: FluidState3D, dt: float,
+                interior: InteriorBoundary3D | None = None) -> int:
         """Implicit viscosity ``(I - nu dt lap) u = u*`` for the three components, in place.
 
         Wall and inflow sides hold their normal velocity; tangential conditions enter through
         ghosts (no slip: the mirror, zero at the wall; free slip and outflow: zero gradient).
-        With ``incremental_pressure`` the last pressure gradient is subtracted first.
+        With bodies, points inside them are held at the body velocity and the cut distances
+        give the no-slip ghosts at the body's surface. With ``incremental_pressure`` the last
+        pressure gradient is subtracted first.
 
         Returns:
             Iterations of the three solves together.
         """
-        self._check(state, dt)
+        self._check(state, dt, interior)
+        if interior is not None:
+            for axis, field in enumerate(state.velocity()):
+                np.copyto(field, interior.velocity_faces(axis),
+                          where=interior.solid_faces(axis))
+            self._solid_face_velocities(interior)
         if self.incremental_pressure:
-            kernels.subtract_pressure_gradient_3d(*state.velocity(), state.pressure,
-                                                  dt / (self.density * self.grid.h),
-                                                  self._outflow)
+            self._subtract_gradient(state, state.pressure, dt, interior)
         if self.viscosity == 0.0:
             return 0
         iterations = 0
         for axis, field in enumerate(state.velocity()):
-            operator, rhs = self.viscosity_system(field, axis, dt)
+            operator, rhs = self.viscosity_system(field, axis, dt, interior)
             _, report = self.viscosity_solver.solve(operator, rhs, x0=field, out=field)
             iterations += int(report.iterations)
         return iterations
@@ -393,31 +519,44 @@ class FluidSolver3D:
             target = _side_plane(velocity[inflow.side // 2], inflow.side)
             np.multiply(inflow.velocity, inflow.inflow.ramp(time), out=target)
 
-    def project(self, state: FluidState3D, dt: float) -> SolveReport:
+    def project(self, state: FluidState3D, dt: float,
+                interior: InteriorBoundary3D | None = None) -> SolveReport:
         """Make the velocity divergence-free: ``lap q = (rho / dt) div u*``,
         ``u = u* - (dt / rho) grad q``. ``q`` is the pressure [Pa], kept in
         ``state.pressure`` (the previous one is the initial guess), or with
-        ``incremental_pressure`` its increment, added to ``state.pressure``."""
-        self._check(state, dt)
+        ``incremental_pressure`` its increment, added to ``state.pressure``.
+
+        With bodies the faces are weighted by their open fraction A (Batty et al. 2007):
+        ``div(A grad q) = (rho / dt) div(A u* + (1 - A) u_s)``; faces open by less than 1 %
+        count as closed and take the body velocity u_s. Guarantee: ``div(A u + (1 - A)
+        u_s)`` (`divergence` with ``interior``) vanishes to the solver's tolerance."""
+        self._check(state, dt, interior)
         h = self.grid.h
         u, v, w = state.velocity()
-        kernels.pressure_rhs_3d(u, v, w, self.density * h / dt, self._rhs_pressure)
-        operator = self.pressure_operator()
+        if interior is None:
+            kernels.pressure_rhs_3d(u, v, w, self.density * h / dt, self._rhs_pressure)
+        else:
+            self._solid_face_velocities(interior)
+            body_kernels.pressure_rhs_bodies_3d(
+                u, v, w, self.density * h / dt, interior.open_fraction_x,
+                interior.open_fraction_y, interior.open_fraction_z, *self._solid_velocity,
+                self._rhs_pressure)
+        operator = self.pressure_operator(interior)
         if self.incremental_pressure:
             increment = self._pressure_increment
             _, report = self.pressure_solver.solve(operator, self._rhs_pressure, out=increment)
-            kernels.subtract_pressure_gradient_3d(u, v, w, increment, dt / (self.density * h),
-                                                  self._outflow)
+            self._subtract_gradient(state, increment, dt, interior)
             state.pressure += increment
             return report
         _, report = self.pressure_solver.solve(operator, self._rhs_pressure,
                                                x0=state.pressure, out=state.pressure)
-        kernels.subtract_pressure_gradient_3d(u, v, w, state.pressure, dt / (self.density * h),
-                                              self._outflow)
+        self._subtract_gradient(state, state.pressure, dt, interior)
         return report
 
-    def step(self, state: FluidState3D, dt: float, time: float = 0.0) -> FluidStepReport:
-        """Advect, apply forces, diffuse and project: one step of ``dt`` [s] from ``time``.
+    def step(self, state: FluidState3D, dt: float, time: float = 0.0,
+             interior: InteriorBoundary3D | None = None) -> FluidStepReport:
+        """Advect, apply forces, diffuse and project: one step of ``dt`` [s] from ``time``,
+        with the bodies of ``interior`` (None: none).
 
         Forces come before the implicit viscosity (the 2D solver applies them after it): a
         body force is then balanced by the viscous term of the same solve, so a steady
@@ -426,13 +565,13 @@ class FluidSolver3D:
         values on the faces it holds."""
         clock = _time.perf_counter
         t0 = clock()
-        self.advect(state, dt)
+        self.advect(state, dt, interior)
         t1 = clock()
         self.apply_forces(state, dt, time)
         t2 = clock()
-        viscosity_iterations = self.diffuse(state, dt)
+        viscosity_iterations = self.diffuse(state, dt, interior)
         t3 = clock()
-        report = self.project(state, dt)
+        report = self.project(state, dt, interior)
         t4 = clock()
         return FluidStepReport(
             pressure_iterations=int(report.iterations),
@@ -443,9 +582,19 @@ class FluidSolver3D:
                               "viscosity": t3 - t2, "pressure": t4 - t3},
         )
 
-    def divergence(self, state: FluidState3D) -> Array:
-        """Cell divergence [1/s] of the state's velocity, shape (nx, ny, nz)."""
+    def divergence(self, state: FluidState3D,
+                   interior: InteriorBoundary3D | None = None) -> Array:
+        """Cell divergence [1/s] of the state's velocity, shape (nx, ny, nz); with bodies
+        ``div(A u + (1 - A) u_s)``, the flux through each face's fluid part plus the body's
+        through the rest: what `project` makes vanish."""
         state.check(self.grid)
         out = np.empty(self.grid.shape_cells)
-        kernels.divergence_3d(*state.velocity(), 1.0 / self.grid.h, out)
+        if interior is None:
+            kernels.divergence_3d(*state.velocity(), 1.0 / self.grid.h, out)
+            return out
+        interior.check(self.grid)
+        self._solid_face_velocities(interior)
+        body_kernels.pressure_rhs_bodies_3d(
+            *state.velocity(), -1.0 / self.grid.h, interior.open_fraction_x,
+            interior.open_fraction_y, interior.open_fraction_z, *self._solid_velocity, out)
         return out

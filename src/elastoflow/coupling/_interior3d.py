@@ -1,0 +1,148 @@
+"""The 3D fluid's view of the bodies (`InteriorBoundary3D`) from the 3D boundary map, and
+the fluid's traction force on the surface triangles."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from elastoflow.coupling import _kernels3d
+from elastoflow.coupling._map3d import (
+    BoundaryMap3D,
+    _to_xyz,
+    cut_distances_3d,
+    face_open_fractions_3d,
+    solid_cells_3d,
+)
+from elastoflow.fluid._interior3d import InteriorBoundary3D
+from elastoflow.grid import Grid3D
+
+# Where the traction samples the fluid along the normal, in cells: the velocity (with the
+# cut-distance ghosts) and the pressure (over fluid cells).
+_SAMPLE_DISTANCES = (1.0, 2.0)
+_PRESSURE_DISTANCES = (1.5, 2.5)
+
+
+def _points_inside(bmap: BoundaryMap3D, component: int) -> tuple[np.ndarray, np.ndarray]:
+    """Solid flags and body velocity component of the u (0), v (1) or w (2) points, from the
+    lines along the component's own axis."""
+    grid = bmap.grid
+    counts = (grid.nx, grid.ny, grid.nz)
+    shape = tuple(counts[a] + (1 if a == component else 0) for a in range(3))
+    u, v = (component + 1) % 3, (component + 2) % 3
+    crossings = bmap.lines[component]
+    solid = np.empty((shape[component], shape[u], shape[v]), dtype=np.bool_)
+    velocity = np.empty(solid.shape)
+    _kernels3d.inside_along_lines(
+        crossings.offsets, crossings.coordinate, crossings.sign, crossings.triangle,
+        crossings.weights, bmap.triangles, bmap.velocities, component, crossings.lines_v, 1, 1,
+        shape[u], shape[v], float(grid.origin[component]), 0.0, grid.h, shape[component], solid,
+        velocity)
+    order = _to_xyz(component)
+    return (np.ascontiguousarray(np.transpose(solid, order)),
+            np.ascontiguousarray(np.transpose(velocity, order)))
+
+
+def interior_boundary_3d(bmap: BoundaryMap3D) -> InteriorBoundary3D:
+    """`InteriorBoundary3D` of the map's bodies: cells and velocity points inside them (ray
+    parity along x for cells, along each component's own axis for its points), the body
+    velocity at the points inside (linear between the crossings that bound them, METHOD.md
+    §5.4), the faces' exact open fractions and the cut distances of every velocity point."""
+    solid_faces = []
+    velocity_faces = []
+    for component in range(3):
+        solid, velocity = _points_inside(bmap, component)
+        solid_faces.append(solid)
+        velocity_faces.append(velocity)
+    open_x, open_y, open_z = face_open_fractions_3d(bmap)
+    cuts = cut_distances_3d(bmap)
+    return InteriorBoundary3D(
+        solid_cells=solid_cells_3d(bmap),
+        solid_faces_x=solid_faces[0], solid_faces_y=solid_faces[1],
+        solid_faces_z=solid_faces[2],
+        velocity_faces_x=velocity_faces[0], velocity_faces_y=velocity_faces[1],
+        velocity_faces_z=velocity_faces[2],
+        open_fraction_x=open_x, open_fraction_y=open_y, open_fraction_z=open_z,
+        cut_theta_x=cuts.theta[0], cut_theta_y=cuts.theta[1], cut_theta_z=cuts.theta[2],
+        cut_velocity_x=cuts.velocity[0], cut_velocity_y=cuts.velocity[1],
+        cut_velocity_z=cuts.velocity[2],
+    )
+
+
+def _field(name: str, value: np.ndarray, shape: tuple[int, ...]) -> np.ndarray:
+    array = np.ascontiguousarray(value, dtype=np.float64)
+    if array.shape != shape:
+        raise ValueError(f"{name}: shape {array.shape} is not allowed; expected {shape}")
+    return array
+
+
+def force_traction_3d(
+    grid: Grid3D,
+    bmap: BoundaryMap3D,
+    velocity_x: np.ndarray,
+    velocity_y: np.ndarray,
+    velocity_z: np.ndarray,
+    pressure: np.ndarray,
+    density: float,
+    viscosity: float,
+    interior: InteriorBoundary3D | None = None,
+    gravity: tuple[float, float, float] = (0.0, 0.0, 0.0),
+) -> np.ndarray:
+    """Fluid force on the surface's vertices by the traction integral (METHOD.md §7, the 3D
+    twin of `force_traction`).
+
+    Integrates ``(-p I + mu (grad u + grad u^T)) n`` over every triangle of the map, ``n``
+    the outward unit normal, ``mu = density * viscosity``. A triangle is cut into ``s^2``
+    similar pieces with ``s`` its longest edge over h (rounded up), one sample at each
+    piece's centroid ``x_w``; a piece's force is split between the triangle's vertices by
+    the barycentric weights of ``x_w``. At ``x_w``:
+
+    * pressure: sampled at ``x_w + 1.5 h n`` trilinearly over fluid cells only (solid and
+      out-of-domain cells dropped, weights renormalised; 2.5 h, then 4 h when no cell is
+      fluid), carried to the wall at constant ``p - rho g.x``;
+    * viscous stress: ``grad u = L + g_n n^T`` with ``L`` the wall velocity's surface
+      gradient (linear over the triangle) and ``g_n`` the one-sided second-order normal
+      derivative through the wall velocity and u, v, w sampled over fluid points at 1.5 h and
+      2.5 h along n (first order from the first sample alone when the second has no fluid);
+      with ``g_n.n`` replaced by ``-tr L`` (continuity), ``(grad u + grad u^T) n = g_t +
+      L^T n - 2 tr(L) n``, ``g_t`` the tangential part of ``g_n``.
+
+    Args:
+        grid: The 3D MAC grid.
+        bmap: The 3D boundary map; its points, velocities and triangles give the surface.
+        velocity_x, velocity_y, velocity_z: Face velocities [m/s], (nx+1, ny, nz),
+            (nx, ny+1, nz), (nx, ny, nz+1), usually after the projection.
+        pressure: Cell pressure [Pa], (nx, ny, nz).
+        density: Fluid density rho [kg/m^3].
+        viscosity: Kinematic viscosity nu [m^2/s] (>= 0).
+        interior: Solid flags of cells and velocity points (samples skip them); all fluid
+            when None.
+        gravity: The fluid's gravitational acceleration [m/s^2] (hydrostatic carry).
+
+    Returns:
+        Forces [N] on the map's points, shape (P, 3); their sum is the force on the bodies.
+    """
+    if bmap.grid != grid:
+        raise ValueError(f"boundary map grid {bmap.grid!r}: must be the grid {grid!r}")
+    velocity_x = _field("velocity_x", velocity_x, grid.shape_faces_x)
+    velocity_y = _field("velocity_y", velocity_y, grid.shape_faces_y)
+    velocity_z = _field("velocity_z", velocity_z, grid.shape_faces_z)
+    pressure = _field("pressure", pressure, grid.shape_cells)
+    if not (density > 0.0 and np.isfinite(density)):
+        raise ValueError(f"density = {density!r}: must be a finite number > 0")
+    if not (viscosity >= 0.0 and np.isfinite(viscosity)):
+        raise ValueError(f"viscosity = {viscosity!r}: must be a finite number >= 0")
+    if interior is None:
+        interior = InteriorBoundary3D.empty(grid)
+    else:
+        interior.check(grid)
+    force = np.zeros((bmap.points.shape[0], 3))
+    origin = [float(c) for c in grid.origin]
+    _kernels3d.traction_triangles(
+        bmap.points, bmap.velocities, bmap.triangles, velocity_x, velocity_y, velocity_z,
+        pressure, interior.solid_faces_x, interior.solid_faces_y, interior.solid_faces_z,
+        interior.cut_theta_x, interior.cut_theta_y, interior.cut_theta_z,
+        interior.cut_velocity_x, interior.cut_velocity_y, interior.cut_velocity_z,
+        interior.solid_cells, origin[0], origin[1], origin[2], grid.h, float(density),
+        float(density * viscosity), float(gravity[0]), float(gravity[1]), float(gravity[2]),
+        np.asarray(_SAMPLE_DISTANCES) * grid.h, np.asarray(_PRESSURE_DISTANCES) * grid.h, force)
+    return force
