@@ -46,3 +46,18 @@ def test_free_surface_dam_break_example_writes_a_picture(tmp_path):
     out = module.main(steps=3, out=tmp_path / "dam_break.png")
     frame = iio.imread(out)
     assert frame.ndim == 3 and np.ptp(frame) > 0
+
+
+def test_three_d_jet_example_writes_a_video_and_image_data(tmp_path):
+    from elastoflow.io import read_image_data
+
+    spec = importlib.util.spec_from_file_location("three_d_jet", EXAMPLES / "three_d_jet.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    out = module.main(steps=8, out=tmp_path / "jet", every=4)
+    frames = iio.imread(out / "video.mp4")
+    assert frames.shape[0] == 9 and np.ptp(frames[-1]) > 0
+    last = read_image_data(out / "fields" / "fluid_000008.vti")
+    assert last.cells == (32, 48, 32) and last.cell_data["dye"].max() > 0.5
+    assert last.cell_data["velocity"][..., 1].max() > 0.1  # the jet pushes upwards
+    assert "fluid_000004.vti" in (out / "fields" / "fluid.pvd").read_text()

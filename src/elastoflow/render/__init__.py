@@ -1,6 +1,7 @@
 """Frames and videos: the fluid field in colour with bodies and obstacles drawn on top.
 
-Rendering reads the simulation's arrays and never changes them. Fields are coloured through a
+Rendering reads the simulation's arrays and never changes them. A 3D state is drawn through a
+plane (`render_slice_3d`), with the bodies' cross-sections. Fields are coloured through a
 lookup table and bodies rasterised by small Numba kernels, so a frame costs milliseconds.
 """
 
@@ -17,6 +18,7 @@ from elastoflow.render._frame import (
     triangle_edges,
     view_values,
 )
+from elastoflow.render._slice3d import VIEWS_3D, render_slice_3d, tetrahedra_section
 from elastoflow.render._video import SegmentedVideo, VideoWriter, join_videos
 
 __all__ = [
@@ -24,6 +26,7 @@ __all__ = [
     "BODY_FILL_COLOR",
     "OBSTACLE_FILL_COLOR",
     "VIEWS",
+    "VIEWS_3D",
     "SegmentedVideo",
     "VideoWriter",
     "apply_colormap",
@@ -32,7 +35,9 @@ __all__ = [
     "join_videos",
     "liquid_values",
     "render_frame",
+    "render_slice_3d",
     "speed_at_cells",
+    "tetrahedra_section",
     "triangle_edges",
     "velocity_at_cells",
     "view_values",
