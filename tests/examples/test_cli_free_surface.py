@@ -7,6 +7,7 @@ from pathlib import Path
 
 import meshio
 import numpy as np
+import pytest
 from typer.testing import CliRunner
 
 from elastoflow.cli import app
@@ -22,7 +23,8 @@ def _invoke(*args: object):
 def test_dam_break_runs_with_video_fields_and_checkpoints(tmp_path) -> None:
     out = tmp_path / "dam"
     result, text = _invoke("run", "dam_break", "--steps", "4", "--out", out, "--fields",
-                           "npz,vtk,xdmf", "--every", "2", "--checkpoint-every", "2")
+                           "npz,vtk,xdmf", "--every", "2", "--checkpoint-every", "2",
+                           "--meshes")
     assert result.exit_code == 0, text
     assert "4/4" in text  # the progress bar reached the end
     assert (out / "video.mp4").stat().st_size > 0
@@ -33,9 +35,16 @@ def test_dam_break_runs_with_video_fields_and_checkpoints(tmp_path) -> None:
         # The column a / 32 cells wide and twice as tall: 32 x 64 cells of water.
         assert 0.9 * 32 * 64 < np.count_nonzero(liquid) < 1.1 * 32 * 64
         assert np.all(frame["pressure"][~liquid] == 0.0)
+        # The surface as polylines: the column's outline inside the cell centres' box.
+        points, offsets = frame["surface_points"], frame["surface_offsets"]
+        assert len(offsets) >= 2 and offsets[-1] == len(points) > 10
+        assert points[:, 1].max() == pytest.approx(2 * 0.05715, abs=0.01)
     mesh = meshio.read(out / "fields" / "fluid_000004.vtu")
     np.testing.assert_array_equal(mesh.cell_data["level_set"][0], phi.ravel())
     assert "level_set" in (out / "fields" / "fluid.xdmf").read_text()
+    # The surface for Blender, beside the (absent) bodies' meshes.
+    surface = meshio.read(out / "meshes" / "surface_000004.obj")
+    assert len(surface.points) > 20
     with np.load(out / "checkpoints" / "checkpoint_00000004.npz") as checkpoint:
         np.testing.assert_array_equal(checkpoint["level_set"], phi)
         assert float(checkpoint["liquid_area"]) > 0.0

@@ -19,6 +19,7 @@ from typing import Any
 import numpy as np
 
 from elastoflow.io._atomic import atomic_path, write_text_atomic
+from elastoflow.io._surface import pack_polylines, surface_polylines
 from elastoflow.render._fields import velocity_at_cells, vorticity_at_cells
 
 FIELD_FORMATS: tuple[str, ...] = ("npz", "vtk", "xdmf")
@@ -36,7 +37,9 @@ def snapshot_arrays(grid: Any, state: Any, bodies: Sequence[tuple[Any, Any]] = (
     ``body{k}_points`` (n, 2) [m], ``body{k}_triangles`` (m, 3), ``body{k}_velocities`` (n, 2);
     ``obstacle{k}_points`` (p, 2) [m]. A rod has no triangles (m = 0): its points are its
     polyline in order (VTK: line cells). With a free surface also ``level_set`` (nx, ny) [m],
-    liquid where negative (VTK and XDMF: a cell field of that name).
+    liquid where negative (VTK and XDMF: a cell field of that name), and the surface as
+    polylines, ``surface_points`` (k, 2) [m] with ``surface_offsets`` (n + 1,) (piece i is
+    ``surface_points[surface_offsets[i]:surface_offsets[i + 1]]``; npz only).
 
     ``state`` is the fluid state, ``bodies`` a (model, `elastoflow.solid.BodyState`) pair
     per body.
@@ -57,6 +60,9 @@ def snapshot_arrays(grid: Any, state: Any, bodies: Sequence[tuple[Any, Any]] = (
     }
     if level_set is not None:
         data["level_set"] = np.array(level_set, dtype=np.float64)
+        points, offsets = pack_polylines(surface_polylines(grid, level_set))
+        data["surface_points"] = points
+        data["surface_offsets"] = offsets
     for index, (body, body_state) in enumerate(bodies):
         data[f"body{index}_points"] = np.array(body_state.positions)
         data[f"body{index}_triangles"] = np.array(body.mesh.triangles)

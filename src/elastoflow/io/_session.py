@@ -19,9 +19,10 @@ from elastoflow.io._checkpoint import (
 from elastoflow.io._fields import FieldWriter, snapshot_arrays
 from elastoflow.io._meshes import write_extruded_meshes
 from elastoflow.io._probes import ProbeRecorder
+from elastoflow.io._surface import surface_polylines, write_surface_mesh
 
 KEEP_CHECKPOINTS = 3
-_MESH_FILE = re.compile(r"^body\d+_(\d{6,})\.(?:obj|ply)$")
+_MESH_FILE = re.compile(r"^(?:body\d+|surface)_(\d{6,})\.(?:obj|ply)$")
 
 
 class RangeTracker:
@@ -137,11 +138,16 @@ class OutputSession:
                 level_set=getattr(sim, "level_set", None),
             ))
             self._written_at["fields"] = step
-        if (out.meshes is not None and sim.bodies
+        level_set = getattr(sim, "level_set", None)
+        if (out.meshes is not None and (sim.bodies or level_set is not None)
                 and self._due("meshes", out.meshes, step, force)):
-            write_extruded_meshes(self.out_dir / "meshes", step,
-                                  sim.body_geometry(),
-                                  out.meshes.thickness, out.meshes.format)
+            folder = self.out_dir / "meshes"
+            write_extruded_meshes(folder, step, sim.body_geometry(), out.meshes.thickness,
+                                  out.meshes.format)
+            if level_set is not None:
+                write_surface_mesh(folder / f"surface_{step:06d}.{out.meshes.format}",
+                                   surface_polylines(sim.grid, level_set),
+                                   out.meshes.thickness, out.meshes.format)
             self._written_at["meshes"] = step
         if video and self._video is not None and self._due("video", out.video, step, force):
             # Drawn into the previous frame's array: the writer has converted that one already.
@@ -271,7 +277,8 @@ class OutputSession:
             statistics = attempt(self._probes.write_statistics)
             if statistics is not None:
                 self.written.append(statistics)
-        if self.outputs.meshes is not None and sim.bodies:
+        if self.outputs.meshes is not None and (
+                sim.bodies or getattr(sim, "level_set", None) is not None):
             self.written.append(self.out_dir / "meshes")
         if errors:
             raise errors[0]
