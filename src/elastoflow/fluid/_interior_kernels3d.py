@@ -454,8 +454,9 @@ def _clear_of(boxes, row, i0, j0, k0):
 def _sample_bodies(f, fx, fy, fz, modes, values, row, solid, theta, cut_velocity, boxes,
                    box_row, is_dye, want_range):
     """Trilinear sample of ``f`` at index coordinates ``(fx, fy, fz)`` with bodies:
-    ``(value, low, high)``, low / high the range of the corner values used (only with
-    ``want_range``; else 0). A velocity component replaces solid corners by cut-distance
+    ``(value, low, high)``, low / high the range of the corner values used. With
+    ``want_range`` (MacCormack's clamp, which needs the range only) the value may be left
+    0; without it low and high are 0. A velocity component replaces solid corners by cut-distance
     ghosts (`_corner_with_bodies`); dye (``is_dye``) drops them and renormalises. The plain
     case (no corner solid or beyond a side) is inlined; the rest is a call."""
     i0 = int(math.floor(fx))
@@ -464,11 +465,10 @@ def _sample_bodies(f, fx, fy, fz, modes, values, row, solid, theta, cut_velocity
     m, n, l = f.shape
     if _clear_of(boxes, box_row, i0, j0, k0):
         # Away from the bodies (nearly every sample): the plain sampling, sides included.
-        low = 0.0
-        high = 0.0
         if want_range:
             low, high = _corner_range(f, fx, fy, fz, modes, values, row)
-        return _sample(f, fx, fy, fz, modes, values, row), low, high
+            return 0.0, low, high
+        return _sample(f, fx, fy, fz, modes, values, row), 0.0, 0.0
     if (0 <= i0 < m - 1 and 0 <= j0 < n - 1 and 0 <= k0 < l - 1
             and not _any_solid(solid, i0, j0, k0)):
         a = fx - i0

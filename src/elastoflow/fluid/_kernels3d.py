@@ -146,10 +146,32 @@ def _corner(f, i, ai, bi, j, aj, bj, k, ak, bk):
 
 @njit(cache=True, inline="always")
 def _corner_range(f, fx, fy, fz, modes, values, row):
-    """Smallest and largest of the eight values around index coordinates ``(fx, fy, fz)``."""
+    """Smallest and largest of the eight values around index coordinates ``(fx, fy, fz)``.
+
+    Inside the array (nearly every point) the eight values are read directly; near a side
+    `_corner_range_near_side` makes the ghosts."""
     i0 = int(math.floor(fx))
     j0 = int(math.floor(fy))
     k0 = int(math.floor(fz))
+    m, n, l = f.shape
+    if 0 <= i0 < m - 1 and 0 <= j0 < n - 1 and 0 <= k0 < l - 1:
+        c0 = f[i0, j0, k0]
+        c1 = f[i0 + 1, j0, k0]
+        c2 = f[i0, j0 + 1, k0]
+        c3 = f[i0 + 1, j0 + 1, k0]
+        c4 = f[i0, j0, k0 + 1]
+        c5 = f[i0 + 1, j0, k0 + 1]
+        c6 = f[i0, j0 + 1, k0 + 1]
+        c7 = f[i0 + 1, j0 + 1, k0 + 1]
+        low = min(min(min(c0, c1), min(c2, c3)), min(min(c4, c5), min(c6, c7)))
+        high = max(max(max(c0, c1), max(c2, c3)), max(max(c4, c5), max(c6, c7)))
+        return low, high
+    return _corner_range_near_side(f, i0, j0, k0, modes, values, row)
+
+
+@njit(cache=True)
+def _corner_range_near_side(f, i0, j0, k0, modes, values, row):
+    """`_corner_range` when a corner lies beyond a side: corner by corner with ghosts."""
     low = math.inf
     high = -math.inf
     for corner in range(8):
