@@ -4,8 +4,9 @@ Numba compiles each kernel the first time it is called and keeps the machine cod
 cache (``__pycache__`` beside the sources, or ``NUMBA_CACHE_DIR``). A fresh install therefore
 spends about a minute of its first step compiling on two cores. `warm_up` runs every built-in
 scene for two steps on a grid just large enough to reach the threaded variants of the kernels
-and draws a frame of every view, then steps the parts no scene uses yet (the free surface, the
-3D fluid, tetrahedral bodies and the 3D map; the free surface's semi-Lagrangian step), so that a later run finds everything compiled; ``make``
+and draws a frame of every view, then steps the parts no scene uses yet (the free surface's
+semi-Lagrangian step, the 3D fluid with and without a sphere in it, tetrahedral bodies and
+the 3D map, the dual-cell boundary), so that a later run finds everything compiled; ``make``
 runs it once after installing (``elastoflow warmup``). Nothing is written but the cache.
 """
 
@@ -60,7 +61,8 @@ def warm_up(
             report(name, time.perf_counter() - began)
     if scenes is None:
         for name, warm in (("free surface", _free_surface), ("3D fluid", _fluid_3d),
-                           ("3D bodies", _bodies_3d)):
+                           ("3D bodies", _bodies_3d), ("3D obstacle", _obstacle_3d),
+                           ("dual-cell boundary", _dual_cell)):
             began = time.perf_counter()
             warm()
             if report is not None:
@@ -130,6 +132,51 @@ def _bodies_3d() -> None:
     solid_cells_3d(bmap)
     face_open_fractions_3d(bmap)
     cut_distances_3d(bmap)
+
+
+def _obstacle_3d() -> None:
+    """Two steps of the 3D fluid around a sphere with each advection scheme (the interior's
+    kernels, 276 s to compile from scratch), and the traction on it."""
+    import numpy as np
+
+    from elastoflow.coupling import build_boundary_map_3d, force_traction_3d, interior_boundary_3d
+    from elastoflow.fluid import DomainBoundaries3D, FluidSolver3D, FluidState3D, Inflow
+    from elastoflow.grid import Grid3D
+    from elastoflow.solid import mesh_sphere
+
+    grid = Grid3D(nx=40, ny=24, nz=24, h=1.0 / 24)
+    mesh = mesh_sphere(0.25, 0.1)
+    points = mesh.points + np.array([0.6, 0.5, 0.5])
+    bmap = build_boundary_map_3d(grid, points, np.zeros_like(points), mesh.boundary_triangles)
+    interior = interior_boundary_3d(bmap)
+    for advection in ("semi_lagrangian", "maccormack"):
+        solver = FluidSolver3D(grid, density=1.0, viscosity=1e-2,
+                               boundaries=DomainBoundaries3D.channel(Inflow(1.0)),
+                               advection=advection)
+        state = FluidState3D.zeros(grid)
+        for index in range(2):
+            solver.step(state, 0.01, 0.01 * index, interior)
+    force_traction_3d(grid, bmap, state.velocity_x, state.velocity_y, state.velocity_z,
+                      state.pressure, 1.0, 1e-2, interior)
+
+
+def _dual_cell() -> None:
+    """The dual-cell boundary's interior and interface flux on a moving disc."""
+    import numpy as np
+
+    from elastoflow.coupling import (
+        build_boundary_map,
+        interface_flux,
+        interior_boundary_dual_cell,
+        obstacle_circle,
+    )
+    from elastoflow.grid import Grid2D
+
+    grid = Grid2D(32, 32, 1.0 / 32)
+    disc = obstacle_circle((0.5, 0.5), 0.2, segments=24)
+    points = disc.points_at(0.0)
+    bmap = build_boundary_map(grid, points, np.full_like(points, 0.1), disc.edges)
+    interface_flux(grid, bmap, interior_boundary_dual_cell(grid, bmap))
 
 
 _KERNEL_MODULES = ("fluid", "linalg", "solid", "coupling", "render")
