@@ -20,6 +20,8 @@ triangles with the grid lines along x, y and z (``LineCrossings``), and the cell
 (``solid_cells_3d``), the cut distances of the velocity points (``cut_distances_3d``), and the fluid share of every face from the bodies' exact cross-sections
 (``face_open_fractions_3d``); from them the 3D fluid's ``InteriorBoundary3D``
 (``interior_boundary_3d``) and the traction on the surface triangles (``force_traction_3d``).
+Obstacles in 3D are closed surfaces (``Obstacle3D``: ``obstacle_sphere``, ``obstacle_box``,
+``obstacle_cylinder``) with an optional ``RigidMotion3D``.
 """
 
 from elastoflow.coupling._brute_force import classify_points_brute_force
@@ -65,6 +67,13 @@ from elastoflow.coupling._obstacle import (
     obstacle_rectangle,
     polygon_signed_area,
 )
+from elastoflow.coupling._obstacle3d import (
+    Obstacle3D,
+    RigidMotion3D,
+    obstacle_box,
+    obstacle_cylinder,
+    obstacle_sphere,
+)
 from elastoflow.coupling._staircase import (
     StaircaseInteriorBoundary,
     interface_flux_staircase,
@@ -93,9 +102,11 @@ __all__ = [
     "InterfaceFlux",
     "LineCrossings",
     "Obstacle",
+    "Obstacle3D",
     "PointClassification",
     "PressureCoupledBodies",
     "RigidMotion",
+    "RigidMotion3D",
     "SparseRows",
     "StaircaseInteriorBoundary",
     "U_FACES",
@@ -119,10 +130,13 @@ __all__ = [
     "interior_boundary_3d",
     "interior_boundary_from_map",
     "interior_boundary_staircase",
+    "obstacle_box",
     "obstacle_circle",
+    "obstacle_cylinder",
     "obstacle_pipe",
     "obstacle_polyline",
     "obstacle_rectangle",
+    "obstacle_sphere",
     "polygon_signed_area",
     "solid_cells_3d",
 ]

@@ -1,6 +1,7 @@
 """The coupled simulation: model (grid, fluid solver, bodies, obstacles), state (fluid fields,
 body states, time), the coupling schemes that step one state into the next, and the checks
-each new state must pass."""
+each new state must pass. In 3D: `CoupledModel3D`, `StepBoundary3D` and `ExplicitCoupling3D`,
+behind the same `Simulation`."""
 
 from elastoflow.simulation._checks import CflLimit, FiniteFields, StepCheck, cfl_number
 from elastoflow.simulation._free_surface import FreeSurfaceScheme
@@ -12,23 +13,33 @@ from elastoflow.simulation._schemes import (
     ExplicitCoupling,
     MonolithicCoupling,
 )
+from elastoflow.simulation._schemes3d import ExplicitCoupling3D
 from elastoflow.simulation._simulation import Simulation
-from elastoflow.simulation._state import CoupledModel, CoupledState, StepBoundary
+from elastoflow.simulation._state import (
+    CoupledModel,
+    CoupledModel3D,
+    CoupledState,
+    StepBoundary,
+    StepBoundary3D,
+)
 
 __all__ = [
     "COUPLING_SCHEMES",
     "FORCE_MODELS",
     "CflLimit",
     "CoupledModel",
+    "CoupledModel3D",
     "CoupledState",
     "CouplingScheme",
     "ExplicitCoupling",
+    "ExplicitCoupling3D",
     "FiniteFields",
     "FreeSurfaceScheme",
     "MonolithicCoupling",
     "Simulation",
     "SimulationBlowUp",
     "StepBoundary",
+    "StepBoundary3D",
     "StepCheck",
     "StepReport",
     "cfl_number",

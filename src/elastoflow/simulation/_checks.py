@@ -8,29 +8,41 @@ from typing import Protocol
 
 import numpy as np
 
-from elastoflow.fluid import FluidState
-from elastoflow.grid import Grid2D
+from elastoflow.fluid import FluidState, FluidState3D
+from elastoflow.grid import Grid2D, Grid3D
 from elastoflow.simulation._report import SimulationBlowUp, StepReport
-from elastoflow.simulation._state import CoupledModel, CoupledState
+from elastoflow.simulation._state import CoupledModel, CoupledModel3D, CoupledState
+
+AnyFluidState = FluidState | FluidState3D
 
 
 class StepCheck(Protocol):
     """Called with the state a step produced; raises `SimulationBlowUp` to reject it."""
 
-    def __call__(self, model: CoupledModel, state: CoupledState, dt: float,
+    def __call__(self, model: CoupledModel | CoupledModel3D, state: CoupledState, dt: float,
                  report: StepReport) -> None:
         ...
 
 
-def cfl_number(grid: Grid2D, fluid: FluidState, dt: float) -> float:
+def _velocity_names(fluid: AnyFluidState) -> tuple[str, ...]:
+    if isinstance(fluid, FluidState3D):
+        return ("velocity_x", "velocity_y", "velocity_z")
+    return ("velocity_x", "velocity_y")
+
+
+def max_speed(fluid: AnyFluidState) -> float:
+    """The largest face-velocity component [m/s] (2D or 3D)."""
+    return max(float(np.abs(getattr(fluid, name)).max()) for name in _velocity_names(fluid))
+
+
+def cfl_number(grid: Grid2D | Grid3D, fluid: AnyFluidState, dt: float) -> float:
     """``max |u| dt / h`` over the face velocities."""
-    speed = max(float(np.abs(fluid.velocity_x).max()), float(np.abs(fluid.velocity_y).max()))
-    return speed * dt / grid.h
+    return max_speed(fluid) * dt / grid.h
 
 
-def check_fluid_finite(fluid: FluidState, step: int, time: float) -> None:
+def check_fluid_finite(fluid: AnyFluidState, step: int, time: float) -> None:
     """Raise `SimulationBlowUp` naming the first non-finite fluid value."""
-    for name in ("velocity_x", "velocity_y", "pressure"):
+    for name in (*_velocity_names(fluid), "pressure"):
         values = getattr(fluid, name)
         if not np.isfinite(values).all():
             bad = np.argwhere(~np.isfinite(values))[0]
@@ -43,7 +55,7 @@ def check_fluid_finite(fluid: FluidState, step: int, time: float) -> None:
 class FiniteFields:
     """Every fluid field and every body's positions and velocities are finite."""
 
-    def __call__(self, model: CoupledModel, state: CoupledState, dt: float,
+    def __call__(self, model: CoupledModel | CoupledModel3D, state: CoupledState, dt: float,
                  report: StepReport) -> None:
         check_fluid_finite(state.fluid, report.step, report.time)
         for index, body in enumerate(state.bodies):
@@ -69,12 +81,10 @@ class CflLimit:
             raise ValueError(f"cfl_limit = {limit!r}: must be > 0")
         self.limit = float(limit)
 
-    def __call__(self, model: CoupledModel, state: CoupledState, dt: float,
+    def __call__(self, model: CoupledModel | CoupledModel3D, state: CoupledState, dt: float,
                  report: StepReport) -> None:
         if report.cfl > self.limit:
-            fluid = state.fluid
-            speed = max(float(np.abs(fluid.velocity_x).max()),
-                        float(np.abs(fluid.velocity_y).max()))
+            speed = max_speed(state.fluid)
             raise SimulationBlowUp(
                 f"step {report.step}, t = {report.time:.6g} s: CFL number {report.cfl:.3g} "
                 f"(max speed {speed:.3g} m/s) exceeds the limit {self.limit:g}; the coupling "

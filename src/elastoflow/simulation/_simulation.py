@@ -5,9 +5,23 @@ from typing import Literal
 
 import numpy as np
 
-from elastoflow.coupling import BoundaryMap, BoundaryTreatment, Obstacle, boundary_treatment
-from elastoflow.fluid import FluidSolver, FluidState, InteriorBoundary
-from elastoflow.grid import Grid2D
+from elastoflow.coupling import (
+    BoundaryMap,
+    BoundaryMap3D,
+    BoundaryTreatment,
+    Obstacle,
+    Obstacle3D,
+    boundary_treatment,
+)
+from elastoflow.fluid import (
+    FluidSolver,
+    FluidSolver3D,
+    FluidState,
+    FluidState3D,
+    InteriorBoundary,
+    InteriorBoundary3D,
+)
+from elastoflow.grid import Grid2D, Grid3D
 from elastoflow.simulation._checks import CflLimit, FiniteFields, StepCheck, cfl_number
 from elastoflow.simulation._free_surface import FreeSurfaceScheme
 from elastoflow.simulation._report import SimulationBlowUp, StepReport
@@ -17,8 +31,9 @@ from elastoflow.simulation._schemes import (
     ExplicitCoupling,
     ForceModel,
 )
-from elastoflow.simulation._state import CoupledModel, CoupledState
-from elastoflow.solid import BodyModel
+from elastoflow.simulation._schemes3d import ExplicitCoupling3D
+from elastoflow.simulation._state import CoupledModel, CoupledModel3D, CoupledState
+from elastoflow.solid import BodyModel, ElasticBody3D
 
 
 class Simulation:
@@ -31,9 +46,16 @@ class Simulation:
     what diverged) leaves `state` at the last good step. `state` and its arrays are the same
     objects for the whole run.
 
+    The dimension follows the grid: a `elastoflow.grid.Grid3D` with a
+    `elastoflow.fluid.FluidSolver3D` makes a 3D run (a `CoupledModel3D`, tetrahedral
+    `elastoflow.solid.ElasticBody3D` bodies, `elastoflow.coupling.Obstacle3D` obstacles and
+    the `ExplicitCoupling3D` scheme); the 2D-only options (the monolithic scheme, the
+    momentum-exchange force, added mass, boundary treatments other than the cut cell, a free
+    surface) are refused there.
+
     Args:
-        grid: The MAC grid.
-        fluid_solver: A `elastoflow.fluid.FluidSolver` on ``grid``.
+        grid: The MAC grid (`Grid2D` or `Grid3D`).
+        fluid_solver: A `elastoflow.fluid.FluidSolver` on ``grid`` (3D: `FluidSolver3D`).
         state: Initial fluid state (zeros if None).
         bodies: Elastic bodies' models (`elastoflow.solid.ElasticBody`, or a rod,
             `elastoflow.solid.RodBody`, under the monolithic scheme); each starts from its
@@ -61,12 +83,12 @@ class Simulation:
 
     def __init__(
         self,
-        grid: Grid2D,
-        fluid_solver: FluidSolver,
+        grid: Grid2D | Grid3D,
+        fluid_solver: FluidSolver | FluidSolver3D,
         *,
-        state: FluidState | None = None,
-        bodies: Sequence[BodyModel] = (),
-        obstacles: Sequence[Obstacle] = (),
+        state: FluidState | FluidState3D | None = None,
+        bodies: Sequence[BodyModel | ElasticBody3D] = (),
+        obstacles: Sequence[Obstacle | Obstacle3D] = (),
         dt: float,
         substeps: int | Literal["auto"] = "auto",
         force_model: ForceModel = "traction",
@@ -74,13 +96,37 @@ class Simulation:
         cfl_limit: float = 20.0,
         force_relaxation: float = 1.0,
         added_mass: float = 0.0,
-        coupling: str | CouplingScheme = "explicit",
+        coupling: str | CouplingScheme | ExplicitCoupling3D = "explicit",
         checks: Sequence[StepCheck] | None = None,
         boundary: str | BoundaryTreatment = "cut_cell",
         level_set: np.ndarray | None = None,
     ) -> None:
         if not (dt > 0.0 and np.isfinite(dt)):
             raise ValueError(f"dt = {dt!r}: must be a finite positive time step [s]")
+        self.dt = float(dt)
+        self.checks: list[StepCheck] = (
+            [FiniteFields(), CflLimit(cfl_limit)] if checks is None else list(checks)
+        )
+        self._next: CoupledState | None = None
+        self.last_report: StepReport | None = None
+        self.model: CoupledModel | CoupledModel3D
+        self.scheme: CouplingScheme | ExplicitCoupling3D
+        if isinstance(grid, Grid3D):
+            self._set_up_3d(grid, fluid_solver, state, bodies, obstacles, substeps,
+                            force_model, force_relaxation, added_mass, coupling, boundary,
+                            level_set)
+            return
+        if not isinstance(fluid_solver, FluidSolver):
+            raise ValueError(f"fluid_solver = {type(fluid_solver).__name__}: a 2D grid needs "
+                             "an elastoflow.fluid.FluidSolver")
+        if isinstance(coupling, ExplicitCoupling3D):
+            raise ValueError("coupling = ExplicitCoupling3D: a 2D grid needs a 2D scheme")
+        if not all(isinstance(obstacle, Obstacle) for obstacle in obstacles):
+            raise ValueError("obstacles: a 2D run takes elastoflow.coupling.Obstacle")
+        if any(isinstance(body, ElasticBody3D) for body in bodies):
+            raise ValueError("bodies: a 2D run takes 2D bodies, not ElasticBody3D")
+        if state is not None and not isinstance(state, FluidState):
+            raise ValueError("state: a 2D run takes an elastoflow.fluid.FluidState")
         explicit = ExplicitCoupling(substeps, force_model, alpha, force_relaxation, added_mass)
         if isinstance(coupling, str):
             if coupling not in COUPLING_SCHEMES:
@@ -97,41 +143,86 @@ class Simulation:
                 "coupling needs neither (leave them at 1 and 0)"
             )
         treatment = boundary_treatment(boundary) if isinstance(boundary, str) else boundary
-        self.model = CoupledModel(grid, fluid_solver, tuple(bodies), tuple(obstacles),
-                                  treatment)
+        model = CoupledModel(grid, fluid_solver,
+                             tuple(body for body in bodies if not isinstance(body, ElasticBody3D)),
+                             tuple(o for o in obstacles if isinstance(o, Obstacle)), treatment)
+        self.model = model
         self.scheme = scheme
-        self.dt = float(dt)
-        self.checks: list[StepCheck] = (
-            [FiniteFields(), CflLimit(cfl_limit)] if checks is None else list(checks)
-        )
-        self.state: CoupledState = self.model.state(state)
+        self.state: CoupledState = model.state(state)
         if isinstance(scheme, FreeSurfaceScheme):
-            scheme.check_model(self.model)
+            scheme.check_model(model)
             if level_set is None:
                 raise ValueError("a free-surface simulation needs level_set (the initial "
                                  "liquid, where it is negative)")
             scheme.prepare(self.state, level_set)
         elif level_set is not None:
             raise ValueError("level_set needs coupling = FreeSurfaceScheme(...)")
-        self._next: CoupledState | None = None
-        self.last_report: StepReport | None = None
+
+    def _set_up_3d(self, grid: Grid3D, fluid_solver: FluidSolver | FluidSolver3D,
+                   state: FluidState | FluidState3D | None,
+                   bodies: Sequence[BodyModel | ElasticBody3D],
+                   obstacles: Sequence[Obstacle | Obstacle3D],
+                   substeps: int | Literal["auto"], force_model: str, force_relaxation: float,
+                   added_mass: float, coupling: object, boundary: object,
+                   level_set: np.ndarray | None) -> None:
+        """The 3D model and scheme; what 3D does not have yet is refused in one line."""
+        if not isinstance(fluid_solver, FluidSolver3D):
+            raise ValueError(f"fluid_solver = {type(fluid_solver).__name__}: a 3D grid needs "
+                             "an elastoflow.fluid.FluidSolver3D")
+        if state is not None and not isinstance(state, FluidState3D):
+            raise ValueError("state: a 3D run takes an elastoflow.fluid.FluidState3D")
+        for index, body in enumerate(bodies):
+            if not isinstance(body, ElasticBody3D):
+                raise ValueError(f"bodies[{index}] = {type(body).__name__}: a 3D run takes "
+                                 "elastoflow.solid.ElasticBody3D")
+        for index, obstacle in enumerate(obstacles):
+            if not isinstance(obstacle, Obstacle3D):
+                raise ValueError(f"obstacles[{index}] = {type(obstacle).__name__}: a 3D run "
+                                 "takes elastoflow.coupling.Obstacle3D")
+        refused = {
+            "force_model": (force_model, "traction"),
+            "added_mass": (added_mass, 0.0),
+            "boundary": (boundary, "cut_cell"),
+            "level_set": (level_set, None),
+        }
+        for name, (value, allowed) in refused.items():
+            if value is not allowed and value != allowed:
+                raise ValueError(f"{name} = {value!r}: a 3D run has only {allowed!r} so far")
+        if isinstance(coupling, ExplicitCoupling3D):
+            scheme = coupling
+        elif coupling == "explicit":
+            scheme = ExplicitCoupling3D(substeps, force_relaxation)
+        else:
+            raise ValueError(f"coupling = {coupling!r}: a 3D run has only the explicit scheme "
+                             "so far ('explicit' or an ExplicitCoupling3D)")
+        model = CoupledModel3D(grid, fluid_solver,
+                               tuple(b for b in bodies if isinstance(b, ElasticBody3D)),
+                               tuple(o for o in obstacles if isinstance(o, Obstacle3D)))
+        self.model = model
+        self.scheme = scheme
+        self.state = model.state(state)
+
+    @property
+    def dimension(self) -> int:
+        """2 or 3."""
+        return 3 if isinstance(self.model, CoupledModel3D) else 2
 
     # -- the model's parts, by their usual names ---------------------------------------------
 
     @property
-    def grid(self) -> Grid2D:
+    def grid(self) -> Grid2D | Grid3D:
         return self.model.grid
 
     @property
-    def fluid_solver(self) -> FluidSolver:
+    def fluid_solver(self) -> FluidSolver | FluidSolver3D:
         return self.model.fluid
 
     @property
-    def bodies(self) -> tuple[BodyModel, ...]:
+    def bodies(self) -> tuple[BodyModel | ElasticBody3D, ...]:
         return self.model.bodies
 
     @property
-    def obstacles(self) -> tuple[Obstacle, ...]:
+    def obstacles(self) -> tuple[Obstacle | Obstacle3D, ...]:
         return self.model.obstacles
 
     @property
@@ -167,19 +258,20 @@ class Simulation:
         return self.state.body_forces
 
     @property
-    def boundary_map(self) -> BoundaryMap | None:
+    def boundary_map(self) -> BoundaryMap | BoundaryMap3D | None:
         """The boundary map of the last step (None before the first)."""
         return None if self.state.boundary is None else self.state.boundary.boundary_map
 
     @property
-    def interior(self) -> InteriorBoundary | None:
+    def interior(self) -> InteriorBoundary | InteriorBoundary3D | None:
         """The grid's classification of the last step (None before the first)."""
         return None if self.state.boundary is None else self.state.boundary.interior
 
     def body_geometry(self) -> list[tuple[np.ndarray, np.ndarray]]:
         """Each body's current node positions and its triangles, what drawing and mesh export
-        need."""
-        return [(state.positions, body.mesh.triangles)
+        need: in 2D the mesh's triangles, in 3D its outward surface triangles."""
+        return [(state.positions, body.boundary_triangles if isinstance(body, ElasticBody3D)
+                 else body.mesh.triangles)
                 for body, state in zip(self.bodies, self.state.bodies)]
 
     def traction_forces(self) -> list[np.ndarray]:
@@ -192,20 +284,28 @@ class Simulation:
         Returns:
             Nodal forces [N per metre of depth], one array per object, bodies first (shape
             (n_nodes, 2), zero on interior nodes) then obstacles (shape (vertices, 2)); all
-            zero before the first step.
+            zero before the first step. In 3D forces [N], shape (n, 3), on the surface
+            triangles (`elastoflow.coupling.force_traction_3d`).
         """
-        from elastoflow.coupling import force_traction
+        from elastoflow.coupling import force_traction, force_traction_3d
 
         offsets = self.model.object_offsets()
         boundary = self.state.boundary
+        fluid, state = self.fluid_solver, self.state.fluid
         if boundary is None:
-            nodal = np.zeros((int(offsets[-1]), 2))
+            nodal = np.zeros((int(offsets[-1]), self.dimension))
+        elif isinstance(self.model, CoupledModel3D):
+            nodal = force_traction_3d(
+                self.model.grid, boundary.boundary_map, state.velocity_x, state.velocity_y,
+                state.velocity_z, state.pressure, fluid.density, fluid.viscosity,
+                boundary.interior, gravity=self.model.fluid.gravity,
+            )
         else:
-            fluid, state = self.fluid_solver, self.state.fluid
+            assert isinstance(self.model, CoupledModel)
             nodal = force_traction(
-                self.grid, boundary.boundary_map, state.velocity_x, state.velocity_y,
+                self.model.grid, boundary.boundary_map, state.velocity_x, state.velocity_y,
                 state.pressure, fluid.density, fluid.viscosity, boundary.interior,
-                gravity=fluid.gravity,
+                gravity=self.model.fluid.gravity,
             )
         return [nodal[offsets[k]:offsets[k + 1]] for k in range(len(offsets) - 1)]
 
@@ -221,7 +321,12 @@ class Simulation:
             self._next = self.state.copy()
         previous = self.state.boundary
         try:
-            report = self.scheme.step(self.model, self.state, self._next, self.dt)
+            if isinstance(self.scheme, ExplicitCoupling3D):
+                assert isinstance(self.model, CoupledModel3D)
+                report = self.scheme.step(self.model, self.state, self._next, self.dt)
+            else:
+                assert isinstance(self.model, CoupledModel)
+                report = self.scheme.step(self.model, self.state, self._next, self.dt)
         except SimulationBlowUp as error:
             self._blame_the_fluid(error)
             raise

@@ -17,14 +17,28 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Generic, TypeVar
 
 import numpy as np
 
-from elastoflow.coupling import BoundaryCutCell, BoundaryMap, BoundaryTreatment, Obstacle
-from elastoflow.fluid import FluidSolver, FluidState, InteriorBoundary
-from elastoflow.grid import Grid2D
-from elastoflow.solid import BodyModel, BodyState
+from elastoflow.coupling import (
+    BoundaryCutCell,
+    BoundaryMap,
+    BoundaryMap3D,
+    BoundaryTreatment,
+    Obstacle,
+    Obstacle3D,
+)
+from elastoflow.fluid import (
+    FluidSolver,
+    FluidSolver3D,
+    FluidState,
+    FluidState3D,
+    InteriorBoundary,
+    InteriorBoundary3D,
+)
+from elastoflow.grid import Grid2D, Grid3D
+from elastoflow.solid import BodyModel, BodyState, ElasticBody3D
 
 NOT_SAVED = {"checkpoint": False}
 """Field metadata of derived data a checkpoint leaves out (rebuilt by the next step)."""
@@ -43,15 +57,29 @@ class StepBoundary:
 
 
 @dataclass(eq=False)
-class CoupledState:
-    """Everything a coupled run changes.
+class StepBoundary3D:
+    """`StepBoundary` in 3D: the surface map and the grid's classification of a step."""
+
+    boundary_map: BoundaryMap3D
+    interior: InteriorBoundary3D
+
+
+FluidT = TypeVar("FluidT", FluidState, FluidState3D)
+BoundaryT = TypeVar("BoundaryT", StepBoundary, StepBoundary3D)
+
+
+@dataclass(eq=False)
+class CoupledState(Generic[FluidT, BoundaryT]):
+    """Everything a coupled run changes, in 2D (``CoupledState[FluidState, StepBoundary]``)
+    or 3D (``CoupledState[FluidState3D, StepBoundary3D]``).
 
     Attributes:
         fluid: Velocity, pressure and dye fields.
         bodies: Positions and velocities of each body, in the model's order.
         time: Simulated time [s].
         step_index: Steps taken (0 before the first).
-        body_forces: The fluid force each body received in the last step [N/m], (n, 2).
+        body_forces: The fluid force each body received in the last step [N/m], (n, 2)
+            (3D: [N], (n, 3)).
         previous_velocities: Each body's velocities at the start of the last step (the
             explicit scheme's added-mass estimate differentiates them).
         level_set: A free-surface run's level set [m] (nx, ny), liquid where negative
@@ -61,7 +89,7 @@ class CoupledState:
             after a restore); not saved.
     """
 
-    fluid: FluidState
+    fluid: FluidT
     bodies: list[BodyState]
     time: float = 0.0
     step_index: int = 0
@@ -69,9 +97,9 @@ class CoupledState:
     previous_velocities: list[np.ndarray] = field(default_factory=list)
     level_set: np.ndarray | None = field(default=None, metadata=OPTIONAL)
     liquid_area: float | None = field(default=None, metadata=OPTIONAL)
-    boundary: StepBoundary | None = field(default=None, metadata=NOT_SAVED)
+    boundary: BoundaryT | None = field(default=None, metadata=NOT_SAVED)
 
-    def copy(self) -> CoupledState:
+    def copy(self) -> CoupledState[FluidT, BoundaryT]:
         """An independent copy (the boundary geometry is shared, it is never changed)."""
         return CoupledState(
             fluid=self.fluid.copy(),
@@ -85,7 +113,7 @@ class CoupledState:
             boundary=self.boundary,
         )
 
-    def assign(self, other: CoupledState) -> None:
+    def assign(self, other: CoupledState[FluidT, BoundaryT]) -> None:
         """Copy ``other``'s saved values into this state's arrays; the derived boundary
         geometry stays (a scheme replaces it, and reuses its arrays)."""
         self.fluid.assign(other.fluid)
@@ -252,7 +280,8 @@ class CoupledModel:
     def has_boundaries(self) -> bool:
         return bool(self.bodies or self.obstacles)
 
-    def state(self, fluid: FluidState | None = None) -> CoupledState:
+    def state(self, fluid: FluidState | None = None
+              ) -> CoupledState[FluidState, StepBoundary]:
         """A new initial state: ``fluid`` (default at rest) and each body's initial state."""
         if fluid is None:
             fluid = FluidState.zeros(self.grid)
@@ -298,4 +327,71 @@ class CoupledModel:
             np.ascontiguousarray(np.concatenate(velocities), dtype=np.float64),
             np.ascontiguousarray(np.concatenate(edges), dtype=np.int64),
             np.concatenate(edge_body),
+        )
+
+
+@dataclass(frozen=True, eq=False)
+class CoupledModel3D:
+    """`CoupledModel` in 3D: everything static in a coupled 3D run.
+
+    Attributes:
+        grid: The 3D MAC grid.
+        fluid: The 3D fluid solver.
+        bodies: The elastic bodies' models (tetrahedral meshes).
+        obstacles: Static or prescribed-motion obstacles (closed surfaces).
+    """
+
+    grid: Grid3D
+    fluid: FluidSolver3D
+    bodies: tuple[ElasticBody3D, ...] = ()
+    obstacles: tuple[Obstacle3D, ...] = ()
+
+    @property
+    def has_boundaries(self) -> bool:
+        return bool(self.bodies or self.obstacles)
+
+    def state(self, fluid: FluidState3D | None = None
+              ) -> CoupledState[FluidState3D, StepBoundary3D]:
+        """A new initial state: ``fluid`` (default at rest) and each body's initial state."""
+        if fluid is None:
+            fluid = FluidState3D.zeros(self.grid)
+        else:
+            fluid.check(self.grid)
+        bodies = [body.state() for body in self.bodies]
+        return CoupledState(
+            fluid=fluid,
+            bodies=bodies,
+            body_forces=[np.zeros_like(b.positions) for b in bodies],
+            previous_velocities=[b.velocities.copy() for b in bodies],
+        )
+
+    def object_offsets(self) -> np.ndarray:
+        """Start of each body's nodes, then each obstacle's vertices, in the concatenated
+        boundary points (`boundary_points`); one more entry for the end."""
+        counts = [body.point_count for body in self.bodies]
+        counts += [obstacle.point_count for obstacle in self.obstacles]
+        return np.cumsum([0, *counts]).astype(np.int64)
+
+    def boundary_points(self, state: CoupledState[FluidState3D, StepBoundary3D]
+                        ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """All surface points, their velocities, the outward surface triangles and each
+        triangle's object index, at ``state``: bodies first (all their nodes, so nodal forces
+        slice by `object_offsets`), then obstacles at ``state.time``."""
+        points, velocities, triangles, owner = [], [], [], []
+        offsets = self.object_offsets()
+        for index, (body, body_state) in enumerate(zip(self.bodies, state.bodies)):
+            points.append(body_state.positions)
+            velocities.append(body_state.velocities)
+            triangles.append(body.boundary_triangles + offsets[index])
+            owner.append(np.full(len(body.boundary_triangles), index, dtype=np.int64))
+        for index, obstacle in enumerate(self.obstacles, start=len(self.bodies)):
+            points.append(obstacle.points_at(state.time))
+            velocities.append(obstacle.velocities_at(state.time))
+            triangles.append(obstacle.triangles + offsets[index])
+            owner.append(np.full(len(obstacle.triangles), index, dtype=np.int64))
+        return (
+            np.ascontiguousarray(np.concatenate(points), dtype=np.float64),
+            np.ascontiguousarray(np.concatenate(velocities), dtype=np.float64),
+            np.ascontiguousarray(np.concatenate(triangles), dtype=np.int64),
+            np.concatenate(owner),
         )

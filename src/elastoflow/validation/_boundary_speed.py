@@ -35,6 +35,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from elastoflow.validation._turek_hron import model_2d
 from elastoflow.validation._boundary_study import (
     _LABEL,
     TREATMENTS,
@@ -275,19 +276,19 @@ def _brute_force_of(simulation: Simulation) -> tuple[float, int]:
         classify_points_brute_force,
     )
 
-    model = simulation.model
+    model = model_2d(simulation)
     points, velocities, edges, edge_body = model.boundary_points(simulation.state)
     offsets = model.object_offsets()
     triangles = np.concatenate([body.mesh.triangles + offsets[k]
-                                for k, body in enumerate(simulation.bodies)])
+                                for k, body in enumerate(model.bodies)])
     triangle_body = np.concatenate([np.full(body.mesh.triangle_count, k, dtype=np.int64)
-                                    for k, body in enumerate(simulation.bodies)])
+                                    for k, body in enumerate(model.bodies)])
     start = _time.perf_counter()
-    brute = classify_points_brute_force(simulation.grid, points, velocities, edges, edge_body,
+    brute = classify_points_brute_force(model.grid, points, velocities, edges, edge_body,
                                         triangles=triangles, triangle_body=triangle_body)
     seconds = _time.perf_counter() - start
-    bmap = build_boundary_map(simulation.grid, points, velocities, edges, edge_body)
-    return seconds, classification_disagreements(classify_points(simulation.grid, bmap), brute)
+    bmap = build_boundary_map(model.grid, points, velocities, edges, edge_body)
+    return seconds, classification_disagreements(classify_points(model.grid, bmap), brute)
 
 
 def scene_step(name: str, treatment: str, *, warmup: int = STEP_WARMUP,
@@ -315,7 +316,7 @@ def scene_step(name: str, treatment: str, *, warmup: int = STEP_WARMUP,
         if elapsed < best_step:
             best_step, best_boundary = elapsed, boundary / steps
     brute_seconds, disagreements = _brute_force_of(simulation)
-    triangles = sum(body.mesh.triangle_count for body in simulation.bodies)
+    triangles = sum(body.mesh.triangle_count for body in model_2d(simulation).bodies)
     grid = simulation.grid
     return SceneStep(name, treatment, (grid.nx, grid.ny), int(triangles), best_step,
                      best_boundary, brute_seconds, disagreements)

@@ -29,6 +29,7 @@ from elastoflow.validation._turek_hron import (
     Setup,
     check_boundary,
     evaluate,
+    model_2d,
 )
 
 if TYPE_CHECKING:
@@ -116,7 +117,7 @@ def run_flap(resolution: int = 20, *, duration: float | None = None, dt: float |
     setup = flap_setup(resolution, duration=duration, dt=dt, scheme=scheme, boundary=boundary)
     simulation, tip, rest = flap_simulation(setup)
     grid = simulation.grid
-    mesh_triangles = simulation.bodies[0].mesh.triangle_count
+    mesh_triangles = model_2d(simulation).bodies[0].mesh.triangle_count
     began = _time.perf_counter()
     steps = setup.steps
     times = np.zeros(steps + 1)
