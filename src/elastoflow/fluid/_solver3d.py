@@ -10,7 +10,6 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from elastoflow.fluid import _interior_kernels3d as body_kernels
 from elastoflow.fluid import _kernels3d as kernels
 from elastoflow.fluid._boundaries import Inflow, Outflow, WallNoSlip
 from elastoflow.fluid._boundaries3d import (
@@ -248,6 +247,17 @@ class FluidSolver3D:
             np.zeros(shapes[0]), np.zeros(shapes[1]), np.zeros(shapes[2]))
         self._bodies_operator: Operator7Point | None = None
         self._bodies_fractions: tuple[Array, ...] = ()
+        # Stand-ins for the body arrays when there are no bodies (never read then).
+        no_solid = np.zeros((1, 1, 1), dtype=np.bool_)
+        no_theta = np.full((6, 1, 1, 1), np.inf)
+        no_cut = np.zeros((6, 1, 1, 1))
+        no_values = np.zeros((1, 1, 1))
+        self._no_body = (no_solid, no_theta, no_cut)
+        self._no_own = (no_solid, no_theta, no_cut, no_values)
+        self._no_bodies = ((no_solid,) * 3, (no_theta,) * 3, (no_cut,) * 3,
+                           kernels.NO_BODIES_BOXES)
+        self._no_faces = (no_values,) * 3
+        self._no_operator = (no_values,) * 4
 
     def rest_state(self) -> FluidState3D:
         """Fluid at rest with the pressure [Pa] that balances gravity (hydrostatic in a
@@ -280,13 +290,19 @@ class FluidSolver3D:
         if interior is not None:
             return self._pressure_operator_bodies(interior)
         if self._pressure_operator is None:
-            nx, ny, nz = self.grid.shape_cells
-            diagonal = np.empty((nx, ny, nz))
-            weights = (np.empty((nx - 1, ny, nz)), np.empty((nx, ny - 1, nz)),
-                       np.empty((nx, ny, nz - 1)))
-            kernels.build_pressure_operator_3d(self._outflow, diagonal, *weights)
-            self._pressure_operator = Operator7Point(diagonal, *weights)
+            grid = self.grid
+            self._pressure_operator = self._assemble_pressure_operator(
+                (np.ones(grid.shape_faces_x), np.ones(grid.shape_faces_y),
+                 np.ones(grid.shape_faces_z)))
         return self._pressure_operator
+
+    def _assemble_pressure_operator(self, fractions: tuple[Array, Array, Array]
+                                    ) -> Operator7Point:
+        nx, ny, nz = self.grid.shape_cells
+        operator = (np.empty((nx, ny, nz)), np.empty((nx - 1, ny, nz)),
+                    np.empty((nx, ny - 1, nz)), np.empty((nx, ny, nz - 1)))
+        kernels.build_pressure_operator_3d(fractions, self._outflow, operator)
+        return Operator7Point(*operator)
 
     def _pressure_operator_bodies(self, interior: InteriorBoundary3D) -> Operator7Point:
         fractions = (interior.open_fraction_x, interior.open_fraction_y,
@@ -295,20 +311,14 @@ class FluidSolver3D:
                 np.array_equal(new, old)
                 for new, old in zip(fractions, self._bodies_fractions, strict=True)):
             return self._bodies_operator
-        nx, ny, nz = self.grid.shape_cells
-        diagonal = np.empty((nx, ny, nz))
-        weights = (np.empty((nx - 1, ny, nz)), np.empty((nx, ny - 1, nz)),
-                   np.empty((nx, ny, nz - 1)))
-        body_kernels.build_pressure_operator_bodies_3d(*fractions, self._outflow, diagonal,
-                                                       *weights)
-        self._bodies_operator = Operator7Point(diagonal, *weights)
+        self._bodies_operator = self._assemble_pressure_operator(fractions)
         self._bodies_fractions = tuple(fraction.copy() for fraction in fractions)
         return self._bodies_operator
 
     def _solid_face_velocities(self, interior: InteriorBoundary3D) -> tuple[Array, Array, Array]:
         """Body velocity u_s on the faces that are not fully open (buffers, overwritten)."""
         for axis, out in enumerate(self._solid_velocity):
-            body_kernels.face_solid_velocity_3d(
+            kernels.face_solid_velocity_3d(
                 interior.solid_faces(axis), interior.velocity_faces(axis),
                 interior.open_fraction(axis), interior.cut_theta(axis),
                 interior.cut_velocity(axis), axis, out)
@@ -319,13 +329,18 @@ class FluidSolver3D:
                            interior: InteriorBoundary3D | None) -> None:
         """``u -= dt / rho grad p``; with bodies closed faces take u_s (in the buffers)."""
         scale = dt / (self.density * self.grid.h)
+        has_interior, fractions, solid_velocity = self._face_arrays(interior)
+        kernels.subtract_pressure_gradient_3d(state.velocity(), pressure, scale, self._outflow,
+                                              has_interior, fractions, solid_velocity)
+
+    def _face_arrays(self, interior: InteriorBoundary3D | None
+                     ) -> tuple[bool, tuple[Array, Array, Array], tuple[Array, Array, Array]]:
+        """``(has_interior, open fractions, u_s)`` for the pressure kernels (stand-ins without
+        bodies; u_s: the buffers `_solid_face_velocities` fills)."""
         if interior is None:
-            kernels.subtract_pressure_gradient_3d(*state.velocity(), pressure, scale,
-                                                  self._outflow)
-            return
-        body_kernels.subtract_pressure_gradient_bodies_3d(
-            *state.velocity(), pressure, scale, self._outflow, interior.open_fraction_x,
-            interior.open_fraction_y, interior.open_fraction_z, *self._solid_velocity)
+            return False, self._no_faces, self._no_faces
+        return (True, (interior.open_fraction_x, interior.open_fraction_y,
+                       interior.open_fraction_z), self._solid_velocity)
 
     def _fixed_ends(self, axis: int) -> tuple[bool, bool]:
         """Whether the boundary faces of component ``axis`` are held (not outflow)."""
@@ -340,29 +355,27 @@ class FluidSolver3D:
         no-slip ghosts (METHOD.md §6)."""
         c = self.viscosity * dt / self.grid.h**2
         fixed_low, fixed_high = self._fixed_ends(axis)
+        sides = (fixed_low, fixed_high, self._tangential_modes, self._velocity_values[axis])
         rhs = self._viscosity_rhs[axis]
-        if interior is not None:
-            m, n, l = field.shape
-            diagonal = np.empty((m, n, l))
-            weights = (np.empty((m - 1, n, l)), np.empty((m, n - 1, l)),
-                       np.empty((m, n, l - 1)))
-            body_kernels.build_viscosity_system_bodies_3d(
-                field, c, axis, fixed_low, fixed_high, self._tangential_modes,
-                self._velocity_values[axis], interior.solid_faces(axis),
-                interior.cut_theta(axis), interior.cut_velocity(axis), diagonal, *weights, rhs)
-            return Operator7Point(diagonal, *weights), rhs
-        operator = self._viscosity_operators.get((axis, dt))
-        if operator is not None:
-            kernels.viscosity_rhs_3d(field, c, axis, fixed_low, fixed_high,
-                                     self._tangential_modes, self._velocity_values[axis], rhs)
-            return operator, rhs
+        if interior is None:
+            has_interior, body = False, self._no_body
+            operator = self._viscosity_operators.get((axis, dt))
+            if operator is not None:
+                kernels.build_viscosity_system_3d(field, c, axis, sides, False, body, False,
+                                                  self._no_operator, rhs)
+                return operator, rhs
+        else:
+            has_interior = True
+            body = (interior.solid_faces(axis), interior.cut_theta(axis),
+                    interior.cut_velocity(axis))
         m, n, l = field.shape
-        diagonal = np.empty((m, n, l))
-        weights = (np.empty((m - 1, n, l)), np.empty((m, n - 1, l)), np.empty((m, n, l - 1)))
-        kernels.build_viscosity_system_3d(field, c, axis, fixed_low, fixed_high,
-                                          self._tangential_modes, self._velocity_values[axis],
-                                          diagonal, *weights, rhs)
-        operator = Operator7Point(diagonal, *weights)
+        arrays = (np.empty((m, n, l)), np.empty((m - 1, n, l)), np.empty((m, n - 1, l)),
+                  np.empty((m, n, l - 1)))
+        kernels.build_viscosity_system_3d(field, c, axis, sides, has_interior, body, True,
+                                          arrays, rhs)
+        operator = Operator7Point(*arrays)
+        if interior is not None:
+            return operator, rhs
         # One dt at a time in practice; a changing dt must not grow the cache without end.
         if len(self._viscosity_operators) >= 6:
             self._viscosity_operators.clear()
@@ -393,69 +406,52 @@ class FluidSolver3D:
         fields = (*state.velocity(), state.dye)
         for field, source in zip(fields, self._sources, strict=True):
             kernels.copy_into_3d(field, source)
-        if interior is not None:
-            self._advect_bodies(fields, dt, interior)
-            return
-        u, v, w = self._sources[:3]
+        velocity = self._sources[:3]
         h = self.grid.h
-        for index, (field, source) in enumerate(zip(fields, self._sources, strict=True)):
-            if index == _CELLS:
-                modes, values = self._dye_modes, self._dye_values
-            else:
-                modes = self._velocity_modes[index:index + 1]
-                values = self._velocity_values[index:index + 1]
-            ox, oy, oz = _OFFSETS[index]
-            common = (ox, oy, oz)
-            if self.advection == "semi_lagrangian":
-                kernels.advect_kernel_3d(u, v, w, source, field, *common, dt, h,
-                                         self._velocity_modes, self._velocity_values, modes,
-                                         values)
-                continue
-            forward, backward = self._forward[index], self._backward[index]
-            kernels.advect_kernel_3d(u, v, w, source, forward, *common, dt, h,
-                                     self._velocity_modes, self._velocity_values, modes, values)
-            kernels.advect_kernel_3d(u, v, w, forward, backward, *common, -dt, h,
-                                     self._velocity_modes, self._velocity_values, modes, values)
-            kernels.maccormack_kernel_3d(u, v, w, source, forward, backward, field, *common, dt,
-                                         h, self._velocity_modes, self._velocity_values, modes,
-                                         values)
-
-    def _advect_bodies(self, fields: tuple[Array, ...], dt: float,
-                       interior: InteriorBoundary3D) -> None:
-        u, v, w = self._sources[:3]
-        h = self.grid.h
-        body = (interior.solid_faces_x, interior.solid_faces_y, interior.solid_faces_z,
-                interior.cut_theta_x, interior.cut_theta_y, interior.cut_theta_z,
-                interior.cut_velocity_x, interior.cut_velocity_y, interior.cut_velocity_z)
-        # Where the solid points are: samples whose cell misses the box read no solid flag.
-        boxes = np.empty((4, 6), dtype=np.int64)
-        for index, solid in enumerate((interior.solid_faces_x, interior.solid_faces_y,
-                                       interior.solid_faces_z, interior.solid_cells)):
-            body_kernels.solid_box(solid, boxes[index])
+        if interior is None:
+            bodies = self._no_bodies
+        else:
+            # Where the solid points are: samples whose cell misses the box read no solid
+            # flag.
+            boxes = np.empty((4, 6), dtype=np.int64)
+            for index, solid in enumerate((interior.solid_faces_x, interior.solid_faces_y,
+                                           interior.solid_faces_z, interior.solid_cells)):
+                kernels.solid_box(solid, boxes[index])
+            bodies = ((interior.solid_faces_x, interior.solid_faces_y, interior.solid_faces_z),
+                      (interior.cut_theta_x, interior.cut_theta_y, interior.cut_theta_z),
+                      (interior.cut_velocity_x, interior.cut_velocity_y,
+                       interior.cut_velocity_z), boxes)
         for index, (field, source) in enumerate(zip(fields, self._sources, strict=True)):
             is_dye = index == _CELLS
             if is_dye:
                 modes, values = self._dye_modes, self._dye_values
-                own = (interior.solid_cells, interior.cut_theta_x, interior.cut_velocity_x,
-                       field)
             else:
                 modes = self._velocity_modes[index:index + 1]
                 values = self._velocity_values[index:index + 1]
+            if interior is None:
+                own = self._no_own
+            elif is_dye:
+                # Dye reads no cut distances: the velocity's stand in.
+                own = (interior.solid_cells, interior.cut_theta_x, interior.cut_velocity_x,
+                       field)
+            else:
                 own = (interior.solid_faces(index), interior.cut_theta(index),
                        interior.cut_velocity(index), interior.velocity_faces(index))
-            ox, oy, oz = _OFFSETS[index]
             ghosts = (self._velocity_modes, self._velocity_values, modes, values)
+            common = (_OFFSETS[index], dt, h, ghosts, interior is not None, bodies, own, index,
+                      is_dye)
             if self.advection == "semi_lagrangian":
-                body_kernels.advect_bodies_3d(u, v, w, source, field, source, source, ox, oy,
-                                              oz, dt, h, *ghosts, *body, *own, boxes, index, is_dye, False)
+                kernels.advect_3d(velocity, source, field, (source, source), *common,
+                                  kernels.PASS_TRACE)
                 continue
             forward, backward = self._forward[index], self._backward[index]
-            body_kernels.advect_bodies_3d(u, v, w, source, forward, source, source, ox, oy, oz,
-                                          dt, h, *ghosts, *body, *own, boxes, index, is_dye, False)
-            body_kernels.advect_bodies_3d(u, v, w, forward, backward, source, source, ox, oy,
-                                          oz, -dt, h, *ghosts, *body, *own, boxes, index, is_dye, False)
-            body_kernels.advect_bodies_3d(u, v, w, source, field, forward, backward, ox, oy,
-                                          oz, dt, h, *ghosts, *body, *own, boxes, index, is_dye, True)
+            kernels.advect_3d(velocity, source, forward, (source, source), *common,
+                              kernels.PASS_TRACE)
+            backwards = (_OFFSETS[index], -dt, *common[2:])
+            kernels.advect_3d(velocity, forward, backward, (source, source), *backwards,
+                              kernels.PASS_TRACE)
+            kernels.advect_3d(velocity, source, field, (forward, backward), *common,
+                              kernels.PASS_CORRECT)
 
     def diffuse(self, state: FluidState3D, dt: float,
                 interior: InteriorBoundary3D | None = None) -> int:
@@ -531,16 +527,10 @@ class FluidSolver3D:
         count as closed and take the body velocity u_s. Guarantee: ``div(A u + (1 - A)
         u_s)`` (`divergence` with ``interior``) vanishes to the solver's tolerance."""
         self._check(state, dt, interior)
-        h = self.grid.h
-        u, v, w = state.velocity()
-        if interior is None:
-            kernels.pressure_rhs_3d(u, v, w, self.density * h / dt, self._rhs_pressure)
-        else:
+        if interior is not None:
             self._solid_face_velocities(interior)
-            body_kernels.pressure_rhs_bodies_3d(
-                u, v, w, self.density * h / dt, interior.open_fraction_x,
-                interior.open_fraction_y, interior.open_fraction_z, *self._solid_velocity,
-                self._rhs_pressure)
+        kernels.pressure_rhs_3d(state.velocity(), self.density * self.grid.h / dt,
+                                *self._face_arrays(interior), self._rhs_pressure)
         operator = self.pressure_operator(interior)
         if self.incremental_pressure:
             increment = self._pressure_increment
@@ -589,12 +579,10 @@ class FluidSolver3D:
         through the rest: what `project` makes vanish."""
         state.check(self.grid)
         out = np.empty(self.grid.shape_cells)
-        if interior is None:
-            kernels.divergence_3d(*state.velocity(), 1.0 / self.grid.h, out)
-            return out
-        interior.check(self.grid)
-        self._solid_face_velocities(interior)
-        body_kernels.pressure_rhs_bodies_3d(
-            *state.velocity(), -1.0 / self.grid.h, interior.open_fraction_x,
-            interior.open_fraction_y, interior.open_fraction_z, *self._solid_velocity, out)
+        if interior is not None:
+            interior.check(self.grid)
+            self._solid_face_velocities(interior)
+        # The pressure equation's right-hand side with scale -1 / h is the divergence.
+        kernels.pressure_rhs_3d(state.velocity(), -1.0 / self.grid.h,
+                                *self._face_arrays(interior), out)
         return out

@@ -8,6 +8,7 @@ import pytest
 from elastoflow.fluid import _kernels3d as kernels
 from elastoflow.fluid._boundaries import Inflow, Outflow, WallFreeSlip, WallMoving, WallNoSlip
 from elastoflow.fluid._boundaries3d import DomainBoundaries3D, WallMoving3D
+from elastoflow.fluid._interior3d import InteriorBoundary3D
 from elastoflow.fluid._solver3d import FluidSolver3D
 from elastoflow.fluid._state3d import FluidState3D
 from elastoflow.grid import Grid3D
@@ -53,7 +54,8 @@ def test_divergence_of_gradient_is_the_seven_point_operator(
     solver = FluidSolver3D(GRID, density=1.0, viscosity=0.0, boundaries=boundaries)
     state = FluidState3D.zeros(GRID)
     p = np.random.default_rng(2).standard_normal(GRID.shape_cells)
-    kernels.subtract_pressure_gradient_3d(*state.velocity(), p, 1.0, solver._outflow)
+    kernels.subtract_pressure_gradient_3d(state.velocity(), p, 1.0, solver._outflow, False,
+                                          solver._no_faces, solver._no_faces)
     # u = -grad p (times h), so the flux sums are -h^2 div grad p = A p exactly.
     np.testing.assert_allclose(flux_sums(state), apply_operator_3d(solver.pressure_operator(), p),
                                atol=1e-12)
@@ -234,3 +236,21 @@ def test_dye_buoyancy_pushes_the_y_faces_between_dyed_cells_upwards() -> None:
     expected[4, 3:5, 2] = 0.1 * 2.0 * 0.5
     np.testing.assert_allclose(state.velocity_y, expected)
     assert not state.velocity_x.any() and not state.velocity_z.any()
+
+
+@pytest.mark.parametrize("advection", ["semi_lagrangian", "maccormack"])
+def test_an_empty_interior_steps_exactly_as_no_bodies(advection: str) -> None:
+    # One kernel per phase serves both: with bodies nowhere, the body path (open fractions 1,
+    # no solid point, no cut) must give the plain path's numbers.
+    steps = []
+    for interior in (None, InteriorBoundary3D.empty(GRID)):
+        solver = FluidSolver3D(GRID, density=1.0, viscosity=0.05, boundaries=OPEN_BOX,
+                               gravity=(0.0, -1.0, 0.5), buoyancy=0.3, advection=advection)
+        state = random_state(GRID, seed=7)
+        state.dye[...] = np.random.default_rng(8).random(GRID.shape_cells)
+        for index in range(3):
+            solver.step(state, 0.02, 0.02 * index, interior)
+        steps.append((*state.velocity(), state.dye, state.pressure,
+                      solver.divergence(state, interior)))
+    for plain, empty in zip(*steps, strict=True):
+        np.testing.assert_array_equal(plain, empty)
