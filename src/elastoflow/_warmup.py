@@ -39,9 +39,11 @@ def warm_up(
 
     from elastoflow._api import frame
     from elastoflow.render._kernels import rgb_to_yuv420
-    from elastoflow.scenes import build_simulation, get_scene, list_scenes
+    from elastoflow.scenes import Scene3D, build_simulation, get_scene, list_scenes
 
-    names = list(list_scenes()) if scenes is None else scenes
+    # The 3D scenes' kernels are those of the 3D parts below, compiled on small grids.
+    names = ([name for name in list_scenes() if not isinstance(get_scene(name), Scene3D)]
+             if scenes is None else scenes)
     start = time.perf_counter()
     for name in names:
         began = time.perf_counter()

@@ -572,14 +572,19 @@ def validate(
     except SceneError as error:
         _fail(str(error).splitlines())
     simulation = _build(chosen, steps)
-    nx, ny = chosen.domain.cells
-    elements = sum(body.mesh.triangle_count for body in simulation.bodies)
-    # Rods have segments, not triangles: count them apart so a rod scene is not "0 elements".
-    segments = sum(body.point_count - 1 for body in simulation.bodies
-                   if body.mesh.triangle_count == 0)
+    cells = "x".join(str(count) for count in chosen.domain.cells)
+    if simulation.dimension == 3:
+        elements = sum(body.mesh.tetrahedron_count for body in simulation.bodies)
+        segments = 0
+    else:
+        elements = sum(body.mesh.triangle_count for body in simulation.bodies)
+        # Rods have segments, not triangles: count them apart so a rod scene is not "0
+        # elements".
+        segments = sum(body.point_count - 1 for body in simulation.bodies
+                       if body.mesh.triangle_count == 0)
     parts = f"{elements} elements" + (f", {segments} rod segments" if segments else "")
     memory = memory_estimate(chosen)[0] / 2**20
-    typer.echo(f"ok: {chosen.name}: {nx}x{ny} cells, {len(chosen.bodies)} bodies "
+    typer.echo(f"ok: {chosen.name}: {cells} cells, {len(chosen.bodies)} bodies "
                f"({parts}), {len(chosen.obstacles)} obstacles, dt = {dt:.4g} s, "
                f"{steps} steps, about {memory:.0f} MB of memory")
 

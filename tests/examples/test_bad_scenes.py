@@ -164,6 +164,33 @@ MUTATIONS: list[tuple[str, Any, str | None]] = [
     ("name", 3, None),
 ]
 
+# The 3D scenes' own mutations (points of three, boxes of six); the 2D ones whose value is
+# not a 2D point or box apply to them too.
+MUTATIONS_3D: list[tuple[str, Any, str | None]] = [
+    ("domain.lz", -1.0, None), ("domain.lz", 0.3333, "lz must be a whole number"),
+    ("fluid.gravity", [0.0, math.nan, 0.0], "fluid.gravity.1"),
+    ("fluid.gravity", [0.0, 1.0], None), ("fluid.gravity", [0.0, "x", 0.0], "fluid.gravity.1"),
+    ("fluid.initial_velocity", [1.0, 0.0], None),
+    ("boundaries.front", "wall", "boundaries.front.type"),
+    ("boundaries.back", {"type": "moving", "velocity": [0.0, 0.0, 1.0]},
+     "boundaries.back.velocity"),
+    ("bodies.0.shape.divisions", [0, 2, 2], "bodies.0.shape.divisions.0"),
+    ("bodies.0.shape.box", [0.6, 0.4, 0.4, 0.5, 0.8, 0.8], "bodies.0.shape.box"),
+    ("bodies.0.shape.box", [0.9, 0.4, 0.4, 1.3, 0.8, 0.8], "bodies.0.shape"),
+    ("bodies.0.fixed", {"box": [0.0, 0.0, 0.0, 0.01, 0.01, 0.01]}, "bodies.0.fixed.box"),
+    ("obstacles.0.center", [50.0, 0.2, 0.0], "obstacles.0"),
+    ("obstacles.0.shape", "circle", None),
+    ("jets.0.region", [0.5, 0.1, 0.5, 0.4, 0.2, 0.6], "jets.0.region"),
+    ("jets.0.velocity", [math.inf, 0.0, 0.0], "jets.0.velocity.0"),
+    ("outputs.video.axis", "w", None), ("outputs.video.at", 100.0, None),
+    ("coupling.scheme", "monolithic", None),
+]
+
+
+def _two_d_only(value: Any) -> bool:
+    """Whether a mutation's value has the shape of a 2D point or box."""
+    return isinstance(value, list) and len(value) in (1, 2, 3, 4)
+
 # Keys that no scene has: each must be reported as an unknown key.
 UNKNOWN_KEYS = ["domain.colour", "fluid.viscosty", "boundaries.front", "time.dtt", "extra",
                 "outputs.videos", "coupling.alpha_"]
@@ -173,7 +200,10 @@ def mutated_cases() -> list[Case]:
     cases = []
     for name in list_scenes():
         original = built_in(name)
-        for path, value, key in MUTATIONS:
+        three_d = "lz" in original["domain"]
+        mutations = ([m for m in MUTATIONS if not _two_d_only(m[1])] + MUTATIONS_3D
+                     if three_d else MUTATIONS)
+        for path, value, key in mutations:
             data = copy.deepcopy(original)
             if _set(data, path, value, create=False):
                 cases.append(Case(f"{name}:{path}={_value(value)}", to_toml(data),

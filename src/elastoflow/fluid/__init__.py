@@ -31,6 +31,7 @@ from elastoflow.fluid._free_surface import (
 from elastoflow.fluid._boundaries3d import (
     DomainBoundaries3D,
     Jet3D,
+    Side3D,
     WallMoving3D,
     inflow_profile_3d,
 )
@@ -75,6 +76,7 @@ __all__ = [
     "Inflow",
     "InteriorBoundary",
     "InteriorBoundary3D",
+    "Side3D",
     "Jet",
     "Jet3D",
     "LevelSetTransport",

@@ -3,7 +3,10 @@ that turns a scene into a ready `Simulation`.
 
 A scene file is TOML with one table per model (``[domain]``, ``[fluid]``, ``[boundaries]``,
 ``[[jets]]``, ``[[obstacles]]``, ``[[bodies]]``, ``[time]``, ``[coupling]``, ``[outputs]``).
-``elastoflow dump NAME`` writes any built-in scene as a starting file.
+``elastoflow dump NAME`` writes any built-in scene as a starting file. A ``[domain]`` with
+``lz`` makes a 3D scene (`Scene3D`: points ``[x, y, z]``, boxes ``[x0, y0, z0, x1, y1, z1]``,
+the sides ``back`` and ``front``, tetrahedral bodies and closed-surface obstacles), built into
+a 3D `Simulation` by the same `build_simulation`.
 """
 
 from elastoflow.scenes._build import (
@@ -44,31 +47,63 @@ from elastoflow.scenes._schema import (
     TimeSpec,
     VideoSpec,
 )
-from elastoflow.scenes._toml import load_scene, parse_scene, scene_to_toml
+from elastoflow.scenes._schema3d import (
+    Body3DSpec,
+    Boundaries3DSpec,
+    Coupling3DSpec,
+    Domain3DSpec,
+    Fields3DSpec,
+    Fixed3DSpec,
+    Fluid3DSpec,
+    Jet3DSpec,
+    Material3DSpec,
+    Meshes3DSpec,
+    Outputs3DSpec,
+    Probe3DSpec,
+    RigidMotion3DSpec,
+    Scene3D,
+    Video3DSpec,
+)
+from elastoflow.scenes._toml import is_3d, load_scene, parse_scene, scene_to_toml
 
 __all__ = [
+    "Body3DSpec",
     "BodySpec",
+    "Boundaries3DSpec",
     "BoundariesSpec",
     "CheckpointSpec",
+    "Coupling3DSpec",
     "CouplingSpec",
+    "Domain3DSpec",
     "DomainSpec",
+    "Fields3DSpec",
     "FieldsSpec",
+    "Fixed3DSpec",
     "FixedSpec",
+    "Fluid3DSpec",
     "FluidSpec",
     "InitialVelocitySpec",
+    "Jet3DSpec",
     "JetSpec",
+    "Material3DSpec",
     "MaterialSpec",
+    "Meshes3DSpec",
     "MeshesSpec",
+    "Outputs3DSpec",
     "OutputsSpec",
+    "Probe3DSpec",
     "ProbeSpec",
+    "RigidMotion3DSpec",
     "RigidMotionSpec",
     "RodBodySpec",
     "RodMaterialSpec",
     "RodShapeSpec",
     "Scene",
+    "Scene3D",
     "SceneError",
     "SceneWarning",
     "TimeSpec",
+    "Video3DSpec",
     "VideoSpec",
     "available_memory",
     "build_fluid_solver",
@@ -77,6 +112,7 @@ __all__ = [
     "characteristic_speed",
     "get_scene",
     "initial_velocity",
+    "is_3d",
     "list_scenes",
     "load_scene",
     "memory_estimate",

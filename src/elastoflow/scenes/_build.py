@@ -26,13 +26,14 @@ from elastoflow.scenes._schema import (
     Scene,
     WindmillShapeSpec,
 )
+from elastoflow.scenes._schema3d import Scene3D
 
 if TYPE_CHECKING:
     from elastoflow.grid import Grid2D
     from elastoflow.simulation import MonolithicCoupling, Simulation
 
 
-def characteristic_speed(scene: Scene) -> float:
+def characteristic_speed(scene: Scene | Scene3D) -> float:
     """Largest speed the scene imposes [m/s]: inflows, moving walls, jets, obstacle motion,
     the initial velocity.
 
@@ -40,6 +41,10 @@ def characteristic_speed(scene: Scene) -> float:
         SceneError: An initial velocity expression to evaluate on a grid larger than the
             memory allows, or that is not finite (see `initial_velocity`).
     """
+    if isinstance(scene, Scene3D):
+        from elastoflow.scenes._checks3d import characteristic_speed_3d
+
+        return characteristic_speed_3d(scene)
     speeds = [0.0]
     if scene.fluid.initial_velocity is not None:
         speeds.append(_initial_speed(scene))
@@ -85,7 +90,7 @@ def _free_fall_speed(scene: Scene) -> float:
     return math.sqrt(2.0 * g * max(_liquid_top(scene) - scene.domain.bounds[1], 0.0))
 
 
-def time_step(scene: Scene) -> float:
+def time_step(scene: Scene | Scene3D) -> float:
     """The fluid step [s]: ``time.dt``, or ``cfl * h / characteristic_speed``."""
     if scene.time.dt is not None:
         return scene.time.dt
@@ -107,7 +112,7 @@ MAX_STEPS = 10**12
 """Most fluid steps of one run (a million years at a million steps per second)."""
 
 
-def step_count(scene: Scene) -> int:
+def step_count(scene: Scene | Scene3D) -> int:
     """Number of fluid steps of the whole run: ``time.steps`` or ``ceil(duration / dt)``.
 
     Raises:
@@ -533,7 +538,7 @@ def _nodes_on_obstacle(scene: Scene, index: int, mesh: Any) -> np.ndarray:
     return chosen
 
 
-def build_simulation(scene: Scene, *, steps: int | None = None,
+def build_simulation(scene: Scene | Scene3D, *, steps: int | None = None,
                      warnings: list[str] | None = None) -> Simulation:
     """The ready-to-step `Simulation` of ``scene`` (fluid at rest, bodies at their rest shape).
 
@@ -558,6 +563,10 @@ def build_simulation(scene: Scene, *, steps: int | None = None,
     from elastoflow.scenes._checks import check_built, check_memory
     from elastoflow.simulation import Simulation
 
+    if isinstance(scene, Scene3D):
+        from elastoflow.scenes._build3d import build_simulation_3d
+
+        return build_simulation_3d(scene, steps=steps, warnings=warnings)
     problems = check_memory(scene)
     if scene.fluid.incremental_pressure and scene.bodies and scene.coupling.scheme == "monolithic":
         problems.append(
@@ -634,7 +643,7 @@ class SceneWarning(UserWarning):
     """A scene that runs but may give poor results (a body only a few cells across)."""
 
 
-def resolve_scene(name_or_path: str) -> Scene:
+def resolve_scene(name_or_path: str) -> Scene | Scene3D:
     """A built-in scene by name, or a scene file by path (anything ending in .toml or that
     exists on disk)."""
     from elastoflow.scenes._library import get_scene

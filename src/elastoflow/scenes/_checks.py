@@ -23,6 +23,7 @@ from typing import Any
 import numpy as np
 
 from elastoflow.scenes import _geometry as geometry
+from elastoflow.scenes._schema3d import Scene3D
 from elastoflow.scenes._schema import (
     CircleObstacleSpec,
     InflowSpec,
@@ -313,9 +314,15 @@ def _mesh_elements(shape: Any) -> float:
     return 1.5 * area / element_area if element_area > 0.0 else math.inf
 
 
-def memory_estimate(scene: Scene) -> tuple[float, list[tuple[str, float]]]:
+def memory_estimate(scene: Scene | Scene3D) -> tuple[float, list[tuple[str, float]]]:
     """Memory a run of ``scene`` needs [bytes], and each part's share: ``(key path as
-    written, bytes)`` for the grid, each body's mesh and each obstacle's outline."""
+    written, bytes)`` for the grid, each body's mesh and each obstacle's outline (3D: the
+    grid and the bodies together)."""
+    if isinstance(scene, Scene3D):
+        from elastoflow.scenes._build3d import memory_estimate_3d
+
+        total = memory_estimate_3d(scene)
+        return total, [("domain", total)]
     nx, ny = scene.domain.cells
     grid_key = (f"domain.nx = {scene.domain.nx}" if scene.domain.nx is not None
                 else f"domain.h = {scene.domain.h:g}")

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextvars
 import math
 import re
 import types
@@ -37,9 +38,14 @@ def _unwrap(annotation: Any) -> list[Any]:
     return [annotation]
 
 
+# The scene model an error is read against (Scene, or Scene3D while a 3D scene's errors are
+# formatted).
+_ROOT: contextvars.ContextVar[type[BaseModel]] = contextvars.ContextVar("root", default=Scene)
+
+
 def _types_at(loc: tuple[Any, ...]) -> list[Any]:
     """The candidate types at ``loc`` (a pydantic error location), following union tags."""
-    current: list[Any] = [Scene]
+    current: list[Any] = [_ROOT.get()]
     for key in loc:
         if isinstance(key, int):
             continue
@@ -83,7 +89,11 @@ def _is_key(loc: tuple[Any, ...], position: int) -> bool:
         return True
     models = [t for t in _types_at(loc[:position])
               if isinstance(t, type) and issubclass(t, BaseModel)]
-    return bool(models) and not any(_tag(m) == key for m in models)
+    if not any(_tag(m) == key for m in models):
+        return bool(models)
+    # A field named as its own model's tag (a 3D box shape's ``box``) follows the tag, when
+    # the union is already resolved to that one model.
+    return len(models) == 1 and key in models[0].model_fields
 
 
 def _path(loc: tuple[Any, ...]) -> str:
@@ -152,13 +162,23 @@ def _allowed(item: Any, member: str | None) -> str:
     return phrase
 
 
-def format_validation_error(error: ValidationError) -> list[str]:
+def format_validation_error(error: ValidationError,
+                            root: type[BaseModel] = Scene) -> list[str]:
     """One line per problem: ``key.path = value: what is allowed``.
 
     One key makes one line: the alternatives of a union (``substeps``: an integer or "auto"),
     the missing items of a too short array, and the items of an array that all fail the same
-    way are each folded into one.
+    way are each folded into one. ``root``: the scene model validated (`Scene` or
+    `Scene3D`).
     """
+    token = _ROOT.set(root)
+    try:
+        return _format(error)
+    finally:
+        _ROOT.reset(token)
+
+
+def _format(error: ValidationError) -> list[str]:
     # Each problem as (path, value text, what is allowed); a value text of None: no value.
     problems: list[tuple[str, str | None, str]] = []
     union: dict[str, tuple[Any, list[str]]] = {}

@@ -12,16 +12,38 @@ from pydantic import ValidationError
 
 from elastoflow.scenes._errors import SceneError, check_scene, format_validation_error
 from elastoflow.scenes._schema import Scene
+from elastoflow.scenes._schema3d import Scene3D
+
+
+def is_3d(data: dict[str, Any]) -> bool:
+    """Whether a scene's data describes a 3D scene: its ``[domain]`` has ``lz``."""
+    domain = data.get("domain")
+    return isinstance(domain, dict) and "lz" in domain
 
 
 def parse_scene(
     data: dict[str, Any], *, base_dir: str | Path | None = None, source: str | None = None
-) -> Scene:
-    """Validate a scene given as nested dicts (the shape of the TOML file).
+) -> Scene | Scene3D:
+    """Validate a scene given as nested dicts (the shape of the TOML file): a `Scene3D` when
+    its domain has ``lz``, else a `Scene`.
 
     Raises:
         SceneError: With one line per problem (key path, value, what is allowed).
     """
+    if is_3d(data):
+        from elastoflow.scenes._checks3d import check_scene_3d
+
+        try:
+            scene_3d = Scene3D.model_validate(data)
+        except ValidationError as error:
+            raise SceneError(format_validation_error(error, Scene3D), source) from None
+        problems = check_scene_3d(scene_3d)
+        if problems:
+            raise SceneError(problems, source)
+        if base_dir is not None:
+            scene_3d.base_dir = str(base_dir)
+        scene_3d.source = source
+        return scene_3d
     try:
         scene = Scene.model_validate(data)
     except ValidationError as error:
@@ -35,7 +57,7 @@ def parse_scene(
     return scene
 
 
-def load_scene(path: str | Path) -> Scene:
+def load_scene(path: str | Path) -> Scene | Scene3D:
     """Read and validate a scene TOML file; relative mesh paths are taken from its folder.
 
     Raises:
@@ -64,7 +86,7 @@ def load_scene(path: str | Path) -> Scene:
     return parse_scene(data, base_dir=path.resolve().parent, source=str(path))
 
 
-def scene_to_toml(scene: Scene) -> str:
+def scene_to_toml(scene: Scene | Scene3D) -> str:
     """The scene as TOML text that ``load_scene`` reads back to an equal scene."""
     data = scene.model_dump(mode="json", exclude_none=True)
     data["boundaries"] = {

@@ -254,7 +254,7 @@ class SceneStep:
 def _scene_with(name: str, **changes: Any) -> Scene:
     """The built-in scene ``name`` with the dotted keys of ``changes`` replaced
     (``coupling__boundary="staircase"``; ``bodies__0__material__density=...``)."""
-    from elastoflow.scenes import get_scene, parse_scene
+    from elastoflow.scenes import Scene, get_scene, parse_scene
 
     data = get_scene(name).model_dump(exclude_none=True)
     for dotted, value in changes.items():
@@ -264,7 +264,9 @@ def _scene_with(name: str, **changes: Any) -> Scene:
             target = target[int(key)] if isinstance(target, list) else target[key]
         target[keys[-1]] = value
     data.pop("source", None)
-    return parse_scene(data, source=f"built-in scene {name!r}, modified")
+    scene = parse_scene(data, source=f"built-in scene {name!r}, modified")
+    assert isinstance(scene, Scene)
+    return scene
 
 
 def _brute_force_of(simulation: Simulation) -> tuple[float, int]:
