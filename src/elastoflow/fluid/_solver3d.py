@@ -28,7 +28,6 @@ Array = NDArray[np.float64]
 _ADVECTION_SCHEMES = ("semi_lagrangian", "maccormack")
 # Where the point [i, j, k] of each field sits, in cells: u, v, w, then cell fields.
 _OFFSETS = ((0.0, 0.5, 0.5), (0.5, 0.0, 0.5), (0.5, 0.5, 0.0), (0.5, 0.5, 0.5))
-_CELLS = 3
 
 
 @dataclass(frozen=True)
@@ -422,7 +421,7 @@ class FluidSolver3D:
                       (interior.cut_velocity_x, interior.cut_velocity_y,
                        interior.cut_velocity_z), boxes)
         for index, (field, source) in enumerate(zip(fields, self._sources, strict=True)):
-            is_dye = index == _CELLS
+            is_dye = index == kernels.FIELD_CELLS
             if is_dye:
                 modes, values = self._dye_modes, self._dye_values
             else:
@@ -438,8 +437,7 @@ class FluidSolver3D:
                 own = (interior.solid_faces(index), interior.cut_theta(index),
                        interior.cut_velocity(index), interior.velocity_faces(index))
             ghosts = (self._velocity_modes, self._velocity_values, modes, values)
-            common = (_OFFSETS[index], dt, h, ghosts, interior is not None, bodies, own, index,
-                      is_dye)
+            common = (index, dt, h, ghosts, interior is not None, bodies, own)
             if self.advection == "semi_lagrangian":
                 kernels.advect_3d(velocity, source, field, (source, source), *common,
                                   kernels.PASS_TRACE)
@@ -447,7 +445,7 @@ class FluidSolver3D:
             forward, backward = self._forward[index], self._backward[index]
             kernels.advect_3d(velocity, source, forward, (source, source), *common,
                               kernels.PASS_TRACE)
-            backwards = (_OFFSETS[index], -dt, *common[2:])
+            backwards = (index, -dt, *common[2:])
             kernels.advect_3d(velocity, forward, backward, (source, source), *backwards,
                               kernels.PASS_TRACE)
             kernels.advect_3d(velocity, source, field, (forward, backward), *common,
