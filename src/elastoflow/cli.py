@@ -91,7 +91,7 @@ def _output_folder(out: Path, option: str) -> None:
               "a writable folder")
 
 
-def _parse_formats(text: str | None) -> list[str] | None:
+def _parse_formats(text: str | None, three_d: bool = False) -> list[str] | None:
     from elastoflow.io import FIELD_FORMATS
 
     if text is None:
@@ -99,10 +99,11 @@ def _parse_formats(text: str | None) -> list[str] | None:
     formats = [f.strip() for f in text.split(",") if f.strip()]
     if formats in (["none"], ["off"]):
         return []
-    bad = [f for f in formats if f not in FIELD_FORMATS]
+    allowed = ("vti",) if three_d else FIELD_FORMATS
+    bad = [f for f in formats if f not in allowed]
     if bad:
-        _fail(f"--fields = {text!r}: formats must be among {', '.join(FIELD_FORMATS)} "
-              "(comma separated) or 'none'")
+        kind = "a 3D scene's formats are" if three_d else "formats must be among"
+        _fail(f"--fields = {text!r}: {kind} {', '.join(allowed)} (comma separated) or 'none'")
     return formats
 
 
@@ -204,9 +205,11 @@ def run(
     view: Annotated[str | None, typer.Option(help="Video view: speed, vorticity, pressure, "
                                              "dye.")] = None,
     fields: Annotated[str | None, typer.Option(help="Field formats to save, comma separated: "
-                                               "npz,vtk,xdmf; 'none' for none.")] = None,
+                                               "npz,vtk,xdmf (3D: vti); 'none' for none.")
+                      ] = None,
     meshes: Annotated[bool | None, typer.Option("--meshes/--no-meshes", help="Extruded body "
-                                                "meshes (OBJ) per frame.")] = None,
+                                                "meshes (3D: surfaces; OBJ) per frame.")
+                      ] = None,
     probes: Annotated[bool | None, typer.Option("--probes/--no-probes", help="Probe time "
                                                 "series (CSV + PNG).")] = None,
     every: Annotated[int | None, typer.Option(help="Save video frames, fields and meshes every "
@@ -253,7 +256,9 @@ def run(
     chosen = _scene(scene)
     if view is not None and view not in VIEWS:
         _fail(f"--view = {view!r}: must be one of {', '.join(VIEWS)}")
-    given: dict[str, Any] = {"video": video, "view": view, "fields": _parse_formats(fields), "meshes": meshes,
+    three_d = getattr(chosen, "dimension", 2) == 3
+    given: dict[str, Any] = {"video": video, "view": view,
+                             "fields": _parse_formats(fields, three_d), "meshes": meshes,
              "probes": probes, "every": every, "checkpoint_every": checkpoint_every}
     given = {key: value for key, value in given.items() if value is not None}
     # A name from a scene file never leads out of out/ ("../../x" becomes "_x").

@@ -60,12 +60,15 @@ class Obstacle3D:
             (c - a)`` points out of the solid).
         motion: None (fixed) or a `RigidMotion3D`.
         pivot: Rotation centre at t = 0 [m], shape (3,); the mean of the vertices when None.
+        solid: The tetrahedral mesh the surface bounds, when it came from one (drawing
+            sections of it, `solid_at`); None for a bare surface.
     """
 
     points: np.ndarray
     triangles: np.ndarray
     motion: RigidMotion3D | None = None
     pivot: np.ndarray | tuple[float, float, float] | None = None
+    solid: TetrahedralMesh | None = None
 
     def __post_init__(self) -> None:
         points = np.array(self.points, dtype=np.float64)
@@ -106,7 +109,8 @@ class Obstacle3D:
                   ) -> Obstacle3D:
         """The boundary surface of a tetrahedral mesh (unused interior nodes dropped)."""
         used, triangles = np.unique(mesh.boundary_triangles, return_inverse=True)
-        return cls(mesh.points[used], triangles.reshape(-1, 3), motion=motion)
+        return cls(mesh.points[used], triangles.reshape(-1, 3), motion=motion,
+                   pivot=mesh.points[used].mean(axis=0), solid=mesh)
 
     @property
     def point_count(self) -> int:
@@ -120,14 +124,22 @@ class Obstacle3D:
         return float(np.einsum("ti,ti->t", corners[:, 0],
                                np.cross(corners[:, 1], corners[:, 2])).sum()) / 6.0
 
-    def points_at(self, time: float) -> np.ndarray:
-        """Vertex positions [m] at ``time`` [s], shape (k, 3)."""
+    def _moved(self, points: np.ndarray, time: float) -> np.ndarray:
         if self.motion is None:
-            return np.array(self.points)
+            return np.array(points)
         pivot = np.asarray(self.pivot)
         rotation = _rotation(np.asarray(self.motion.angular_velocity) * time)
-        return (pivot + np.asarray(self.motion.velocity) * time
-                + (self.points - pivot) @ rotation.T)
+        return pivot + np.asarray(self.motion.velocity) * time + (points - pivot) @ rotation.T
+
+    def points_at(self, time: float) -> np.ndarray:
+        """Vertex positions [m] at ``time`` [s], shape (k, 3)."""
+        return self._moved(self.points, time)
+
+    def solid_at(self, time: float) -> tuple[np.ndarray, np.ndarray] | None:
+        """The solid's nodes [m] at ``time`` and its tetrahedra, or None without a solid."""
+        if self.solid is None:
+            return None
+        return self._moved(self.solid.points, time), self.solid.tetrahedra
 
     def velocities_at(self, time: float) -> np.ndarray:
         """Vertex velocities [m/s] at ``time`` [s], shape (k, 3)."""
@@ -168,6 +180,6 @@ def obstacle_cylinder(center: tuple[float, float, float], radius: float, length:
     # A cyclic permutation of the coordinates turns the z axis into ``axis`` and keeps the
     # orientation of the triangles.
     order = {2: (0, 1, 2), 0: (2, 0, 1), 1: (1, 2, 0)}[axis]
-    used, triangles = np.unique(mesh.boundary_triangles, return_inverse=True)
-    points = mesh.points[used][:, order] + np.asarray(center, dtype=np.float64)
-    return Obstacle3D(points, triangles.reshape(-1, 3), motion=motion)
+    solid = TetrahedralMesh(mesh.points[:, order] + np.asarray(center, dtype=np.float64),
+                            mesh.tetrahedra)
+    return Obstacle3D.from_mesh(solid, motion)

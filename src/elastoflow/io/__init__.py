@@ -34,11 +34,13 @@ from elastoflow.io._image_data import (
     write_image_data,
 )
 from elastoflow.io._fields import FIELD_FORMATS, FieldWriter, saved_frames, snapshot_arrays
+from elastoflow.io._fields3d import FieldWriter3D
 from elastoflow.io._meshes import (
     boundary_edges_of,
     extrude_polyline,
     extrude_surface,
     write_extruded_meshes,
+    write_surface_meshes,
     write_obj,
     write_ply,
     write_tetrahedral_mesh,
@@ -55,6 +57,7 @@ __all__ = [
     "FIELD_FORMATS",
     "CheckpointError",
     "FieldWriter",
+    "FieldWriter3D",
     "ImageData",
     "ImageDataSeries",
     "OutputFolderBusy",
@@ -85,6 +88,7 @@ __all__ = [
     "snapshot_arrays",
     "write_bytes_atomic",
     "write_extruded_meshes",
+    "write_surface_meshes",
     "write_image_data",
     "write_obj",
     "write_tetrahedral_mesh",

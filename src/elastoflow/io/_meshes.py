@@ -124,15 +124,32 @@ def write_extruded_meshes(folder: str | Path, frame: int, meshes: list[tuple[np.
     return paths
 
 
+def write_surface_meshes(folder: str | Path, frame: int,
+                         meshes: list[tuple[np.ndarray, np.ndarray]],
+                         file_format: str = "obj") -> list[Path]:
+    """One file per 3D body, ``folder/body{k}_{frame:06d}.{format}``: its surface triangles
+    (``(positions (n, 3), triangles (t, 3))`` pairs, unused nodes dropped); the paths."""
+    writer = MESH_WRITERS[file_format]
+    paths = []
+    for index, (points, triangles) in enumerate(meshes):
+        used, faces = np.unique(np.asarray(triangles), return_inverse=True)
+        path = Path(folder) / f"body{index}_{frame:06d}.{file_format}"
+        writer(path, np.asarray(points)[used], faces.reshape(-1, 3))
+        paths.append(path)
+    return paths
+
+
 def write_tetrahedral_mesh(path: str | Path, mesh: TetrahedralMesh,
-                           positions: np.ndarray | None = None) -> None:
-    """Write a tetrahedral body (at ``positions`` (n, 3) [m] when given) with meshio, the
-    format from the file suffix (.vtu for ParaView, .msh, ...), atomically (a temporary
-    file beside it, then a rename)."""
+                           positions: np.ndarray | None = None,
+                           point_data: dict[str, np.ndarray] | None = None) -> None:
+    """Write a tetrahedral body (at ``positions`` (n, 3) [m] when given, with ``point_data``
+    arrays of one row per node) with meshio, the format from the file suffix (.vtu for
+    ParaView, .msh, ...), atomically (a temporary file beside it, then a rename)."""
     import meshio
 
     points = mesh.points if positions is None else np.asarray(positions, dtype=np.float64)
     if points.shape != mesh.points.shape:
         raise ValueError(f"positions shape {points.shape}: must be {mesh.points.shape}")
     with atomic_path(path) as temporary:
-        meshio.write(str(temporary), meshio.Mesh(points, [("tetra", mesh.tetrahedra)]))
+        meshio.write(str(temporary), meshio.Mesh(points, [("tetra", mesh.tetrahedra)],
+                                                 point_data=point_data or {}))

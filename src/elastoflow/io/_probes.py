@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import contextlib
 import csv
+import itertools
 import json
 import errno
 import io
@@ -19,21 +20,31 @@ from elastoflow.io._atomic import atomic_path, write_text_atomic
 Sampler = Callable[[Any, Any], list[float]]
 
 
-def _node_displacement(body: int, node: int) -> tuple[list[str], Sampler]:
+def _axes(dimension: int) -> str:
+    return "xyz"[:dimension]
+
+
+def _force_unit(dimension: int) -> str:
+    """Forces of a 2D run are per metre of depth."""
+    return "N" if dimension == 3 else "N/m"
+
+
+def _node_displacement(body: int, node: int, dimension: int) -> tuple[list[str], Sampler]:
     def sample(sim: Any, report: Any) -> list[float]:
         d = sim.state.bodies[body].positions[node] - sim.bodies[body].mesh.points[node]
-        return [float(d[0]), float(d[1])]
+        return [float(value) for value in d]
 
     prefix = f"body{body}_node{node}_displacement"
-    return [f"{prefix}_x [m]", f"{prefix}_y [m]"], sample
+    return [f"{prefix}_{axis} [m]" for axis in _axes(dimension)], sample
 
 
-def _body_force(body: int) -> tuple[list[str], Sampler]:
+def _body_force(body: int, dimension: int) -> tuple[list[str], Sampler]:
     def sample(sim: Any, report: Any) -> list[float]:
         total = np.asarray(sim.body_forces[body]).sum(axis=0)
-        return [float(total[0]), float(total[1])]
+        return [float(value) for value in total]
 
-    return [f"body{body}_force_x [N/m]", f"body{body}_force_y [N/m]"], sample
+    unit = _force_unit(dimension)
+    return [f"body{body}_force_{axis} [{unit}]" for axis in _axes(dimension)], sample
 
 
 def _kinetic_energy(body: int | None) -> tuple[list[str], Sampler]:
@@ -88,16 +99,17 @@ def _traction_on(sim: Any, bodies: list[int], obstacles: list[int]
     return chosen
 
 
-def _force(spec: Any) -> tuple[list[str], Sampler]:
+def _force(spec: Any, dimension: int) -> tuple[list[str], Sampler]:
     bodies, obstacles, label = _targets(spec)
 
     def sample(sim: Any, report: Any) -> list[float]:
-        total = np.zeros(2)
+        total = np.zeros(dimension)
         for _, force in _traction_on(sim, bodies, obstacles):
             total += force.sum(axis=0)
-        return [float(total[0]), float(total[1])]
+        return [float(value) for value in total]
 
-    return [f"force_{label}_x [N/m]", f"force_{label}_y [N/m]"], sample
+    unit = _force_unit(dimension)
+    return [f"force_{label}_{axis} [{unit}]" for axis in _axes(dimension)], sample
 
 
 def _torque(spec: Any) -> tuple[list[str], Sampler]:
@@ -114,25 +126,32 @@ def _torque(spec: Any) -> tuple[list[str], Sampler]:
     return [f"torque_{label} [N]"], sample
 
 
-def _bilinear(values: np.ndarray, x0: float, y0: float, h: float, point: Any) -> float:
-    """``values`` sampled at ``(x0 + i h, y0 + j h)``, interpolated at ``point`` (clamped)."""
-    fx = min(max((point[0] - x0) / h, 0.0), values.shape[0] - 1.0)
-    fy = min(max((point[1] - y0) / h, 0.0), values.shape[1] - 1.0)
-    i, j = min(int(fx), values.shape[0] - 2), min(int(fy), values.shape[1] - 2)
-    i, j = max(i, 0), max(j, 0)
-    tx, ty = fx - i, fy - j
-    return float((1 - tx) * (1 - ty) * values[i, j] + tx * (1 - ty) * values[i + 1, j]
-                 + (1 - tx) * ty * values[i, j + 1] + tx * ty * values[i + 1, j + 1])
+def _interpolate(values: np.ndarray, corner: Sequence[float], h: float, point: Any) -> float:
+    """``values`` sampled at ``corner + index h`` (2D or 3D), interpolated (bi- or
+    trilinearly) at ``point``, clamped to the samples."""
+    lower, weights = [], []
+    for axis in range(values.ndim):
+        f = min(max((point[axis] - corner[axis]) / h, 0.0), values.shape[axis] - 1.0)
+        i = max(min(int(f), values.shape[axis] - 2), 0)
+        lower.append(i)
+        weights.append(f - i)
+    total = 0.0
+    for offsets in itertools.product((0, 1), repeat=values.ndim):
+        weight = 1.0
+        for offset, t in zip(offsets, weights, strict=True):
+            weight *= t if offset else 1.0 - t
+        total += weight * float(values[tuple(i + o for i, o in zip(lower, offsets, strict=True))])
+    return total
 
 
 def _pressure_at(sim: Any, point: Any) -> float:
     grid = sim.grid
-    ox, oy = grid.origin
-    return _bilinear(sim.state.fluid.pressure, ox + 0.5 * grid.h, oy + 0.5 * grid.h, grid.h, point)
+    corner = [float(c) + 0.5 * grid.h for c in grid.origin]
+    return _interpolate(sim.state.fluid.pressure, corner, grid.h, point)
 
 
 def _point_name(point: Any) -> str:
-    return f"({point[0]:g},{point[1]:g})"
+    return "(" + ",".join(f"{value:g}" for value in point) + ")"
 
 
 def _pressure(spec: Any) -> tuple[list[str], Sampler]:
@@ -153,19 +172,23 @@ def _pressure_difference(spec: Any) -> tuple[list[str], Sampler]:
     return [f"pressure_{_point_name(first)}-{_point_name(second)} [Pa]"], sample
 
 
-def _velocity(spec: Any) -> tuple[list[str], Sampler]:
+def _velocity(spec: Any, dimension: int) -> tuple[list[str], Sampler]:
     point = tuple(spec.point)
+    names = ("velocity_x", "velocity_y", "velocity_z")[:dimension]
 
     def sample(sim: Any, report: Any) -> list[float]:
         grid, state = sim.grid, sim.state.fluid
-        ox, oy = grid.origin
         h = grid.h
-        u = _bilinear(state.velocity_x, ox, oy + 0.5 * h, h, point)
-        v = _bilinear(state.velocity_y, ox + 0.5 * h, oy, h, point)
-        return [u, v]
+        values = []
+        for axis, name in enumerate(names):
+            # Each component sits on the faces normal to its axis: cell centres elsewhere.
+            corner = [float(c) + (0.0 if k == axis else 0.5 * h)
+                      for k, c in enumerate(grid.origin)]
+            values.append(_interpolate(getattr(state, name), corner, h, point))
+        return values
 
     name = _point_name(point)
-    return [f"velocity_{name}_x [m/s]", f"velocity_{name}_y [m/s]"], sample
+    return [f"velocity_{name}_{axis} [m/s]" for axis in _axes(dimension)], sample
 
 
 def _resolve_node(sim: Any, spec: Any) -> int:
@@ -196,14 +219,16 @@ class ProbeRecorder:
         self.path = Path(path)
         self.columns: list[str] = ["step", "time [s]"]
         self._samplers: list[Sampler] = []
+        dimension = int(getattr(simulation, "dimension", 2))
         makers: dict[str, Callable[[Any], tuple[list[str], Sampler]]] = {
-            "node_displacement": lambda s: _node_displacement(s.body, _resolve_node(simulation, s)),
-            "body_force": lambda s: _body_force(s.body),
-            "force": _force,
+            "node_displacement": lambda s: _node_displacement(
+                s.body, _resolve_node(simulation, s), dimension),
+            "body_force": lambda s: _body_force(s.body, dimension),
+            "force": lambda s: _force(s, dimension),
             "torque": _torque,
             "pressure": _pressure,
             "pressure_difference": _pressure_difference,
-            "velocity": _velocity,
+            "velocity": lambda s: _velocity(s, dimension),
             "kinetic_energy": lambda s: _kinetic_energy(s.body),
             "pressure_iterations": lambda s: _pressure_iterations(),
         }

@@ -17,7 +17,8 @@ from elastoflow.io._checkpoint import (
     save_checkpoint,
 )
 from elastoflow.io._fields import FieldWriter, snapshot_arrays
-from elastoflow.io._meshes import write_extruded_meshes
+from elastoflow.io._fields3d import FieldWriter3D
+from elastoflow.io._meshes import write_extruded_meshes, write_surface_meshes
 from elastoflow.io._probes import ProbeRecorder
 from elastoflow.io._surface import surface_polylines, write_surface_mesh
 
@@ -96,8 +97,13 @@ class OutputSession:
 
             self._video = SegmentedVideo(self.out_dir / "video.mp4", fps=self.outputs.video.fps,
                                          resume_step=resume_step)
-        self._fields = None
-        if self.outputs.fields is not None:
+        self.three_d = getattr(simulation, "dimension", 2) == 3
+        self._fields: FieldWriter | FieldWriter3D | None = None
+        if self.outputs.fields is not None and self.three_d:
+            self._fields = FieldWriter3D(self.out_dir / "fields", simulation.grid,
+                                         body_count=len(simulation.bodies),
+                                         resume_step=resume_step)
+        elif self.outputs.fields is not None:
             self._fields = FieldWriter(
                 self.out_dir / "fields", simulation.grid, self.outputs.fields.formats,
                 resume_step=resume_step,
@@ -129,7 +135,11 @@ class OutputSession:
     def _write_frame_outputs(self, report: Any, force: bool = False, video: bool = True) -> None:
         sim, out = self.simulation, self.outputs
         step = sim.step_index
-        if self._fields is not None and self._due("fields", out.fields, step, force):
+        if isinstance(self._fields, FieldWriter3D) and self._due("fields", out.fields, step,
+                                                                  force):
+            self._fields.write(sim)
+            self._written_at["fields"] = step
+        elif self._fields is not None and self._due("fields", out.fields, step, force):
             interior = getattr(sim, "interior", None)
             self._fields.write(snapshot_arrays(
                 sim.grid, sim.state.fluid, list(zip(sim.bodies, sim.state.bodies)),
@@ -142,8 +152,11 @@ class OutputSession:
         if (out.meshes is not None and (sim.bodies or level_set is not None)
                 and self._due("meshes", out.meshes, step, force)):
             folder = self.out_dir / "meshes"
-            write_extruded_meshes(folder, step, sim.body_geometry(), out.meshes.thickness,
-                                  out.meshes.format)
+            if self.three_d:
+                write_surface_meshes(folder, step, sim.body_geometry(), out.meshes.format)
+            else:
+                write_extruded_meshes(folder, step, sim.body_geometry(), out.meshes.thickness,
+                                      out.meshes.format)
             if level_set is not None:
                 write_surface_mesh(folder / f"surface_{step:06d}.{out.meshes.format}",
                                    surface_polylines(sim.grid, level_set),
@@ -169,6 +182,8 @@ class OutputSession:
         )
 
         sim = self.simulation
+        if self.three_d:
+            return self._frame_3d(view, out)
         values = view_values(sim.grid, sim.state.fluid, view)
         level_set = getattr(sim, "level_set", None)
         shown = values if level_set is None else liquid_values(values, level_set)
@@ -177,6 +192,31 @@ class OutputSession:
                             view, sim.time,
                             value_range=self._range.update(low, high), values=values, out=out,
                             level_set=level_set)
+
+    def _frame_3d(self, view: str, out: Any) -> Any:
+        """A 3D run's picture: the video's slice, bodies and obstacles cut by it."""
+        from elastoflow.render import default_value_range, render_slice_3d, slice_values
+
+        sim, video = self.simulation, self.outputs.video
+        axis = video.axis if video is not None else "z"
+        position = video.at if video is not None else None
+        grid = sim.grid
+        k = "xyz".index(axis)
+        low_edge = grid.origin[k]
+        if position is None:
+            position = low_edge + 0.5 * grid.shape_cells[k] * grid.h
+        index = min(int((position - low_edge) / grid.h), grid.shape_cells[k] - 1)
+        low, high = default_value_range(slice_values(grid, sim.state.fluid, k, index, view),
+                                        view)
+        solids = [(state.positions, body.mesh.tetrahedra)
+                  for body, state in zip(sim.bodies, sim.state.bodies)]
+        for obstacle in sim.obstacles:
+            solid = obstacle.solid_at(sim.time)
+            if solid is not None:
+                solids.append(solid)
+        return render_slice_3d(grid, sim.state.fluid, axis=axis, position=position, view=view,
+                               bodies=solids, time=sim.time,
+                               value_range=self._range.update(low, high), out=out)
 
     def after_step(self, simulation: Any, report: Any) -> None:
         """The per-step callback: writes whatever is due at this step."""
@@ -312,21 +352,32 @@ def apply_output_overrides(scene: Any, *, video: bool | None = None,
 
     None leaves a setting as the scene has it; ``fields=[]`` switches fields off.
     """
-    from elastoflow.scenes import CheckpointSpec, FieldsSpec, MeshesSpec, VideoSpec
+    from elastoflow.scenes import (
+        CheckpointSpec,
+        Fields3DSpec,
+        FieldsSpec,
+        Meshes3DSpec,
+        MeshesSpec,
+        Scene3D,
+        Video3DSpec,
+        VideoSpec,
+    )
 
+    three_d = isinstance(scene, Scene3D)
     outputs = scene.outputs.model_copy(deep=True)
     if video is False:
         outputs.video = None
     elif video or view is not None:
-        outputs.video = outputs.video or VideoSpec()
+        outputs.video = outputs.video or (Video3DSpec() if three_d else VideoSpec())
     if outputs.video is not None and view is not None:
-        outputs.video.view = view  # type: ignore[assignment]
+        outputs.video.view = view
     if fields is not None:
-        outputs.fields = FieldsSpec(formats=list(fields)) if fields else None  # type: ignore[arg-type]
+        fields_spec = Fields3DSpec if three_d else FieldsSpec
+        outputs.fields = fields_spec(formats=list(fields)) if fields else None  # type: ignore[arg-type]
     if meshes is False:
         outputs.meshes = None
     elif meshes:
-        outputs.meshes = outputs.meshes or MeshesSpec()
+        outputs.meshes = outputs.meshes or (Meshes3DSpec() if three_d else MeshesSpec())
     if probes is False:
         outputs.probes = []
     if checkpoint_every is not None:

@@ -18,7 +18,12 @@ from elastoflow.render._frame import (
     triangle_edges,
     view_values,
 )
-from elastoflow.render._slice3d import VIEWS_3D, render_slice_3d, tetrahedra_section
+from elastoflow.render._slice3d import (
+    VIEWS_3D,
+    render_slice_3d,
+    slice_values,
+    tetrahedra_section,
+)
 from elastoflow.render._video import SegmentedVideo, VideoWriter, join_videos
 
 __all__ = [
@@ -36,6 +41,7 @@ __all__ = [
     "liquid_values",
     "render_frame",
     "render_slice_3d",
+    "slice_values",
     "speed_at_cells",
     "tetrahedra_section",
     "triangle_edges",
