@@ -336,12 +336,17 @@ def _make_restrict(loop):
             for i in range(2 * ic, min(2 * ic + 2, m)):
                 for j in range(n):
                     jc = j >> 1
-                    for k in range(l):
-                        t = total[i, j, k]
-                        if t > 0.0:
-                            coupled = _coupled_sum(weights_x, weights_y, weights_z, x, i, j,
-                                                   k, m, n, l)
-                            coarse_b[ic, jc, k >> 1] += b[i, j, k] - t * x[i, j, k] + coupled
+                    # The two children along k summed first: one update of the coarse
+                    # value per pair, not a chain of two.
+                    for kc in range(lc):
+                        pair = 0.0
+                        for k in range(2 * kc, min(2 * kc + 2, l)):
+                            t = total[i, j, k]
+                            if t > 0.0:
+                                coupled = _coupled_sum(weights_x, weights_y, weights_z, x, i,
+                                                       j, k, m, n, l)
+                                pair += b[i, j, k] - t * x[i, j, k] + coupled
+                        coarse_b[ic, jc, kc] += pair
     return kernel
 
 
@@ -377,6 +382,52 @@ def prolong_add_kernel_3d(coarse_x, inverse, x):
     if x.size > PARALLEL_MINIMUM_3D:
         return _prolong_parallel(coarse_x, inverse, x)
     return _prolong_serial(coarse_x, inverse, x)
+
+
+def _make_prolong_all(loop):
+    def kernel(coarse_x, x):
+        m, n, l = x.shape
+        for i in loop(m):
+            for j in range(n):
+                for k in range(l):
+                    x[i, j, k] += coarse_x[i >> 1, j >> 1, k >> 1]
+    return kernel
+
+
+_prolong_all_serial, _prolong_all_parallel = serial_and_parallel(_make_prolong_all)
+
+
+@njit(cache=True)
+def prolong_add_all_kernel_3d(coarse_x, x):
+    """`prolong_add_kernel_3d` where every point is active (a uniform-weight level): the
+    inverse is not read."""
+    if x.size > PARALLEL_MINIMUM_3D:
+        return _prolong_all_parallel(coarse_x, x)
+    return _prolong_all_serial(coarse_x, x)
+
+
+def _make_smooth_from_zero(loop):
+    def kernel(x, b, inverse, colour):
+        m, n, l = x.shape
+        for i in loop(m):
+            for j in range(n):
+                first = (colour + i + j) & 1
+                for k in range(l):
+                    x[i, j, k] = b[i, j, k] * inverse[i, j, k] if (k & 1) == first else 0.0
+    return kernel
+
+
+_smooth_from_zero_serial, _smooth_from_zero_parallel = serial_and_parallel(
+    _make_smooth_from_zero)
+
+
+@njit(cache=True)
+def smooth_from_zero_kernel_3d(x, b, inverse, colour):
+    """``x = 0``, then the half sweep of ``colour`` (`smooth_kernel_3d`, either operator): with
+    every neighbour 0 it is ``x = b / D`` there; one pass instead of a fill and a sweep."""
+    if x.size > PARALLEL_MINIMUM_3D:
+        return _smooth_from_zero_parallel(x, b, inverse, colour)
+    return _smooth_from_zero_serial(x, b, inverse, colour)
 
 
 @njit(cache=True)
@@ -485,6 +536,36 @@ def residual_kernel_3d(diagonal, weights_x, weights_y, weights_z, x, b, r):
     return _residual_serial(diagonal, weights_x, weights_y, weights_z, x, b, r)
 
 
+def _make_residual_uniform(loop):
+    def kernel(total, weight, x, b, r):
+        m, n, l = x.shape
+        squared = 0.0
+        for i in loop(m):
+            plane = 0.0
+            for j in range(n):
+                for k in range(l):
+                    value = (b[i, j, k] - total[i, j, k] * x[i, j, k]
+                             + weight * _neighbour_values(x, i, j, k, m, n, l))
+                    r[i, j, k] = value
+                    plane += value * value
+            squared += plane
+        return squared
+    return kernel
+
+
+_residual_uniform_serial, _residual_uniform_parallel = serial_and_parallel(
+    _make_residual_uniform, fastmath=_REDUCTION_MATH)
+
+
+@njit(cache=True)
+def residual_uniform_kernel_3d(total, weight, x, b, r):
+    """`residual_kernel_3d` for an operator whose weights all equal ``weight``, with its
+    ``total = diagonal + sum of weights``: 2 operator arrays read instead of 4."""
+    if x.size > PARALLEL_MINIMUM_3D:
+        return _residual_uniform_parallel(total, weight, x, b, r)
+    return _residual_uniform_serial(total, weight, x, b, r)
+
+
 def _make_apply_dot(loop):
     def kernel(diagonal, weights_x, weights_y, weights_z, p, q):
         m, n, l = p.shape
@@ -543,6 +624,42 @@ def step_kernel_3d(x, r, p, q, alpha):
     return _step_serial(x, r, p, q, alpha)
 
 
+def _make_step_jacobi(loop):
+    def kernel(x, r, p, q, alpha, inverse, z):
+        m, n, l = x.shape
+        squared = 0.0
+        rz = 0.0
+        for i in loop(m):
+            plane = 0.0
+            plane_rz = 0.0
+            for j in range(n):
+                for k in range(l):
+                    x[i, j, k] += alpha * p[i, j, k]
+                    value = r[i, j, k] - alpha * q[i, j, k]
+                    r[i, j, k] = value
+                    preconditioned = value * inverse[i, j, k]
+                    z[i, j, k] = preconditioned
+                    plane += value * value
+                    plane_rz += preconditioned * value
+            squared += plane
+            rz += plane_rz
+        return squared, rz
+    return kernel
+
+
+_step_jacobi_serial, _step_jacobi_parallel = serial_and_parallel(_make_step_jacobi,
+                                                                 fastmath=_REDUCTION_MATH)
+
+
+@njit(cache=True)
+def step_jacobi_kernel_3d(x, r, p, q, alpha, inverse, z):
+    """`step_kernel_3d` and then `jacobi_kernel_3d` in one pass: ``x += alpha p``,
+    ``r -= alpha q``, ``z = r / D``; returns ``(|r|^2, r . z)``."""
+    if x.size > PARALLEL_MINIMUM_3D:
+        return _step_jacobi_parallel(x, r, p, q, alpha, inverse, z)
+    return _step_jacobi_serial(x, r, p, q, alpha, inverse, z)
+
+
 def _make_dot(loop):
     def kernel(a, b):
         m, n, l = a.shape
@@ -593,15 +710,21 @@ def _make_masked_copy(loop):
     def kernel(values, active, out):
         m, n, l = values.shape
         squared = 0.0
+        probe = 0.0
         for i in loop(m):
             plane = 0.0
+            plane_probe = 0.0
             for j in range(n):
                 for k in range(l):
-                    value = values[i, j, k] if active[i, j, k] else 0.0
+                    given = values[i, j, k]
+                    # 0 for a finite value, NaN for inf or NaN (active or not).
+                    plane_probe += given * 0.0
+                    value = given if active[i, j, k] else 0.0
                     out[i, j, k] = value
                     plane += value * value
             squared += plane
-        return squared
+            probe += plane_probe
+        return squared, probe
     return kernel
 
 
@@ -611,7 +734,9 @@ _masked_copy_serial, _masked_copy_parallel = serial_and_parallel(_make_masked_co
 
 @njit(cache=True)
 def masked_copy_kernel_3d(values, active, out):
-    """``out = values`` at active points, 0 elsewhere; returns ``|out|^2``."""
+    """``out = values`` at active points, 0 elsewhere (``out`` may be ``values``); returns
+    ``(|out|^2, probe)``, ``probe`` 0 when every value (active or not) is finite, NaN
+    otherwise: the finiteness check comes with the copy."""
     if values.size > PARALLEL_MINIMUM_3D:
         return _masked_copy_parallel(values, active, out)
     return _masked_copy_serial(values, active, out)
@@ -689,10 +814,12 @@ def _make_restrict_uniform(loop):
             for i in range(2 * ic, min(2 * ic + 2, m)):
                 for j in range(n):
                     jc = j >> 1
-                    for k in range(l):
-                        coarse_b[ic, jc, k >> 1] += (
-                            b[i, j, k] - total[i, j, k] * x[i, j, k]
-                            + weight * _neighbour_values(x, i, j, k, m, n, l))
+                    for kc in range(lc):
+                        pair = 0.0
+                        for k in range(2 * kc, min(2 * kc + 2, l)):
+                            pair += (b[i, j, k] - total[i, j, k] * x[i, j, k]
+                                     + weight * _neighbour_values(x, i, j, k, m, n, l))
+                        coarse_b[ic, jc, kc] += pair
     return kernel
 
 

@@ -14,7 +14,6 @@ import numpy as np
 from numpy.typing import NDArray
 
 from elastoflow.linalg._kernels import (
-    finite_minimum_kernel,
     remove_component_means_kernel,
     semidefinite_cholesky_kernel,
 )
@@ -34,12 +33,16 @@ from elastoflow.linalg._kernels3d import (
     label_components_kernel_3d,
     load_operator_kernel_3d,
     masked_copy_kernel_3d,
+    prolong_add_all_kernel_3d,
     prolong_add_kernel_3d,
     residual_kernel_3d,
+    residual_uniform_kernel_3d,
     restrict_residual_kernel_3d,
     restrict_residual_uniform_kernel_3d,
+    smooth_from_zero_kernel_3d,
     smooth_kernel_3d,
     smooth_uniform_kernel_3d,
+    step_jacobi_kernel_3d,
     step_kernel_3d,
     uniform_weight_kernel,
 )
@@ -60,11 +63,6 @@ _COARSEST_SIZE = 64
 # nu dt / h^2 = 0.0128 (the benchmark's channel): 3 iterations either way, and a Jacobi
 # iteration reads 3 arrays where symmetric Gauss-Seidel (two sweeps each way) read 8 x 6.
 _SMOOTHER_ONLY_DOMINANCE = 0.25
-
-
-def _finite(array: NDArray[np.float64]) -> bool:
-    """Whether every entry of an ``(m, n, l)`` array is finite."""
-    return array.size == 0 or finite_minimum_kernel(array.reshape(-1, array.shape[-1]))[0] == 0
 
 
 @dataclass
@@ -125,6 +123,21 @@ class _Level:
             smooth_kernel_3d(x, b, self.inverse, self.weights_x, self.weights_y,
                              self.weights_z, colour)
 
+    def prolong(self, coarse_x: NDArray[np.float64], x: NDArray[np.float64]) -> None:
+        """``x += P coarse_x`` at this level's active points (all of a uniform level)."""
+        if self.uniform != NOT_UNIFORM:
+            prolong_add_all_kernel_3d(coarse_x, x)
+        else:
+            prolong_add_kernel_3d(coarse_x, self.inverse, x)
+
+    def residual(self, x: NDArray[np.float64], b: NDArray[np.float64],
+                 r: NDArray[np.float64]) -> float:
+        """``r = b - A x``; returns ``|r|^2``."""
+        if self.uniform != NOT_UNIFORM:
+            return float(residual_uniform_kernel_3d(self.total, self.uniform, x, b, r))
+        return float(residual_kernel_3d(self.diagonal, self.weights_x, self.weights_y,
+                                        self.weights_z, x, b, r))
+
     def restrict(self, x: NDArray[np.float64], b: NDArray[np.float64],
                  coarse_b: NDArray[np.float64]) -> None:
         """``coarse_b`` = the residual of this level summed over each coarse point."""
@@ -148,14 +161,15 @@ class _Hierarchy3D:
     """Storage for one grid shape: the levels, the CG vectors, the coarsest factor."""
 
     def __init__(self, shape: Shape3, vectors: tuple[NDArray[np.float64], ...]) -> None:
-        """``vectors``: six flat arrays of ``prod(shape)`` values for the CG vectors, which
-        hierarchies of shapes with the same number of points share (`_vector_pool`)."""
+        """``vectors``: five flat arrays of ``prod(shape)`` values for the CG vectors, which
+        hierarchies of shapes with the same number of points share (`_vector_pool`); the
+        iterate is the caller's output array."""
         self.shape = shape
         self.shapes = _level_shapes(shape)
         # The fine level's operator arrays are the operator's own (set in `prepare`).
         self.levels = [_Level.zeros(s) for s in self.shapes]
         self.active = np.zeros(shape, dtype=np.bool_)
-        self.b, self.x, self.r, self.p, self.q, self.z = (v.reshape(shape) for v in vectors)
+        self.b, self.r, self.p, self.q, self.z = (v.reshape(shape) for v in vectors)
         coarse = int(np.prod(self.shapes[-1]))
         self.dense = np.zeros((coarse, coarse))
         self.factor = np.zeros((coarse, coarse))
@@ -236,8 +250,10 @@ class _Hierarchy3D:
             if index == count - 1:
                 dense_solve_kernel(self.factor, b, x)
                 break
-            fill_kernel_3d(x, 0.0)
-            for _ in range(sweeps):
+            # From x = 0, the first red half sweep is x = b / D (one pass, no fill).
+            smooth_from_zero_kernel_3d(x, b, level.inverse, RED)
+            level.smooth(x, b, BLACK)
+            for _ in range(sweeps - 1):
                 level.smooth(x, b, RED)
                 level.smooth(x, b, BLACK)
             if index < count - 1:
@@ -246,7 +262,7 @@ class _Hierarchy3D:
             level = levels[index]
             x = z if index == 0 else level.x
             b = r if index == 0 else level.b
-            prolong_add_kernel_3d(levels[index + 1].x, level.inverse, x)
+            level.prolong(levels[index + 1].x, x)
             for _ in range(sweeps):
                 level.smooth(x, b, BLACK)
                 level.smooth(x, b, RED)
@@ -289,7 +305,7 @@ class PoissonSolverMGPCG3D:
     )
     # The CG vectors by number of points: the three velocity components of a cubic grid's
     # viscosity solves ((n+1) n^2 points each) share one set, solved one after the other;
-    # 12 arrays fewer, ~100 MB per million cells.
+    # 10 arrays fewer, ~80 MB per million cells.
     _vector_pool: dict[int, tuple[NDArray[np.float64], ...]] = field(
         default_factory=dict, init=False, repr=False, compare=False
     )
@@ -310,7 +326,7 @@ class PoissonSolverMGPCG3D:
             size = shape[0] * shape[1] * shape[2]
             vectors = self._vector_pool.get(size)
             if vectors is None:
-                vectors = tuple(np.zeros(size) for _ in range(6))
+                vectors = tuple(np.zeros(size) for _ in range(5))
                 self._vector_pool[size] = vectors
             hierarchy = _Hierarchy3D(shape, vectors)
             self._hierarchies[shape] = hierarchy
@@ -341,52 +357,53 @@ class PoissonSolverMGPCG3D:
         rhs = np.ascontiguousarray(rhs, dtype=np.float64)
         if rhs.shape != shape:
             raise ValueError(f"rhs: shape {rhs.shape} is not allowed; expected {shape}")
-        if not _finite(rhs):
-            raise ValueError("rhs: values must be finite; got NaN or inf")
         if x0 is not None:
             x0 = np.ascontiguousarray(x0, dtype=np.float64)
             if x0.shape != shape:
                 raise ValueError(f"x0: shape {x0.shape} is not allowed; expected {shape}")
-            if not _finite(x0):
-                raise ValueError("x0: values must be finite; got NaN or inf")
         hierarchy = self._hierarchy(shape)
         null_space = hierarchy.prepare(operator)
-        squared_b = masked_copy_kernel_3d(rhs, null_space.active, hierarchy.b)
+        # The copies check finiteness (the probe): no pass of their own.
+        squared_b, probe = masked_copy_kernel_3d(rhs, null_space.active, hierarchy.b)
+        if not np.isfinite(probe):
+            raise ValueError("rhs: values must be finite; got NaN or inf")
         incompatible = 0.0
         if null_space.has_singular:
             removed = null_space.remove_means(hierarchy.b)
             incompatible = incompatibility(removed, float(np.sqrt(squared_b)))
             squared_b = dot_kernel_3d(hierarchy.b, hierarchy.b)
         norm_b = float(np.sqrt(squared_b))
-        # x0 may be `out`: read it into the solver's own x before anything is written.
-        if x0 is None:
-            fill_kernel_3d(hierarchy.x, 0.0)
-        else:
-            masked_copy_kernel_3d(x0, null_space.active, hierarchy.x)
+        # CG iterates on the output itself; x0 may be `out` (copied in place, masked).
         x = _output(out, shape)  # type: ignore[arg-type]
+        if x0 is None:
+            fill_kernel_3d(x, 0.0)
+        else:
+            _, probe = masked_copy_kernel_3d(x0, null_space.active, x)
+            if not np.isfinite(probe):
+                raise ValueError("x0: values must be finite; got NaN or inf")
         if norm_b == 0.0:
             x[...] = 0.0
             return x, SolveReport(0, 0.0, incompatible <= self.rtol, incompatible)
         threshold = (self.rtol * norm_b) ** 2
-        iterations, squared = self._pcg(hierarchy, operator, threshold)
-        x[...] = hierarchy.x
+        iterations, squared = self._pcg(hierarchy, x, threshold)
         null_space.remove_means(x)
         relative = float(np.sqrt(squared)) / norm_b
         return x, SolveReport(int(iterations), relative,
                               relative <= self.rtol and incompatible <= self.rtol, incompatible)
 
-    def _pcg(self, hierarchy: _Hierarchy3D, operator: Operator7Point,
+    def _pcg(self, hierarchy: _Hierarchy3D, x: NDArray[np.float64],
              threshold: float) -> tuple[int, float]:
-        """CG on ``hierarchy.x`` from its warm start; return ``(iterations, |b - A x|^2)``
-        with the true residual. Restarts from the true residual if the recursive one has
-        drifted below the tolerance before the true one did."""
-        a = (operator.diagonal, operator.weights_x, operator.weights_y, operator.weights_z)
-        x, b, r, p, q, z = (hierarchy.x, hierarchy.b, hierarchy.r, hierarchy.p, hierarchy.q,
-                            hierarchy.z)
+        """CG on ``x`` from its warm start; return ``(iterations, |b - A x|^2)`` with the true
+        residual. Restarts from the true residual if the recursive one has drifted below the
+        tolerance before the true one did."""
+        b, r, p, q, z = hierarchy.b, hierarchy.r, hierarchy.p, hierarchy.q, hierarchy.z
         fine = hierarchy.levels[0]
+        a = (fine.diagonal, fine.weights_x, fine.weights_y, fine.weights_z)
+        # Jacobi's z comes with the step (one pass, `step_jacobi_kernel_3d`).
+        jacobi = not hierarchy.coarse
         iterations = 0
         pq = 1.0
-        squared = residual_kernel_3d(*a, x, b, r)
+        squared = fine.residual(x, b, r)
         while squared > threshold and iterations < self.max_iterations:
             rz = hierarchy.precondition(r, z, self.smoothing_sweeps)
             p[...] = z
@@ -399,14 +416,19 @@ class PoissonSolverMGPCG3D:
                 if not (pq > 0.0):
                     break
                 alpha = rz / pq
-                recursive = step_kernel_3d(x, r, p, q, alpha)
+                if jacobi:
+                    recursive, rz_next = step_jacobi_kernel_3d(x, r, p, q, alpha, fine.inverse,
+                                                               z)
+                else:
+                    recursive = step_kernel_3d(x, r, p, q, alpha)
                 iterations += 1
                 if recursive <= threshold:
                     break
-                rz_next = hierarchy.precondition(r, z, self.smoothing_sweeps)
+                if not jacobi:
+                    rz_next = hierarchy.precondition(r, z, self.smoothing_sweeps)
                 direction_kernel_3d(z, p, rz_next / rz)
                 rz = rz_next
-            squared = residual_kernel_3d(*a, x, b, r)
+            squared = fine.residual(x, b, r)
             if not (pq > 0.0):
                 break
         return iterations, squared
