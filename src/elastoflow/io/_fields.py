@@ -2,7 +2,8 @@
 
 Every snapshot holds, at cell centres, velocity, pressure, dye, vorticity and the solid flag,
 plus each body's current mesh. ParaView opens ``fluid.pvd`` / ``body0.pvd`` (or
-``fluid.xdmf``, read with the XDMF3 reader) as a time series.
+``fluid.xdmf``, read with the XDMF3 reader) as a time series; a free surface's lines are
+``surface.pvd`` / ``surface.xdmf`` beside them.
 """
 
 from __future__ import annotations
@@ -39,7 +40,8 @@ def snapshot_arrays(grid: Any, state: Any, bodies: Sequence[tuple[Any, Any]] = (
     polyline in order (VTK: line cells). With a free surface also ``level_set`` (nx, ny) [m],
     liquid where negative (VTK and XDMF: a cell field of that name), and the surface as
     polylines, ``surface_points`` (k, 2) [m] with ``surface_offsets`` (n + 1,) (piece i is
-    ``surface_points[surface_offsets[i]:surface_offsets[i + 1]]``; npz only).
+    ``surface_points[surface_offsets[i]:surface_offsets[i + 1]]``; VTK and XDMF: the
+    polylines as line segments with a cell field ``piece``, `FieldWriter`).
 
     ``state`` is the fluid state, ``bodies`` a (model, `elastoflow.solid.BodyState`) pair
     per body.
@@ -99,10 +101,27 @@ def _cell_data(data: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
     return cells
 
 
+def surface_segments(data: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A snapshot's surface polylines as line segments: points (k, 3) [m] (z = 0), segments
+    (m, 2) (indices into the points, consecutive points of a piece) and each segment's piece
+    (m,); empty arrays when the snapshot has none."""
+    points = np.asarray(data["surface_points"], dtype=np.float64).reshape(-1, 2)
+    offsets = np.asarray(data["surface_offsets"], dtype=np.int64)
+    starts, pieces = [], []
+    for piece in range(len(offsets) - 1):
+        first = np.arange(offsets[piece], offsets[piece + 1] - 1, dtype=np.int64)
+        starts.append(first)
+        pieces.append(np.full(len(first), piece, dtype=np.int32))
+    first = np.concatenate(starts) if starts else np.zeros(0, dtype=np.int64)
+    return (np.column_stack((points, np.zeros(len(points)))),
+            np.column_stack((first, first + 1)).astype(np.int64),
+            np.concatenate(pieces) if pieces else np.zeros(0, dtype=np.int32))
+
+
 _XDMF_TAIL = "  </Grid>\n</Domain>\n</Xdmf>\n"
 _XDMF_ATTRIBUTES = (("velocity", "Vector", 3), ("pressure", "Scalar", 0), ("dye", "Scalar", 0),
                     ("vorticity", "Scalar", 0), ("solid", "Scalar", 0))
-_STEP_FILE = re.compile(r"^(?:step|fluid|body\d+)_(\d{6,})\.(?:npz|vtu|h5)$")
+_STEP_FILE = re.compile(r"^(?:step|fluid|surface|body\d+)_(\d{6,})\.(?:npz|vtu|h5)$")
 
 
 class FieldWriter:
@@ -110,8 +129,13 @@ class FieldWriter:
 
     Files: ``step_{step:06d}.npz``; ``fluid_{step:06d}.vtu``, ``body{k}_{step:06d}.vtu`` with the
     ``fluid.pvd`` / ``body{k}.pvd`` collections; ``fluid.xdmf`` naming ``fluid_mesh.h5`` (the
-    cells) and one ``fluid_{step:06d}.h5`` per snapshot (the fields). ``index.json`` lists the
-    saved steps and times. Each data file is written atomically; ``fluid.xdmf`` is a stream: a
+    cells) and one ``fluid_{step:06d}.h5`` per snapshot (the fields). With a free surface
+    (snapshots with ``surface_points``) also ``surface_{step:06d}.vtu`` (its polylines as line
+    cells, cell field ``piece``) with ``surface.pvd``, and ``surface.xdmf`` (a temporal
+    collection of polyline grids, one per snapshot, whose points and segments are in that
+    snapshot's ``fluid_{step:06d}.h5``, rewritten whole at each snapshot); a snapshot whose
+    level set has no zero contour is left out of both surface series (a grid of no points is
+    not readable by every reader). ``index.json`` lists the saved steps and times. Each data file is written atomically; ``fluid.xdmf`` is a stream: a
     snapshot is added with one write that puts its entry where the closing tags were and the
     closing tags after it, so the file is complete XML between any two writes, also after the
     process is killed. A resumed run (``resume_step``) drops the files of later steps and
@@ -141,6 +165,8 @@ class FieldWriter:
         self._points, self._quads = _cell_mesh(grid.nx, grid.ny, grid.h, grid.origin)
         self._index: list[tuple[int, float]] = []
         self._body_count = 0
+        # Snapshots with a surface: (step, time, points, segments).
+        self._surfaces: list[tuple[int, float, int, int]] = []
         index_path = self.folder / "index.json"
         if resume_step is not None:
             if index_path.exists():
@@ -149,8 +175,12 @@ class FieldWriter:
                     self._index = [(int(s), float(t)) for s, t in saved["frames"]
                                    if int(s) <= resume_step]
                     self._body_count = int(saved.get("body_count", 0))
+                    self._surfaces = [(int(s), float(t), int(k), int(m))
+                                      for s, t, k, m in saved.get("surfaces", [])
+                                      if int(s) <= resume_step]
                 except (ValueError, KeyError, TypeError):
                     self._index = []
+                    self._surfaces = []
             for path in self.folder.iterdir():
                 match = _STEP_FILE.match(path.name)
                 if match and int(match.group(1)) > resume_step:
@@ -224,6 +254,11 @@ class FieldWriter:
                 h5py.File(temporary, "w") as snapshot:
             for name, values in _cell_data(data).items():
                 snapshot.create_dataset(name, data=values)
+            if "surface_points" in data:
+                points, segments, pieces = surface_segments(data)
+                snapshot.create_dataset("surface_points", data=points)
+                snapshot.create_dataset("surface_segments", data=segments)
+                snapshot.create_dataset("surface_piece", data=pieces)
         if self._xdmf is None:
             raise ValueError(f"{self.folder}: the field writer is closed")
         if self._xdmf_steps and step <= self._xdmf_steps[-1]:
@@ -249,12 +284,44 @@ class FieldWriter:
         self._xdmf_size = offset + len(chunk)
         self._xdmf_steps.append(step)
 
+    def _write_surface_xdmf(self) -> None:
+        """``surface.xdmf``: one polyline grid per kept snapshot with a surface (its points
+        and segments in the snapshot's HDF5 file), written whole and atomically."""
+        entries = []
+        for step, time, points, segments in self._surfaces:
+            if segments == 0 or not (self.folder / self._xdmf_data(step)).exists():
+                continue
+            data = self._xdmf_data(step)
+            entries.append(
+                f'    <Grid Name="surface_{step:06d}" GridType="Uniform">\n'
+                f'      <Time Value="{time!r}"/>\n'
+                '      <Geometry GeometryType="XYZ"><DataItem DataType="Float" '
+                f'Dimensions="{points} 3" Format="HDF" Precision="8">{data}:/surface_points'
+                "</DataItem></Geometry>\n"
+                f'      <Topology TopologyType="Polyline" NodesPerElement="2" '
+                f'NumberOfElements="{segments}"><DataItem DataType="Int" '
+                f'Dimensions="{segments} 2" Format="HDF" Precision="8">'
+                f"{data}:/surface_segments</DataItem></Topology>\n"
+                '      <Attribute Name="piece" AttributeType="Scalar" Center="Cell">'
+                f'<DataItem DataType="Int" Precision="4" Dimensions="{segments}" Format="HDF">'
+                f"{data}:/surface_piece</DataItem></Attribute>\n"
+                "    </Grid>\n")
+        write_text_atomic(self.folder / "surface.xdmf", (
+            '<?xml version="1.0"?>\n<Xdmf Version="3.0">\n<Domain>\n'
+            '  <Grid Name="surface" GridType="Collection" CollectionType="Temporal">\n'
+            + "".join(entries) + "  </Grid>\n</Domain>\n</Xdmf>\n"))
+
     # -- snapshots -----------------------------------------------------------------------
 
     def write(self, data: dict[str, np.ndarray]) -> None:
         """Save one snapshot (the arrays of `snapshot_arrays`)."""
         step, time = int(data["step"]), float(data["time"])
         self._body_count = sum(1 for k in data if k.endswith("_triangles"))
+        surface = "surface_points" in data
+        if surface:
+            points, segments, _ = surface_segments(data)
+            self._surfaces = [entry for entry in self._surfaces if entry[0] < step] + [
+                (step, time, len(points), len(segments))]
         if "npz" in self.formats:
             with atomic_path(self.folder / f"step_{step:06d}.npz") as temporary:
                 np.savez_compressed(temporary, **data)  # type: ignore[arg-type]
@@ -262,11 +329,14 @@ class FieldWriter:
             self._write_vtk(step, data)
         if "xdmf" in self.formats:
             self._write_xdmf(step, time, data)
+            if surface or self._surfaces:
+                self._write_surface_xdmf()
         self._index = [(s, t) for s, t in self._index if s != step] + [(step, time)]
         if "vtk" in self.formats:
             self._write_collections()
         write_text_atomic(self.folder / "index.json", json.dumps(
-            {"frames": self._index, "body_count": self._body_count, "formats": self.formats}))
+            {"frames": self._index, "body_count": self._body_count, "formats": self.formats,
+             "surfaces": self._surfaces}))
 
     def _write_vtk(self, step: int, data: dict[str, np.ndarray]) -> None:
         import meshio
@@ -290,13 +360,24 @@ class FieldWriter:
                                point_data={"velocity": np.hstack((velocities, zeros))})
             with atomic_path(self.folder / f"body{k}_{step:06d}.vtu") as temporary:
                 meshio.write(temporary, body, file_format="vtu")
+        if "surface_points" in data:
+            points, segments, pieces = surface_segments(data)
+            if len(segments):
+                surface = meshio.Mesh(points, [("line", segments)],
+                                      cell_data={"piece": [pieces]})
+                with atomic_path(self.folder / f"surface_{step:06d}.vtu") as temporary:
+                    meshio.write(temporary, surface, file_format="vtu")
 
     def _write_collections(self) -> None:
         names = ["fluid"] + [f"body{k}" for k in range(self._body_count)]
+        if self._surfaces:
+            names.append("surface")
         for name in names:
+            frames = (self._index if name != "surface"
+                      else [(s, t) for s, t, _, segments in self._surfaces if segments])
             entries = "\n".join(
                 f'    <DataSet timestep="{t:.9g}" part="0" file="{name}_{s:06d}.vtu"/>'
-                for s, t in self._index
+                for s, t in frames
             )
             write_text_atomic(self.folder / f"{name}.pvd", (
                 '<?xml version="1.0"?>\n'

@@ -183,6 +183,75 @@ def test_rod_is_a_ribbon_in_mesh_files_and_lines_in_vtk(tmp_path) -> None:
     np.testing.assert_array_equal(body.cells[0].data, [[0, 1], [1, 2]])
 
 
+def _pool_with_a_drop(grid: Grid2D, depth: float) -> np.ndarray:
+    x, y = grid.cell_centers()
+    return np.minimum(y - depth, np.hypot(x - 0.8, y - 1.1) - 0.2)
+
+
+def test_surface_polylines_in_vtk_and_xdmf(tmp_path) -> None:
+    """The free surface's pieces (a pool and a drop) as line cells in ``surface_*.vtu`` /
+    ``surface.pvd`` and as polyline grids in ``surface.xdmf``, the same points as the npz
+    polylines; a snapshot with no surface is left out of both series; a resume keeps the
+    earlier frames' entries."""
+    import h5py
+
+    from elastoflow.io._surface import surface_polylines
+
+    grid = Grid2D(24, 20, 0.075)
+    fluid = _fake_simulation(grid).state.fluid
+    folder = tmp_path / "fields"
+    writer = FieldWriter(folder, grid, formats=("npz", "vtk", "xdmf"), level_set=True)
+    level_sets = {0: _pool_with_a_drop(grid, 0.5), 3: np.ones(grid.shape_cells),
+                  6: _pool_with_a_drop(grid, 0.6)}
+    for step, phi in level_sets.items():
+        writer.write(snapshot_arrays(grid, fluid, time=0.1 * step, step=step, level_set=phi))
+    writer.close()
+
+    lines = surface_polylines(grid, level_sets[6])
+    assert len(lines) == 2
+    mesh = meshio.read(folder / "surface_000006.vtu")
+    assert mesh.cells[0].type == "line"
+    np.testing.assert_allclose(mesh.points[:, :2], np.concatenate(lines))
+    assert np.all(mesh.points[:, 2] == 0.0)
+    assert len(mesh.cells[0].data) == sum(len(line) - 1 for line in lines)
+    pieces = mesh.cell_data["piece"][0]
+    assert sorted(set(pieces.tolist())) == [0, 1]
+    # Segments join consecutive points of one piece.
+    segments = mesh.cells[0].data
+    assert np.all(segments[:, 1] == segments[:, 0] + 1)
+    assert not (folder / "surface_000003.vtu").exists()
+    collection = ET.parse(folder / "surface.pvd").getroot()
+    assert [d.get("file") for d in collection.iter("DataSet")] == [
+        "surface_000000.vtu", "surface_000006.vtu"]
+
+    root = ET.parse(folder / "surface.xdmf").getroot()
+    grids = [g for g in root.iter("Grid") if g.get("GridType") == "Uniform"]
+    assert [g.get("Name") for g in grids] == ["surface_000000", "surface_000006"]
+    last = grids[-1]
+    assert float(last.find("Time").get("Value")) == pytest.approx(0.6)
+    topology = last.find("Topology")
+    assert topology.get("TopologyType") == "Polyline"
+    assert int(topology.get("NumberOfElements")) == len(segments)
+    file_name, dataset = last.find("Geometry/DataItem").text.split(":")
+    with h5py.File(folder / file_name, "r") as data:
+        np.testing.assert_allclose(data[dataset][:], mesh.points)
+        np.testing.assert_array_equal(
+            data[topology.find("DataItem").text.split(":")[1]][:], segments)
+
+    # A resume from step 3 drops step 6's surface files and entries.
+    resumed = FieldWriter(folder, grid, formats=("vtk", "xdmf"), resume_step=3, level_set=True)
+    resumed.write(snapshot_arrays(grid, fluid, time=0.4, step=4,
+                                  level_set=_pool_with_a_drop(grid, 0.3)))
+    resumed.close()
+    assert not (folder / "surface_000006.vtu").exists()
+    collection = ET.parse(folder / "surface.pvd").getroot()
+    assert [d.get("file") for d in collection.iter("DataSet")] == [
+        "surface_000000.vtu", "surface_000004.vtu"]
+    root = ET.parse(folder / "surface.xdmf").getroot()
+    assert [g.get("Name") for g in root.iter("Grid") if g.get("GridType") == "Uniform"] == [
+        "surface_000000", "surface_000004"]
+
+
 def test_probes_csv_and_plot(tmp_path) -> None:
     grid = Grid2D(6, 4, 0.25)
     sim = _fake_simulation(grid)
