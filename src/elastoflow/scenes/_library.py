@@ -463,3 +463,96 @@ def _bar_in_jet_3d() -> dict:
             "checkpoint": {"every": 200},
         },
     }
+
+
+@_register("flag_3d")
+def _flag_3d() -> dict:
+    """3D: a rubber flag behind a pole in a stream, fluttering in the pole's wake (64x32x32).
+
+    A pole (a cylinder obstacle along y, 0.1 m across: Re 100 at the 1 m/s inflow, where its
+    wake sheds vortices) holds a 0.5 x 0.4 m flag 6 cm (two cells) thick. The flag's first
+    bending frequency is about 1 Hz (E = 67 kPa, 100 kg/m^3: it weighs 15x the fluid it moves,
+    which the explicit scheme needs), near the wake's shedding frequency (St U / D ~ 2 Hz).
+    """
+    return {
+        "domain": {"lx": 2.0, "ly": 1.0, "lz": 1.0, "nx": 64},
+        "fluid": {"density": 1.0, "viscosity": 1e-3, "initial_velocity": (1.0, 0.0, 0.0),
+                  "advection": "maccormack"},
+        "boundaries": {"left": {"type": "inflow", "speed": 1.0, "ramp_time": 0.5},
+                       "right": "outflow", "bottom": "free_slip", "top": "free_slip",
+                       "back": "free_slip", "front": "free_slip"},
+        "obstacles": [{"shape": "cylinder", "name": "pole", "center": (0.4, 0.5, 0.5),
+                       "radius": 0.05, "length": 1.0, "axis": "y"}],
+        "bodies": [{
+            "name": "flag",
+            "shape": {"type": "box", "box": (0.45, 0.3, 0.47, 0.95, 0.7, 0.53),
+                      "divisions": (16, 12, 2)},
+            "material": {"density": 100.0, "young_modulus": 6.7e4, "poisson_ratio": 0.3,
+                         "damping_lambda": 2.0, "damping_mu": 2.0},
+            "fixed": {"box": (0.44, 0.29, 0.46, 0.46, 0.71, 0.54)},
+        }],
+        "time": {"cfl": 0.8, "duration": 8.0},
+        "outputs": {
+            "video": {"view": "vorticity", "fps": 30, "axis": "y", "at": 0.5},
+            "probes": [
+                {"kind": "node_displacement", "body": 0, "point": (0.95, 0.5, 0.5)},
+                {"kind": "force", "bodies": [0], "obstacles": [0]},
+                {"kind": "pressure_iterations"},
+            ],
+            "checkpoint": {"every": 200},
+        },
+    }
+
+
+# ten Cate et al. (2002), case E1 (../shared/reference/three_d.json,
+# tencate2002_settling_sphere): a 15 mm sphere of 1120 kg/m^3 released 120 mm above the floor
+# of a closed 100 x 160 x 100 mm box of oil (970 kg/m^3, 0.373 Pa s: Re 1.5).
+TEN_CATE_E1: dict[str, Any] = {
+    "box": (0.1, 0.16, 0.1),
+    "diameter": 0.015,
+    "sphere_density": 1120.0,
+    "gap": 0.12,
+    "fluid_density": 970.0,
+    "dynamic_viscosity": 0.373,
+    "gravity": 9.81,
+}
+
+
+@_register("sphere_settling")
+def _sphere_settling() -> dict:
+    """3D: ten Cate et al. (2002) case E1, a sphere settling in a box of oil (Re 1.5).
+
+    The elastic sphere (E = 100 kPa: its weight strains it by ~2e-4, a rigid sphere to the
+    flow) starts at rest 8 diameters above the floor. Published: it reaches 0.036 m/s in the
+    box (docs/validation/three_d.md). Six cells per diameter; y is up.
+    """
+    c = TEN_CATE_E1
+    lx, ly, lz = c["box"]
+    h = c["diameter"] / 6.0
+    radius = 0.5 * c["diameter"]
+    return {
+        "domain": {"lx": lx, "ly": ly, "lz": lz, "h": h},
+        "fluid": {"density": c["fluid_density"],
+                  "viscosity": c["dynamic_viscosity"] / c["fluid_density"],
+                  "gravity": (0.0, -c["gravity"], 0.0)},
+        "boundaries": {"left": "no_slip", "right": "no_slip", "bottom": "no_slip",
+                       "top": "no_slip", "back": "no_slip", "front": "no_slip"},
+        "bodies": [{
+            "name": "sphere",
+            "shape": {"type": "sphere", "center": (0.5 * lx, c["gap"] + radius, 0.5 * lz),
+                      "radius": radius, "element_size": h},
+            "material": {"density": c["sphere_density"], "young_modulus": 1e5,
+                         "poisson_ratio": 0.3, "damping_lambda": 1.0, "damping_mu": 1.0},
+        }],
+        "time": {"dt": 0.01, "duration": 4.0},
+        "outputs": {
+            "video": {"view": "speed", "fps": 30, "axis": "z"},
+            "probes": [
+                {"kind": "node_displacement", "body": 0,
+                 "point": (0.5 * lx, c["gap"] + radius, 0.5 * lz)},
+                {"kind": "body_force", "body": 0},
+                {"kind": "pressure_iterations"},
+            ],
+            "checkpoint": {"every": 100},
+        },
+    }

@@ -1,0 +1,167 @@
+"""A sphere settling in a box of oil: ten Cate et al. (2002), case E1, from the library scene.
+
+The scene ``sphere_settling`` (elastic sphere, explicit coupling, closed no-slip box) is run
+at a given number of cells per diameter; the sphere's velocity is its nodes' mean velocity
+(mass-weighted: the lumped masses), its position the same mean of the nodes. Published: the
+sphere reaches ``u_max = 0.036 m/s`` in the box (ten Cate's measurement; the unbounded
+terminal velocity from the Abraham correlation is 0.038 m/s), then slows as it nears the
+floor.
+
+Run ``python -m elastoflow.validation._settling [cells per diameter ...]`` to rewrite the
+settling block of ``docs/validation/three_d.md`` and its plot.
+"""
+
+from __future__ import annotations
+
+import sys
+import time as _time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+# ../shared/reference/three_d.json, tencate2002_settling_sphere, case E1.
+U_MAX_MEASURED = 0.035986
+U_INFINITE = 0.038
+DIAMETER = 0.015
+
+
+@dataclass
+class SettlingRun:
+    """One run: time [s], the sphere's settling speed [m/s] and gap to the floor [m]."""
+
+    cells_per_diameter: int
+    times: np.ndarray
+    speeds: np.ndarray
+    gaps: np.ndarray
+    seconds: float
+    cells: tuple[int, int, int]
+    tetrahedra: int
+
+    @property
+    def u_max(self) -> float:
+        return float(self.speeds.max())
+
+    @property
+    def time_of_u_max(self) -> float:
+        return float(self.times[int(np.argmax(self.speeds))])
+
+
+def run_settling(cells_per_diameter: int = 6, duration: float = 4.0, dt: float = 0.01,
+                 progress: Callable[[str], None] | None = None) -> SettlingRun:
+    """The library scene at ``cells_per_diameter`` to ``duration`` [s] with step ``dt``."""
+    from elastoflow.scenes import build_simulation, get_scene, parse_scene, scene_to_toml
+
+    scene = get_scene("sphere_settling")
+    import tomllib
+
+    data = tomllib.loads(scene_to_toml(scene))
+    h = DIAMETER / cells_per_diameter
+    data["domain"]["h"] = h
+    data["bodies"][0]["shape"]["element_size"] = h
+    data["time"] = {"dt": dt, "duration": duration}
+    data["outputs"] = {}
+    simulation = build_simulation(parse_scene(data, source="sphere_settling"))
+    body = simulation.bodies[0]
+    mass = body.mass / body.mass.sum()
+    radius = 0.5 * DIAMETER
+    floor = float(simulation.grid.origin[1])
+    steps = int(round(duration / dt))
+    times, speeds, gaps = [0.0], [0.0], []
+    state = simulation.state.bodies[0]
+    gaps.append(float(mass @ state.positions[:, 1]) - radius - floor)
+    began = _time.perf_counter()
+    for step in range(steps):
+        simulation.step()
+        state = simulation.state.bodies[0]
+        times.append(simulation.time)
+        speeds.append(-float(mass @ state.velocities[:, 1]))
+        gaps.append(float(mass @ state.positions[:, 1]) - radius - floor)
+        if progress is not None and (step % 20 == 0 or step == steps - 1):
+            progress(f"D/h = {cells_per_diameter}: t = {times[-1]:.2f} s, u = "
+                     f"{speeds[-1]:.4f} m/s, gap/D = {gaps[-1] / DIAMETER:.2f}")
+    return SettlingRun(cells_per_diameter, np.array(times), np.array(speeds), np.array(gaps),
+                       _time.perf_counter() - began, simulation.grid.shape_cells,
+                       body.mesh.tetrahedron_count)
+
+
+def plot_settling(runs: list[SettlingRun], path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    figure, (left, right) = plt.subplots(1, 2, figsize=(10, 4))
+    for run in runs:
+        label = f"D/h = {run.cells_per_diameter}"
+        left.plot(run.times, run.speeds, label=label)
+        right.plot(run.times, run.gaps / DIAMETER, label=label)
+    left.axhline(U_MAX_MEASURED, color="k", linestyle="--", label="ten Cate u_max (0.036)")
+    left.axhline(U_INFINITE, color="grey", linestyle=":", label="u_inf (Abraham, 0.038)")
+    left.set_xlabel("t [s]")
+    left.set_ylabel("settling speed [m/s]")
+    left.legend(fontsize=8)
+    right.set_xlabel("t [s]")
+    right.set_ylabel("gap to the floor / D")
+    right.legend(fontsize=8)
+    figure.suptitle("Sphere settling in a box, ten Cate et al. (2002) E1 (Re 1.5)")
+    figure.tight_layout()
+    figure.savefig(path, dpi=110)
+    plt.close(figure)
+
+
+BEGIN, END = "<!-- settling:begin -->", "<!-- settling:end -->"
+
+
+def settling_block(runs: list[SettlingRun], machine: str) -> str:
+    lines = [BEGIN, "", "## A sphere settling in a box (ten Cate et al. 2002, E1)", "",
+             "The library scene `sphere_settling`: a 15 mm elastic sphere (1120 kg/m^3, "
+             "E = 100 kPa) released from rest 8 diameters above the floor of a closed "
+             "100 x 160 x 100 mm box of oil (970 kg/m^3, 0.373 Pa s; Re 1.5), the explicit "
+             "coupling with the traction force, dt = 0.01 s. The sphere's speed is its nodes' "
+             "mass-weighted mean velocity. Published: ten Cate measured u_max = 0.0360 m/s "
+             "in the box (u_inf = 0.038 m/s unbounded, from the Abraham correlation).", "",
+             "| D/h | cells | tetrahedra | u_max [m/s] | vs 0.0360 | at t [s] | gap/D at the "
+             "end | run time [s] |",
+             "|---|---|---|---|---|---|---|---|"]
+    for run in runs:
+        nx, ny, nz = run.cells
+        lines.append(
+            f"| {run.cells_per_diameter} | {nx}x{ny}x{nz} | {run.tetrahedra} | "
+            f"{run.u_max:.4f} | {100 * (run.u_max / U_MAX_MEASURED - 1):+.1f} % | "
+            f"{run.time_of_u_max:.2f} | {run.gaps[-1] / DIAMETER:.2f} | {run.seconds:.0f} |")
+    lines += ["", f"Machine: {machine}. Command: `python -m elastoflow.validation._settling "
+              f"{' '.join(str(r.cells_per_diameter) for r in runs)}`.", "",
+              "![settling](three_d_settling.png)", "", END]
+    return "\n".join(lines)
+
+
+def write_settling(runs: list[SettlingRun], folder: Path, machine: str) -> Path:
+    plot_settling(runs, folder / "three_d_settling.png")
+    page = folder / "three_d.md"
+    text = page.read_text()
+    block = settling_block(runs, machine)
+    if BEGIN in text and END in text:
+        head, rest = text.split(BEGIN, 1)
+        text = head + block + rest.split(END, 1)[1]
+    else:
+        marker = "\n## Notes"
+        text = (text.replace(marker, "\n" + block + "\n" + marker, 1) if marker in text
+                else text.rstrip("\n") + "\n\n" + block + "\n")
+    page.write_text(text)
+    return page
+
+
+def main(argv: list[str]) -> None:
+    import platform
+
+    resolutions = [int(a) for a in argv] or [6]
+    runs = [run_settling(n, progress=lambda line: print(line, flush=True))
+            for n in resolutions]
+    machine = f"{platform.machine()}, {platform.processor() or 'cpu'}, 2 cores"
+    print(write_settling(runs, Path("docs/validation"), machine))
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])
