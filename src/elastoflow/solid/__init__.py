@@ -1,7 +1,9 @@
 """Elastic bodies: triangle meshes, St. Venant-Kirchhoff material with Voigt damping, explicit FEM.
 
 Linear triangles in 2D (METHOD §4), linear tetrahedra in 3D (:class:`TetrahedralMesh`,
-:class:`ElasticBody3D`, advanced by the same :class:`ExplicitFem`). Model, state and what advances it are separate: a
+:class:`ElasticBody3D`, advanced by the same :class:`ExplicitFem`, or implicitly by
+:class:`NewmarkFem3D`, :class:`MidpointFem3D`, :class:`EnergyMomentumFem3D`, which take
+2D and 3D bodies). Model, state and what advances it are separate: a
 :class:`TriangleMesh` is the rest shape, an :class:`ElasticBody` the static model (mesh,
 material, constraints, masses), a :class:`BodyState` the changing positions and velocities,
 and an integrator (:class:`ExplicitFem`, :class:`EnergyMomentumFem`, :class:`MidpointFem`, :class:`NewmarkFem`,
@@ -37,6 +39,13 @@ from elastoflow.solid._integrators import (
     NewmarkFem,
     static_equilibrium,
 )
+from elastoflow.solid._implicit3d import (
+    EnergyMomentumFem3D,
+    MidpointFem3D,
+    NewmarkFem3D,
+    StepResponse3D,
+    static_equilibrium_3d,
+)
 from elastoflow.solid._material import MaterialStVK
 from elastoflow.solid._mesh import (
     TriangleMesh,
@@ -70,13 +79,17 @@ __all__ = [
     "MaterialRod",
     "MaterialStVK",
     "EnergyMomentumFem",
+    "EnergyMomentumFem3D",
     "MidpointFem",
+    "MidpointFem3D",
     "NewmarkFem",
+    "NewmarkFem3D",
     "PolylineMesh",
     "RodBody",
     "SolidInversionError",
     "SolidStepReport",
     "StepResponse",
+    "StepResponse3D",
     "TetrahedralMesh",
     "TriangleMesh",
     "mesh_box",
@@ -92,5 +105,6 @@ __all__ = [
     "read_tetrahedral_mesh",
     "stable_substep",
     "static_equilibrium",
+    "static_equilibrium_3d",
     "tetrahedralize_surface",
 ]

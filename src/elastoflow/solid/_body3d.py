@@ -3,22 +3,32 @@
 The 3D twin of `ElasticBody`: the same attributes and methods that `ExplicitFem` and the
 energy checks read, on a `TetrahedralMesh` with positions and velocities of shape (n, 3) in a
 `BodyState`. Units are full 3D ones (forces [N], energies [J], masses [kg]), where the 2D body
-counts per metre of depth. No implicit step yet (`NewmarkFem` and its kin need the 3D
-stiffness matrix).
+counts per metre of depth. It also has what the implicit steps read of a body (`forces_at`
+with the energy-momentum strain, `viscous_forces_at`, `response_at`, `determinants_at`): the
+step matrix ``M + dt D + s^2 K`` assembled from the tetrahedra's tangent stiffness and damping
+matrices (`stiffness_matrix`, `damping_matrix`; kernels in `elastoflow.solid._kernels3d`,
+factoring in `elastoflow.solid._implicit3d`), so the 3D implicit integrators of
+`elastoflow.solid._implicit3d` advance it as the 2D ones do `ElasticBody`.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
+from scipy import sparse
 
 from elastoflow.solid import _kernels3d
 from elastoflow.solid._body import DEFAULT_SAFETY, stable_substep
 from elastoflow.solid._material import MaterialStVK
+from elastoflow.solid._response import StepResponse
 from elastoflow.solid._state import BodyState
 from elastoflow.solid._tet_mesh import TetrahedralMesh
+
+if TYPE_CHECKING:
+    from elastoflow.solid._implicit3d import StepMatrixLayout3D
 
 
 class ElasticBody3D:
@@ -26,7 +36,8 @@ class ElasticBody3D:
     Voigt damping, fixed nodes, gravity and lumped masses.
 
     Static: nothing here changes during a run. The changing part is a `BodyState` (positions
-    and velocities (n, 3); `state()` gives the initial one), advanced by `ExplicitFem`.
+    and velocities (n, 3); `state()` gives the initial one), advanced by `ExplicitFem` or
+    by the implicit `NewmarkFem3D`, `MidpointFem3D` and `EnergyMomentumFem3D`.
 
     The material's Lamé constants are the 3D ones: ``MaterialStVK(plane="strain")`` (its
     default) gives exactly ``lambda = E nu / ((1 + nu)(1 - 2 nu))`` and the 3D P-wave speed;
@@ -123,6 +134,8 @@ class ElasticBody3D:
             [[0], np.cumsum(np.bincount(tetrahedra.ravel(), minlength=n))]
         ).astype(np.int64)
         self._stable_substep = stable_substep(mesh, material)
+        # Where the step matrix's element entries go, built at the first response_at.
+        self._matrix_layout: StepMatrixLayout3D | None = None
 
     @property
     def point_count(self) -> int:
@@ -182,8 +195,13 @@ class ElasticBody3D:
         else:
             _kernels3d.advance_serial_3d(*arguments)
 
-    def forces_at(self, positions: np.ndarray, velocities: np.ndarray) -> np.ndarray:
-        """Internal (elastic, Voigt and drag) nodal forces [N] at a given state, (n, 3)."""
+    def forces_at(self, positions: np.ndarray, velocities: np.ndarray,
+                  rate_strain: float = 0.0) -> np.ndarray:
+        """Internal (elastic, Voigt and drag) nodal forces [N] at a given state, (n, 3).
+
+        ``rate_strain`` w > 0 computes the elastic stress from ``E(F) + w Fdot^T Fdot``: at a
+        step's midpoint with ``w = dt^2 / 8`` that is the mean strain of the step's ends
+        (`EnergyMomentumFem3D`)."""
         forces = np.empty((self.mesh.point_count, 3))
         determinants = np.empty(self.mesh.tetrahedron_count)
         m = self.material
@@ -191,11 +209,82 @@ class ElasticBody3D:
             np.ascontiguousarray(positions, dtype=np.float64),
             np.ascontiguousarray(velocities, dtype=np.float64), self.mesh.tetrahedra,
             self.dm_inverse, self.rest_volume, m.lame_lambda, m.lame_mu, m.damping_lambda,
-            m.damping_mu, forces, determinants,
+            m.damping_mu, float(rate_strain), forces, determinants,
         )
         if self.velocity_damping:
             forces -= self.velocity_damping * self.mass[:, None] * velocities
         return forces
+
+    def viscous_forces_at(self, positions: np.ndarray, velocities: np.ndarray,
+                          time_scale: float) -> np.ndarray:
+        """Nodal forces [N], (n, 3), of a Voigt damping with constants ``time_scale`` times
+        the material's Lame constants (objective: no force for rigid motion)."""
+        forces = np.zeros((self.mesh.point_count, 3))
+        if time_scale == 0.0:
+            return forces
+        determinants = np.empty(self.mesh.tetrahedron_count)
+        m = self.material
+        _kernels3d.internal_forces_3d(
+            np.ascontiguousarray(positions, dtype=np.float64),
+            np.ascontiguousarray(velocities, dtype=np.float64), self.mesh.tetrahedra,
+            self.dm_inverse, self.rest_volume, 0.0, 0.0, time_scale * m.lame_lambda,
+            time_scale * m.lame_mu, 0.0, forces, determinants,
+        )
+        return forces
+
+    def _matrix(self, positions: np.ndarray, material_lambda: float, material_mu: float,
+                stress_scale: float, clamp: bool) -> sparse.csr_matrix:
+        m = self.material
+        count = _kernels3d.MATRIX_TRIPLETS_3D * self.mesh.tetrahedron_count
+        rows = np.empty(count, dtype=np.int64)
+        cols = np.empty(count, dtype=np.int64)
+        values = np.empty(count)
+        _kernels3d.step_matrix_triplets_3d(
+            np.ascontiguousarray(positions, dtype=np.float64), self.mesh.tetrahedra,
+            self.dm_inverse, self.rest_volume, material_lambda, material_mu, m.lame_lambda,
+            m.lame_mu, stress_scale, clamp, rows, cols, values,
+        )
+        size = 3 * self.mesh.point_count
+        return sparse.csr_matrix((values, (rows, cols)), shape=(size, size))
+
+    def stiffness_matrix(self, positions: np.ndarray, *,
+                         clamp_compression: bool = False) -> sparse.csr_matrix:
+        """Tangent stiffness ``K = -d f_elastic / dx`` [N/m] at ``positions`` (n, 3): sparse
+        (3n, 3n), symmetric, degree of freedom ``3 node + component``, held nodes included.
+
+        Exact (material plus stress part) by default; ``clamp_compression`` sets the
+        stress's negative eigenvalues to 0 in the stress part, which keeps K positive
+        semi-definite where compressed elements make the exact one indefinite (the step
+        matrix of `response_at` uses that form)."""
+        m = self.material
+        return self._matrix(positions, m.lame_lambda, m.lame_mu, 1.0, clamp_compression)
+
+    def damping_matrix(self, positions: np.ndarray) -> sparse.csr_matrix:
+        """Voigt damping matrix ``D = -d f / dv`` [N s/m] at ``positions`` (n, 3): sparse
+        (3n, 3n), symmetric positive semi-definite (the forces are linear in the
+        velocities); without the drag ``velocity_damping`` (``alpha M``)."""
+        m = self.material
+        return self._matrix(positions, m.damping_lambda, m.damping_mu, 0.0, False)
+
+    def response_at(self, positions: np.ndarray, dt: float,
+                    stiffness_step: float | None = None,
+                    scale: float | None = None, *, exact: bool = False) -> StepResponse:
+        """The linearised answer ``(M + dt D + s^2 K + dt alpha M) dv = scale f`` at
+        ``positions`` (``s = stiffness_step``, default ``dt``; ``scale`` default ``dt``;
+        held nodes get 0; K with the compressive stress clamped, or ``exact``):
+        `elastoflow.solid._implicit3d.step_response_3d`."""
+        from elastoflow.solid._implicit3d import StepMatrixLayout3D, step_response_3d
+
+        if self._matrix_layout is None:
+            self._matrix_layout = StepMatrixLayout3D.build(self)
+        return step_response_3d(self, positions, float(dt), stiffness_step, scale,
+                                self._matrix_layout, exact=exact)
+
+    def step_response(self, state: BodyState, dt: float) -> StepResponse:
+        """The body's linearised backward-Euler answer to a force held over ``dt`` [s]:
+        ``step_response(state, dt).velocity_change(f)`` solves ``(M + dt D + dt^2 K + dt
+        alpha M) dv = dt f`` at the state's positions (held nodes get 0)."""
+        return self.response_at(state.positions, dt)
 
     def internal_forces(self, state: BodyState) -> np.ndarray:
         """Elastic plus Voigt damping nodal forces [N] in ``state``, shape (n, 3) (without
@@ -205,7 +294,7 @@ class ElasticBody3D:
         m = self.material
         _kernels3d.internal_forces_3d(
             state.positions, state.velocities, self.mesh.tetrahedra, self.dm_inverse,
-            self.rest_volume, m.lame_lambda, m.lame_mu, m.damping_lambda, m.damping_mu,
+            self.rest_volume, m.lame_lambda, m.lame_mu, m.damping_lambda, m.damping_mu, 0.0,
             forces, determinants,
         )
         return forces
@@ -216,6 +305,10 @@ class ElasticBody3D:
         _kernels3d.element_determinants_3d(np.ascontiguousarray(positions, dtype=np.float64),
                                            self.mesh.tetrahedra, self.dm_inverse, out)
         return out
+
+    def deformation_determinants(self, state: BodyState) -> np.ndarray:
+        """det F of each element in ``state``, shape (m,)."""
+        return self.determinants_at(state.positions)
 
     def deformation_gradients(self, state: BodyState) -> np.ndarray:
         """F of each element in ``state``, shape (m, 3, 3)."""

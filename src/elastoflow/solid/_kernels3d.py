@@ -84,12 +84,25 @@ def _green_strain(f: tuple[float, float, float, float, float, float, float, floa
 def _element_force(
     positions: np.ndarray, velocities: np.ndarray, tetrahedra: np.ndarray,
     dm_inverse: np.ndarray, rest_volume: np.ndarray, element: int, lame_lambda: float,
-    lame_mu: float, damping_lambda: float, damping_mu: float, out: np.ndarray,
+    lame_mu: float, damping_lambda: float, damping_mu: float, rate_strain: float,
+    out: np.ndarray,
 ) -> float:
-    """Nodal forces ``-V0 P dF/dx`` of one element into ``out`` (4, 3) [N]; returns det F."""
+    """Nodal forces ``-V0 P dF/dx`` of one element into ``out`` (4, 3) [N]; returns det F.
+
+    ``rate_strain`` w adds ``w Fdot^T Fdot`` to the strain of the elastic stress: at a step's
+    midpoint with velocities ``(x1 - x0) / dt`` and ``w = dt^2 / 8`` that is the mean
+    ``(E(F0) + E(F1)) / 2`` of the step's ends (Simo & Tarnow's energy-momentum stress, as in
+    2D; 0 elsewhere)."""
     f = _times_dm_inverse(_edges(positions, tetrahedra, element), dm_inverse, element)
     g = _times_dm_inverse(_edges(velocities, tetrahedra, element), dm_inverse, element)
     e00, e11, e22, e01, e02, e12 = _green_strain(f)
+    if rate_strain != 0.0:
+        e00 += rate_strain * (g[0] * g[0] + g[3] * g[3] + g[6] * g[6])
+        e11 += rate_strain * (g[1] * g[1] + g[4] * g[4] + g[7] * g[7])
+        e22 += rate_strain * (g[2] * g[2] + g[5] * g[5] + g[8] * g[8])
+        e01 += rate_strain * (g[0] * g[1] + g[3] * g[4] + g[6] * g[7])
+        e02 += rate_strain * (g[0] * g[2] + g[3] * g[5] + g[6] * g[8])
+        e12 += rate_strain * (g[1] * g[2] + g[4] * g[5] + g[7] * g[8])
     # Strain rate Edot = (Fdot^T F + F^T Fdot) / 2.
     r00 = g[0] * f[0] + g[3] * f[3] + g[6] * f[6]
     r11 = g[1] * f[1] + g[4] * f[4] + g[7] * f[7]
@@ -129,16 +142,17 @@ def _element_force(
 def internal_forces_3d(
     positions: np.ndarray, velocities: np.ndarray, tetrahedra: np.ndarray,
     dm_inverse: np.ndarray, rest_volume: np.ndarray, lame_lambda: float, lame_mu: float,
-    damping_lambda: float, damping_mu: float, forces: np.ndarray, determinants: np.ndarray,
+    damping_lambda: float, damping_mu: float, rate_strain: float, forces: np.ndarray,
+    determinants: np.ndarray,
 ) -> None:
     """Elastic plus Voigt damping nodal forces [N] into ``forces`` (n, 3), det F per element
-    into ``determinants`` (m,)."""
+    into ``determinants`` (m,) (``rate_strain``: `_element_force`)."""
     forces[:] = 0.0
     local = np.empty((4, 3))
     for e in range(tetrahedra.shape[0]):
         determinants[e] = _element_force(
             positions, velocities, tetrahedra, dm_inverse, rest_volume, e, lame_lambda,
-            lame_mu, damping_lambda, damping_mu, local,
+            lame_mu, damping_lambda, damping_mu, rate_strain, local,
         )
         for a in range(4):
             node = tetrahedra[e, a]
@@ -233,7 +247,7 @@ def advance_serial_3d(
     for s in range(substeps):
         internal_forces_3d(
             positions, velocities, tetrahedra, dm_inverse, rest_volume, lame_lambda, lame_mu,
-            damping_lambda, damping_mu, forces, determinants,
+            damping_lambda, damping_mu, 0.0, forces, determinants,
         )
         if _report_bad(determinants, s, status, determinant):
             return
@@ -275,7 +289,7 @@ def advance_parallel_3d(
         for e in prange(element_count):
             determinants[e] = _element_force(
                 positions, velocities, tetrahedra, dm_inverse, rest_volume, e, lame_lambda,
-                lame_mu, damping_lambda, damping_mu, element_forces[e],
+                lame_mu, damping_lambda, damping_mu, 0.0, element_forces[e],
             )
         if _report_bad(determinants, s, status, determinant):
             return
@@ -294,3 +308,134 @@ def advance_parallel_3d(
                          drag_factor)
     element_determinants_3d(positions, tetrahedra, dm_inverse, determinants)
     _report_bad(determinants, substeps, status, determinant)
+
+
+# Triplets per element of the step matrix: a 12 x 12 block (4 nodes x 3 components).
+MATRIX_TRIPLETS_3D = 144
+
+
+@njit(cache=True)
+def _stress_positive_part(s: np.ndarray) -> None:
+    """Replace the symmetric 3x3 ``s`` in place by its positive part (negative eigenvalues
+    set to 0). The principal minors decide first, so a positive semi-definite stress (the
+    common case) costs no eigen-decomposition."""
+    m01 = s[0, 0] * s[1, 1] - s[0, 1] * s[0, 1]
+    m02 = s[0, 0] * s[2, 2] - s[0, 2] * s[0, 2]
+    m12 = s[1, 1] * s[2, 2] - s[1, 2] * s[1, 2]
+    det = (s[0, 0] * m12 - s[0, 1] * (s[0, 1] * s[2, 2] - s[1, 2] * s[0, 2])
+           + s[0, 2] * (s[0, 1] * s[1, 2] - s[1, 1] * s[0, 2]))
+    if (s[0, 0] >= 0.0 and s[1, 1] >= 0.0 and s[2, 2] >= 0.0 and m01 >= 0.0 and m02 >= 0.0
+            and m12 >= 0.0 and det >= 0.0):
+        return
+    values, vectors = np.linalg.eigh(s)
+    for r in range(3):
+        for c in range(3):
+            total = 0.0
+            for k in range(3):
+                if values[k] > 0.0:
+                    total += values[k] * vectors[r, k] * vectors[c, k]
+            s[r, c] = total
+
+
+@njit(cache=True)
+def _element_matrix(
+    positions: np.ndarray, tetrahedra: np.ndarray, dm_inverse: np.ndarray,
+    rest_volume: np.ndarray, element: int, material_lambda: float, material_mu: float,
+    stress_lambda: float, stress_mu: float, stress_scale: float, clamp: bool,
+    gradients: np.ndarray, pushed: np.ndarray, stress: np.ndarray, out: np.ndarray,
+) -> None:
+    """The 12 x 12 element matrix (row and column ``3 corner + component``) into ``out``.
+
+    With ``g_a`` the gradient of corner a's shape function (rows of ``Dm^-1``, corner 0 minus
+    their sum) and ``u_a = F g_a``, block (b, a) is
+
+        V0 [stress_scale (g_a . S g_b) I + lambda_m u_b u_a^T
+            + mu_m ((g_a . g_b) F F^T + u_a u_b^T)],
+
+    the derivative of the forces ``f_b = -V0 F S g_b`` on corner b by the position of corner
+    a, negated: the stress (geometric) term from ``dF S``, the material terms from
+    ``F dS(sym(F^T dF))`` with the constants (``lambda_m``, ``mu_m``) =
+    (``material_lambda``, ``material_mu``). ``S`` is the St. Venant-Kirchhoff stress of the
+    constants (``stress_lambda``, ``stress_mu``), with its negative eigenvalues set to 0 when
+    ``clamp`` (positive semi-definite for any deformation). The same form with the Voigt
+    constants and no stress term is the damping matrix ``-df/dv``. Blocks (a, b) are written
+    as the transposes of (b, a), so the matrix is symmetric to the last bit."""
+    f = _times_dm_inverse(_edges(positions, tetrahedra, element), dm_inverse, element)
+    for c in range(3):
+        gradients[c + 1, 0] = dm_inverse[element, c, 0]
+        gradients[c + 1, 1] = dm_inverse[element, c, 1]
+        gradients[c + 1, 2] = dm_inverse[element, c, 2]
+    for k in range(3):
+        gradients[0, k] = -(gradients[1, k] + gradients[2, k] + gradients[3, k])
+    for a in range(4):
+        for r in range(3):
+            pushed[a, r] = (f[3 * r] * gradients[a, 0] + f[3 * r + 1] * gradients[a, 1]
+                            + f[3 * r + 2] * gradients[a, 2])
+    e00, e11, e22, e01, e02, e12 = _green_strain(f)
+    trace = e00 + e11 + e22
+    stress[0, 0] = stress_lambda * trace + 2.0 * stress_mu * e00
+    stress[1, 1] = stress_lambda * trace + 2.0 * stress_mu * e11
+    stress[2, 2] = stress_lambda * trace + 2.0 * stress_mu * e22
+    stress[0, 1] = stress[1, 0] = 2.0 * stress_mu * e01
+    stress[0, 2] = stress[2, 0] = 2.0 * stress_mu * e02
+    stress[1, 2] = stress[2, 1] = 2.0 * stress_mu * e12
+    if clamp:
+        _stress_positive_part(stress)
+    volume = rest_volume[element]
+    for b in range(4):
+        for a in range(b + 1):
+            geometric = 0.0
+            shape_product = 0.0
+            for r in range(3):
+                shape_product += gradients[a, r] * gradients[b, r]
+                for c in range(3):
+                    geometric += gradients[a, r] * stress[r, c] * gradients[b, c]
+            geometric *= stress_scale
+            for k in range(3):
+                for d in range(3):
+                    # (F F^T)_kd
+                    stretch = f[3 * k] * f[3 * d] + f[3 * k + 1] * f[3 * d + 1] + f[
+                        3 * k + 2] * f[3 * d + 2]
+                    value = (material_lambda * pushed[b, k] * pushed[a, d]
+                             + material_mu * (shape_product * stretch
+                                              + pushed[a, k] * pushed[b, d]))
+                    if k == d:
+                        value += geometric
+                    value *= volume
+                    out[3 * b + k, 3 * a + d] = value
+                    out[3 * a + d, 3 * b + k] = value
+
+
+@njit(cache=True)
+def step_matrix_triplets_3d(
+    positions: np.ndarray, tetrahedra: np.ndarray, dm_inverse: np.ndarray,
+    rest_volume: np.ndarray, material_lambda: float, material_mu: float,
+    stress_lambda: float, stress_mu: float, stress_scale: float, clamp: bool,
+    rows: np.ndarray, cols: np.ndarray, values: np.ndarray,
+) -> None:
+    """Element matrices of a linear combination of the tangent stiffness and the damping
+    matrix (`_element_matrix`) as COO triplets, ``MATRIX_TRIPLETS_3D`` per element, into
+    ``rows``/``cols``/``values`` (m * 144,); degree of freedom ``3 node + component``.
+
+    ``dt D + s^2 K`` of a step: ``material_lambda = dt lambda' + s^2 lambda`` (likewise mu),
+    ``stress_lambda``/``stress_mu`` the elastic constants, ``stress_scale = s^2``. The
+    tangent stiffness ``K = -df/dx``: (lambda, mu, lambda, mu, 1); the damping matrix
+    ``D = -df/dv``: (lambda', mu', 0, 0, 0). The entry order is fixed (element, then row,
+    then column of its block), so a body can map each triplet to its place in an assembled
+    pattern once."""
+    gradients = np.empty((4, 3))
+    pushed = np.empty((4, 3))
+    stress = np.empty((3, 3))
+    local = np.empty((12, 12))
+    for e in range(tetrahedra.shape[0]):
+        _element_matrix(positions, tetrahedra, dm_inverse, rest_volume, e, material_lambda,
+                        material_mu, stress_lambda, stress_mu, stress_scale, clamp,
+                        gradients, pushed, stress, local)
+        base = MATRIX_TRIPLETS_3D * e
+        for i in range(12):
+            row = 3 * tetrahedra[e, i // 3] + i % 3
+            for j in range(12):
+                index = base + 12 * i + j
+                rows[index] = row
+                cols[index] = 3 * tetrahedra[e, j // 3] + j % 3
+                values[index] = local[i, j]

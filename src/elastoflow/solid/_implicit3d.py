@@ -1,0 +1,476 @@
+"""Implicit steps of tetrahedral bodies (`ElasticBody3D`): the step matrix, its factor, the
+integrators.
+
+The building block of a strongly coupled 3D scheme, the 3D counterpart of
+`elastoflow.solid._integrators` and `elastoflow.solid._response`:
+
+* the step matrix ``A = M + c D + s^2 K + c alpha M`` of a body at given positions (``K`` the
+  St. Venant-Kirchhoff tangent stiffness with the compressive stress clamped, ``D`` the Voigt
+  damping matrix, ``M`` the lumped masses), assembled by the compiled
+  `elastoflow.solid._kernels3d.step_matrix_triplets_3d` straight into a sparse pattern of the
+  free degrees of freedom that the body builds once (`StepMatrixLayout3D`), and factored
+  (`step_response_3d`): dense Cholesky for small bodies, banded Cholesky in reverse
+  Cuthill-McKee order for slender ones, SuperLU otherwise;
+* `StepResponse3D`, the factored answer ``scale A^-1 f`` to a force held over the step: the
+  contract of the 2D `StepResponse` (``solve``, ``velocity_change``, ``compliance``,
+  ``compliance_factor``), what the monolithic pressure solve reads of a body, with nodal
+  arrays of shape (n, 3) and degrees of freedom ``3 node + component``;
+* `NewmarkFem3D`, `MidpointFem3D`, `EnergyMomentumFem3D`: the 2D rules (`NewmarkFem`,
+  `MidpointFem`, `EnergyMomentumFem`), same arguments, same ``response`` and ``advance``,
+  for both dimensions: they subclass the 2D classes (so they are accepted wherever those are,
+  e.g. `elastoflow.simulation.MonolithicCoupling(integrator=...)`) and hand 2D bodies to
+  them; a 3D body runs the same rule through the same Newton iteration (`_newton_step`,
+  `_integrators._implicit_step` with a fresh tangent whenever the residual contracts
+  slowly) with its own residual. Why subclasses rather than the 2D
+  classes themselves: the 2D ``advance`` checks the force array against shape (n, 2)
+  (``_integrators._checked_forces``); with that check taking the body's dimension, the 2D
+  classes would advance 3D bodies unchanged (every other call they make goes through the
+  body: ``forces_at``, ``viscous_forces_at``, ``response_at``, ``determinants_at``) and these
+  three would reduce to aliases;
+* `static_equilibrium_3d`: the rest state under loads (static deflection).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse.linalg as sparse_linalg
+from scipy import linalg, sparse
+
+from elastoflow.solid import _kernels3d
+from elastoflow.solid._body import SolidInversionError, SolidStepReport
+from elastoflow.solid._body3d import ElasticBody3D
+from elastoflow.solid._integrators import EnergyMomentumFem, MidpointFem, NewmarkFem
+from elastoflow.solid._response import _BLAS, _DENSE_LIMIT, StepResponse, _banded_cholesky
+from elastoflow.solid._rod import BodyModel
+from elastoflow.solid._state import BodyState
+
+
+@dataclass
+class StepResponse3D(StepResponse):
+    """The factored one-step response of a 3D body: ``dv = scale A^-1 f`` on its free nodes.
+
+    `StepResponse` with nodal arrays of shape (n, 3).
+
+    Attributes:
+        free: Degrees of freedom (``3 node + component``) that are not held, int64.
+        dt: The ``scale`` it was built for [s] (the answer's factor).
+    """
+
+    def solve(self, values: np.ndarray) -> np.ndarray:
+        """``A^-1 values`` for nodal values (n, 3); 0 on held nodes."""
+        flat = np.ascontiguousarray(values, dtype=np.float64).reshape(-1)
+        result = np.zeros(flat.shape[0])
+        if self._factored and self.free.size:
+            result[self.free] = self._solve(flat[self.free])
+        return result.reshape(-1, 3)
+
+    def velocity_change(self, forces: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+        """``dv`` [m/s], shape (n, 3), answering nodal ``forces`` [N] held over the step."""
+        flat = np.ascontiguousarray(forces, dtype=np.float64).reshape(-1)
+        result = np.zeros(flat.shape[0]) if out is None else out.reshape(-1)
+        if out is not None:
+            result[:] = 0.0
+        if self._factored and self.free.size:
+            result[self.free] = self.dt * self._solve(flat[self.free])
+        return result.reshape(-1, 3)
+
+
+@dataclass(frozen=True)
+class StepMatrixLayout3D:
+    """Where each triplet of `step_matrix_triplets_3d` goes in the step matrix restricted to
+    the free degrees of freedom, stored as CSR (sorted columns). It depends only on the mesh
+    and the held nodes, so a body builds it once and every step sums its element entries
+    into the data array (one ``bincount``), with no sorting.
+
+    Attributes:
+        free: Free degrees of freedom (``3 node + component``), int64, shape (f,).
+        indptr: CSR row pointers of the free block, int64, shape (f + 1,).
+        indices: CSR column indices, int64, shape (nnz,).
+        target: Per triplet, its index into the CSR data, or -1 on a held degree of
+            freedom, int64, shape (144 m,).
+        diagonal: CSR data index of each free degree of freedom's diagonal, int64, (f,).
+    """
+
+    free: np.ndarray
+    indptr: np.ndarray
+    indices: np.ndarray
+    target: np.ndarray
+    diagonal: np.ndarray
+
+    @staticmethod
+    def build(body: ElasticBody3D) -> StepMatrixLayout3D:
+        """The layout of ``body``'s mesh and held nodes."""
+        n = body.point_count
+        count = _kernels3d.MATRIX_TRIPLETS_3D * body.mesh.tetrahedron_count
+        rows = np.empty(count, dtype=np.int64)
+        cols = np.empty(count, dtype=np.int64)
+        values = np.empty(count)
+        # Only the pattern is wanted; the values at the rest shape are discarded.
+        _kernels3d.step_matrix_triplets_3d(
+            np.ascontiguousarray(body.mesh.points, dtype=np.float64), body.mesh.tetrahedra,
+            body.dm_inverse, body.rest_volume, 0.0, 0.0, 0.0, 0.0, 0.0, False, rows, cols,
+            values,
+        )
+        free = np.flatnonzero(~np.repeat(body.fixed_mask, 3)).astype(np.int64)
+        local = np.full(3 * n, -1, np.int64)
+        local[free] = np.arange(free.size)
+        r, c = local[rows], local[cols]
+        keep = (r >= 0) & (c >= 0)
+        keys, inverse = np.unique(r[keep] * free.size + c[keep], return_inverse=True)
+        target = np.full(count, -1, np.int64)
+        target[keep] = inverse
+        key_rows = keys // max(free.size, 1)
+        indptr = np.concatenate([[0], np.cumsum(np.bincount(key_rows, minlength=free.size))])
+        indices = keys % max(free.size, 1)
+        diagonal = np.searchsorted(keys, np.arange(free.size) * (free.size + 1))
+        return StepMatrixLayout3D(free, indptr.astype(np.int64), indices.astype(np.int64),
+                                  target, diagonal.astype(np.int64))
+
+
+def step_matrix_3d(body: ElasticBody3D, positions: np.ndarray, dt: float,
+                   stiffness_step: float | None = None,
+                   layout: StepMatrixLayout3D | None = None, *,
+                   exact: bool = False) -> sparse.csr_matrix:
+    """``A = M + dt D + s^2 K + dt alpha M`` on the free degrees of freedom (``s =
+    stiffness_step``, default ``dt``), sparse CSR (f, f) in the order of ``layout.free``;
+    ``K`` with the compressive stress clamped (positive semi-definite), so ``A`` is
+    symmetric positive definite; ``exact``: the exact tangent instead (Newton's matrix;
+    indefinite where compression outweighs the masses)."""
+    if layout is None:
+        layout = StepMatrixLayout3D.build(body)
+    s = dt if stiffness_step is None else float(stiffness_step)
+    m = body.material
+    count = layout.target.shape[0]
+    rows = np.empty(count, dtype=np.int64)
+    cols = np.empty(count, dtype=np.int64)
+    values = np.empty(count)
+    _kernels3d.step_matrix_triplets_3d(
+        np.ascontiguousarray(positions, dtype=np.float64), body.mesh.tetrahedra,
+        body.dm_inverse, body.rest_volume, dt * m.damping_lambda + s * s * m.lame_lambda,
+        dt * m.damping_mu + s * s * m.lame_mu, m.lame_lambda, m.lame_mu, s * s, not exact,
+        rows, cols, values,
+    )
+    keep = layout.target >= 0
+    data = np.bincount(layout.target[keep], weights=values[keep],
+                       minlength=layout.indices.shape[0])
+    lumped = np.repeat(body.mass * (1.0 + dt * body.velocity_damping), 3)[layout.free]
+    data[layout.diagonal] += lumped
+    size = layout.free.shape[0]
+    return sparse.csr_matrix((data, layout.indices, layout.indptr), shape=(size, size))
+
+
+def step_response_3d(body: ElasticBody3D, positions: np.ndarray, dt: float,
+                     stiffness_step: float | None = None, scale: float | None = None,
+                     layout: StepMatrixLayout3D | None = None, *,
+                     exact: bool = False) -> StepResponse3D:
+    """Assemble (`step_matrix_3d`) and factor ``A``; its answer is ``scale A^-1 f`` (default
+    ``dt``). Up to ``_DENSE_LIMIT`` free degrees of freedom the inverse is formed (dense
+    Cholesky); above, a banded Cholesky in reverse Cuthill-McKee order when the band is
+    narrow enough (`_response._banded_cholesky`: slender bodies), SuperLU otherwise."""
+    if layout is None:
+        layout = StepMatrixLayout3D.build(body)
+    answer = dt if scale is None else float(scale)
+    free = layout.free
+    if free.size == 0:
+        return StepResponse3D(free, answer, None)
+    matrix = step_matrix_3d(body, positions, dt, stiffness_step, layout, exact=exact)
+    if free.size <= _DENSE_LIMIT:
+        with _BLAS.limit(limits=1, user_api="blas"):
+            try:
+                factor = linalg.cho_factor(matrix.toarray(), check_finite=False)
+            except linalg.LinAlgError:
+                factor = None  # not positive definite to round-off: the LU below solves it
+            if factor is not None:
+                inverse = linalg.cho_solve(factor, np.eye(free.size), check_finite=False)
+                return StepResponse3D(free, answer, None, 0.5 * (inverse + inverse.T))
+    # Symmetric to the last bit (the kernel mirrors its blocks): the CSR arrays read as CSC
+    # are the same matrix.
+    columns = sparse.csc_matrix((matrix.data, matrix.indices, matrix.indptr),
+                                shape=matrix.shape)
+    banded = _banded_cholesky(columns)
+    if banded is not None:
+        return StepResponse3D(free, answer, None, None, banded[0], banded[1])
+    lu = sparse_linalg.splu(columns, permc_spec="MMD_AT_PLUS_A",
+                            options={"SymmetricMode": True})
+    return StepResponse3D(free, answer, lu)
+
+
+def _checked_forces_3d(body: ElasticBody3D, external_forces: np.ndarray) -> np.ndarray:
+    n = body.point_count
+    forces = np.ascontiguousarray(external_forces, dtype=np.float64)
+    if forces.shape != (n, 3) or not np.all(np.isfinite(forces)):
+        raise ValueError(f"external_forces: must be finite, shape ({n}, 3)")
+    return forces
+
+
+# Newton keeps a factor while each update shrinks the residual at least this much; slower
+# contraction gets a fresh tangent at the new iterate (2D: only when the residual grows).
+# The start's tangent, rotated against the step's midpoint, contracts at about 0.2 an
+# iteration on a 3D block spinning 0.09 rad a step: cheaper to iterate with it (a solve and a
+# force evaluation each, ~2 ms at 5000 tetrahedra) than to refactor (~90 ms).
+_CONTRACTION = 0.5
+
+
+def _newton_step(
+    body: ElasticBody3D, state_in: BodyState, state_out: BodyState, dt: float,
+    residual: Callable[[np.ndarray], np.ndarray], response: StepResponse,
+    tangent_at: Callable[[np.ndarray], StepResponse], tolerance: float, max_iterations: int,
+    step: int | None,
+) -> SolidStepReport:
+    """Newton on an implicit rule's residual in the end positions (end velocity ``2 (x1 -
+    x0) / dt - v0``), as `_integrators._implicit_step`: first with the matrix of
+    ``response`` (the tangent at the start, the linearised step's exact answer), a fresh
+    tangent at the iterate whenever an update contracts the residual by less than
+    ``_CONTRACTION`` or fails to reduce it, and a halving line search when even a fresh one
+    does not."""
+    held = body.fixed_mask
+    x0 = state_in.positions
+    v0 = state_in.velocities
+
+    def residual_at(x: np.ndarray) -> tuple[np.ndarray, float]:
+        r = residual(x)
+        r[held] = 0.0
+        norm = float(np.linalg.norm(r))
+        return r, norm if np.isfinite(norm) else np.inf
+
+    x1 = x0 + dt * v0
+    x1[held] = x0[held]
+    size = float(np.ptp(body.mesh.points, axis=0).max())
+    factor = response
+    fresh = False
+    current, norm = residual_at(x1)
+    iterations = 0
+    for iterations in range(1, max_iterations + 1):
+        update = factor.solve(current)
+        step_length = 1.0
+        for _ in range(8):
+            trial = x1 + step_length * update
+            trial_residual, trial_norm = residual_at(trial)
+            if trial_norm < norm:
+                break
+            if not fresh:
+                factor = tangent_at(x1)
+                fresh = True
+                update = factor.solve(current)
+                continue
+            step_length *= 0.5
+        else:
+            break
+        contraction = trial_norm / norm if norm > 0.0 else 0.0
+        x1 = trial
+        current, norm = trial_residual, trial_norm
+        if step_length * float(np.abs(update).max()) <= tolerance * size:
+            break
+        fresh = False
+        if contraction > _CONTRACTION:
+            factor = tangent_at(x1)
+            fresh = True
+    v1 = 2.0 * (x1 - x0) / dt - v0
+    v1[held] = 0.0
+    determinants = body.determinants_at(x1)
+    where = "" if step is None else f"step {step}, "
+    if not (np.all(np.isfinite(x1)) and np.all(np.isfinite(v1)) and determinants.min() > 0.0):
+        element = int(np.argmin(np.nan_to_num(determinants, nan=-np.inf)))
+        raise SolidInversionError(
+            f"elastic body failed at {where}implicit step (dt = {dt:.3g} s): element "
+            f"{element} has det F = {determinants[element]:.3g} (inverted or non-finite); "
+            "use a smaller dt",
+            step=step, substep=0, element=element,
+            determinant=float(determinants[element]), positions=x1,
+        )
+    state_out.positions[...] = x1
+    state_out.velocities[...] = v1
+    return SolidStepReport(
+        substeps=iterations, substep_dt=dt, stable_substep=body.stable_substep(),
+        min_determinant=float(determinants.min()),
+    )
+
+
+class NewmarkFem3D(NewmarkFem):
+    """`NewmarkFem` (Newmark's rule with ``beta = gamma / 2``, Newton on the step matrix) for
+    2D and 3D bodies: a 2D body goes to `NewmarkFem.advance`, an `ElasticBody3D` takes the
+    same rule here (module docstring: why a subclass). ``response`` is the 2D one (it reads
+    the body's ``response_at``): mean velocity ``dt/2 A^-1 f`` with ``A = M + gamma dt (D +
+    alpha M) + beta dt^2 K``.
+
+    Args:
+        gamma: Newmark's gamma in [0.5, 1]; 1/2 keeps the energy of linear vibrations.
+        tolerance: Stop when the Newton update is below ``tolerance`` times the body's size.
+        max_iterations: Newton iterations at most.
+    """
+
+    def advance(
+        self, body: BodyModel | ElasticBody3D, state_in: BodyState, state_out: BodyState,
+        dt: float, external_forces: np.ndarray, response: StepResponse, *,
+        step: int | None = None,
+    ) -> SolidStepReport:
+        """Advance ``state_in`` by ``dt`` [s] into ``state_out`` (may be ``state_in``); as
+        `NewmarkFem.advance`, with forces [N] of shape (n, 3) for a 3D body."""
+        if not isinstance(body, ElasticBody3D):
+            return super().advance(body, state_in, state_out, dt, external_forces, response,
+                                   step=step)
+        forces = _checked_forces_3d(body, external_forces)
+        gamma = self.gamma
+        mass = body.mass[:, None]
+        x0 = state_in.positions
+        v0 = state_in.velocities
+        f_external = forces + mass * body.gravity
+        a0 = (body.forces_at(x0, v0) + f_external) / mass
+        a0[body.fixed_mask] = 0.0
+        beta = 0.5 * gamma
+        drift = x0 + dt * v0 + (0.5 - beta) * dt * dt * a0
+
+        def residual_at(x: np.ndarray) -> np.ndarray:
+            # With beta = gamma / 2 the end velocity is 2 (x1 - x0) / dt - v0 for any gamma.
+            v = 2.0 * (x - x0) / dt - v0
+            return beta * dt * dt * (body.forces_at(x, v) + f_external) - mass * (x - drift)
+
+        def tangent_at(x: np.ndarray) -> StepResponse:
+            return body.response_at(x, gamma * dt, np.sqrt(beta) * dt, 0.5 * dt, exact=True)
+
+        return _newton_step(body, state_in, state_out, dt, residual_at, response, tangent_at,
+                            self.tolerance, self.max_iterations, step)
+
+
+def _midpoint_advance(
+    rule: MidpointFem, body: ElasticBody3D, state_in: BodyState, state_out: BodyState,
+    dt: float, external_forces: np.ndarray, response: StepResponse, step: int | None,
+) -> SolidStepReport:
+    """`MidpointFem.advance` (and its energy-momentum variant) for a 3D body."""
+    forces = _checked_forces_3d(body, external_forces)
+    mass = body.mass[:, None]
+    x0 = state_in.positions
+    v0 = state_in.velocities
+    f_external = forces + mass * body.gravity
+    rate_strain = rule._rate_strain * dt * dt
+
+    def residual_at(x: np.ndarray) -> np.ndarray:
+        middle = 0.5 * (x0 + x)
+        internal = body.forces_at(middle, (x - x0) / dt, rate_strain)
+        internal += rule._extra_forces(body, middle, (x - x0) / dt, dt)  # type: ignore[arg-type]
+        return 0.5 * dt * dt * (internal + f_external) - mass * (x - x0 - dt * v0)
+
+    stiffness = dt * np.sqrt(0.25 + 0.5 * getattr(rule, "damping", 0.0))
+
+    def tangent_at(x: np.ndarray) -> StepResponse:
+        return body.response_at(0.5 * (x0 + x), 0.5 * dt, stiffness, 0.5 * dt, exact=True)
+
+    return _newton_step(body, state_in, state_out, dt, residual_at, response, tangent_at,
+                        rule.tolerance, rule.max_iterations, step)
+
+
+class MidpointFem3D(MidpointFem):
+    """`MidpointFem` (the implicit midpoint rule: both momenta of a free body kept exactly)
+    for 2D and 3D bodies: a 2D body goes to `MidpointFem.advance`, an `ElasticBody3D` takes
+    the same rule here (module docstring: why a subclass).
+
+    Args:
+        tolerance: Stop when the Newton update is below ``tolerance`` times the body's size.
+        max_iterations: Newton iterations at most.
+    """
+
+    def advance(
+        self, body: BodyModel | ElasticBody3D, state_in: BodyState, state_out: BodyState,
+        dt: float, external_forces: np.ndarray, response: StepResponse, *,
+        step: int | None = None,
+    ) -> SolidStepReport:
+        """As `MidpointFem.advance`, with forces [N] of shape (n, 3) for a 3D body."""
+        if not isinstance(body, ElasticBody3D):
+            return super().advance(body, state_in, state_out, dt, external_forces, response,
+                                   step=step)
+        return _midpoint_advance(self, body, state_in, state_out, dt, external_forces,
+                                 response, step)
+
+
+class EnergyMomentumFem3D(EnergyMomentumFem):
+    """`EnergyMomentumFem` (the midpoint rule with Simo & Tarnow's stress from the mean of
+    the step's end strains: for St. Venant-Kirchhoff a free body keeps its energy to the
+    Newton tolerance, and both momenta exactly) for 2D and 3D bodies: a 2D body goes to
+    `EnergyMomentumFem.advance`, an `ElasticBody3D` takes the same rule here (module
+    docstring: why a subclass).
+
+    Args:
+        damping: Numerical damping c (objective Voigt damping ``c dt`` times the Lame
+            constants), as `EnergyMomentumFem`.
+        tolerance: Stop when the Newton update is below ``tolerance`` times the body's size.
+        max_iterations: Newton iterations at most.
+    """
+
+    def advance(
+        self, body: BodyModel | ElasticBody3D, state_in: BodyState, state_out: BodyState,
+        dt: float, external_forces: np.ndarray, response: StepResponse, *,
+        step: int | None = None,
+    ) -> SolidStepReport:
+        """As `EnergyMomentumFem.advance`, with forces [N] of shape (n, 3) for a 3D body."""
+        if not isinstance(body, ElasticBody3D):
+            return super().advance(body, state_in, state_out, dt, external_forces, response,
+                                   step=step)
+        return _midpoint_advance(self, body, state_in, state_out, dt, external_forces,
+                                 response, step)
+
+
+def static_equilibrium_3d(body: ElasticBody3D, state: BodyState,
+                          external_forces: np.ndarray | None = None, *,
+                          tolerance: float = 1e-10, max_iterations: int = 100) -> int:
+    """Move ``state`` to rest under the body's elastic forces, gravity and
+    ``external_forces`` (n, 3) [N]: Newton's method on ``f_internal(x) + f_external + M g =
+    0`` with the tangent of `static_equilibrium` (2D): the step matrix of a pseudo-step so
+    long that the stiffness dominates the masses, compressive stress clamped; updates halved
+    while they would invert an element. No load increments: for loads that bend the body
+    well beyond small strains, step towards them (or use an implicit integrator with
+    damping). Velocities are set to zero.
+
+    Returns:
+        Newton iterations taken.
+
+    Raises:
+        SolidInversionError: No converged equilibrium without inverting an element;
+            ``state`` keeps its values.
+    """
+    n = body.point_count
+    forces = (np.zeros((n, 3)) if external_forces is None
+              else _checked_forces_3d(body, external_forces))
+    held = body.fixed_mask
+    still = np.zeros((n, 3))
+    size = float(np.ptp(body.mesh.points, axis=0).max())
+    load = forces + body.mass[:, None] * body.gravity
+    pseudo_step = 1e4 * size / body.material.dilatational_wave_speed
+    floor = 1e3 * np.finfo(float).eps * (float(np.linalg.norm(load)) + 1e-300)
+    x = state.positions.copy()
+    for iteration in range(1, max_iterations + 1):
+        residual = body.forces_at(x, still) + load
+        residual[held] = 0.0
+        if float(np.linalg.norm(residual)) <= floor:
+            break
+        update = body.response_at(x, 0.0, pseudo_step, 1.0).solve(pseudo_step**2 * residual)
+        length = 1.0
+        for _ in range(30):
+            if body.determinants_at(x + length * update).min() > 0.0:
+                break
+            length *= 0.5
+        else:
+            break
+        x = x + length * update
+        if length * float(np.abs(update).max()) <= tolerance * size:
+            break
+    else:
+        iteration = max_iterations
+    residual = body.forces_at(x, still) + load
+    residual[held] = 0.0
+    determinants = body.determinants_at(x)
+    converged = (float(np.linalg.norm(residual)) <= max(floor, 1e-6 * float(
+        np.linalg.norm(load)))) and determinants.min() > 0.0
+    if not converged:
+        element = int(np.argmin(determinants))
+        raise SolidInversionError(
+            f"elastic body: no static equilibrium found in {max_iterations} iterations "
+            f"(element {element}, det F = {determinants[element]:.3g})",
+            step=None, substep=0, element=element, determinant=float(determinants[element]),
+            positions=x,
+        )
+    state.positions[...] = x
+    state.velocities[...] = 0.0
+    return iteration
