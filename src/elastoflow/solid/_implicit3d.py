@@ -6,27 +6,28 @@ The building block of a strongly coupled 3D scheme, the 3D counterpart of
 
 * the step matrix ``A = M + c D + s^2 K + c alpha M`` of a body at given positions (``K`` the
   St. Venant-Kirchhoff tangent stiffness with the compressive stress clamped, ``D`` the Voigt
-  damping matrix, ``M`` the lumped masses), assembled by the compiled
-  `elastoflow.solid._kernels3d.step_matrix_triplets_3d` straight into a sparse pattern of the
-  free degrees of freedom that the body builds once (`StepMatrixLayout3D`), and factored
-  (`step_response_3d`): dense Cholesky for small bodies, banded Cholesky in reverse
-  Cuthill-McKee order for slender ones, SuperLU otherwise;
+  damping matrix, ``M`` the lumped masses): its element entries (compiled,
+  `elastoflow.solid._kernels3d.step_matrix_scatter_3d`; the COO twin
+  `step_matrix_triplets_3d` gives `ElasticBody3D.stiffness_matrix`) summed straight into a
+  CSR pattern of the free degrees of freedom that the body builds once
+  (`StepMatrixLayout3D`), and factored (`step_response_3d`): dense Cholesky for small
+  bodies, banded Cholesky in reverse Cuthill-McKee order for slender ones, SuperLU
+  otherwise;
 * `StepResponse3D`, the factored answer ``scale A^-1 f`` to a force held over the step: the
   contract of the 2D `StepResponse` (``solve``, ``velocity_change``, ``compliance``,
   ``compliance_factor``), what the monolithic pressure solve reads of a body, with nodal
   arrays of shape (n, 3) and degrees of freedom ``3 node + component``;
 * `NewmarkFem3D`, `MidpointFem3D`, `EnergyMomentumFem3D`: the 2D rules (`NewmarkFem`,
-  `MidpointFem`, `EnergyMomentumFem`), same arguments, same ``response`` and ``advance``,
-  for both dimensions: they subclass the 2D classes (so they are accepted wherever those are,
-  e.g. `elastoflow.simulation.MonolithicCoupling(integrator=...)`) and hand 2D bodies to
-  them; a 3D body runs the same rule through the same Newton iteration (`_newton_step`,
-  `_integrators._implicit_step` with a fresh tangent whenever the residual contracts
-  slowly) with its own residual. Why subclasses rather than the 2D
-  classes themselves: the 2D ``advance`` checks the force array against shape (n, 2)
-  (``_integrators._checked_forces``); with that check taking the body's dimension, the 2D
-  classes would advance 3D bodies unchanged (every other call they make goes through the
-  body: ``forces_at``, ``viscous_forces_at``, ``response_at``, ``determinants_at``) and these
-  three would reduce to aliases;
+  `MidpointFem`, `EnergyMomentumFem`) with the same arguments, ``response`` and
+  ``advance``, for both dimensions. They subclass the 2D classes, so they are accepted
+  wherever those are (e.g. `elastoflow.simulation.MonolithicCoupling(integrator=...)`), and
+  hand 2D bodies to them unchanged; a 3D body runs the same residual through `_newton_step`.
+  Why not the 2D classes themselves: their ``advance`` checks the forces against shape
+  (n, 2) (``_integrators._checked_forces``), and their Newton (`_integrators._implicit_step`:
+  the start's tangent until the residual grows, the clamped tangent) converged too slowly
+  in 3D rotations; `_newton_step` refactors when the residual contracts slowly and takes the
+  exact tangent. With the check taking the body's dimension and that Newton shared, these
+  three would reduce to the 2D classes;
 * `static_equilibrium_3d`: the rest state under loads (static deflection).
 """
 
@@ -83,7 +84,7 @@ class StepMatrixLayout3D:
     """Where each triplet of `step_matrix_triplets_3d` goes in the step matrix restricted to
     the free degrees of freedom, stored as CSR (sorted columns). It depends only on the mesh
     and the held nodes, so a body builds it once and every step sums its element entries
-    into the data array (one ``bincount``), with no sorting.
+    into the data array (`step_matrix_scatter_3d`), with no sorting.
 
     Attributes:
         free: Free degrees of freedom (``3 node + component``), int64, shape (f,).
@@ -143,19 +144,13 @@ def step_matrix_3d(body: ElasticBody3D, positions: np.ndarray, dt: float,
         layout = StepMatrixLayout3D.build(body)
     s = dt if stiffness_step is None else float(stiffness_step)
     m = body.material
-    count = layout.target.shape[0]
-    rows = np.empty(count, dtype=np.int64)
-    cols = np.empty(count, dtype=np.int64)
-    values = np.empty(count)
-    _kernels3d.step_matrix_triplets_3d(
+    data = np.empty(layout.indices.shape[0])
+    _kernels3d.step_matrix_scatter_3d(
         np.ascontiguousarray(positions, dtype=np.float64), body.mesh.tetrahedra,
         body.dm_inverse, body.rest_volume, dt * m.damping_lambda + s * s * m.lame_lambda,
         dt * m.damping_mu + s * s * m.lame_mu, m.lame_lambda, m.lame_mu, s * s, not exact,
-        rows, cols, values,
+        layout.target, data,
     )
-    keep = layout.target >= 0
-    data = np.bincount(layout.target[keep], weights=values[keep],
-                       minlength=layout.indices.shape[0])
     lumped = np.repeat(body.mass * (1.0 + dt * body.velocity_damping), 3)[layout.free]
     data[layout.diagonal] += lumped
     size = layout.free.shape[0]
@@ -223,9 +218,9 @@ def _newton_step(
     """Newton on an implicit rule's residual in the end positions (end velocity ``2 (x1 -
     x0) / dt - v0``), as `_integrators._implicit_step`: first with the matrix of
     ``response`` (the tangent at the start, the linearised step's exact answer), a fresh
-    tangent at the iterate whenever an update contracts the residual by less than
-    ``_CONTRACTION`` or fails to reduce it, and a halving line search when even a fresh one
-    does not."""
+    tangent at the iterate (``tangent_at``: the exact one, compressive stress kept) whenever
+    an update contracts the residual by less than ``_CONTRACTION`` or fails to reduce it,
+    and a halving line search when even a fresh one does not."""
     held = body.fixed_mask
     x0 = state_in.positions
     v0 = state_in.velocities

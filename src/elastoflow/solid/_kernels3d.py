@@ -439,3 +439,31 @@ def step_matrix_triplets_3d(
                 rows[index] = row
                 cols[index] = 3 * tetrahedra[e, j // 3] + j % 3
                 values[index] = local[i, j]
+
+
+@njit(cache=True)
+def step_matrix_scatter_3d(
+    positions: np.ndarray, tetrahedra: np.ndarray, dm_inverse: np.ndarray,
+    rest_volume: np.ndarray, material_lambda: float, material_mu: float,
+    stress_lambda: float, stress_mu: float, stress_scale: float, clamp: bool,
+    target: np.ndarray, data: np.ndarray,
+) -> None:
+    """`step_matrix_triplets_3d`'s values summed straight into an assembled pattern:
+    ``data[target[k]] += value k`` (``target[k] < 0``: left out), ``data`` zeroed first.
+    Each entry sums its elements in element order, so entries (i, j) and (j, i) are equal to
+    the last bit."""
+    gradients = np.empty((4, 3))
+    pushed = np.empty((4, 3))
+    stress = np.empty((3, 3))
+    local = np.empty((12, 12))
+    data[:] = 0.0
+    for e in range(tetrahedra.shape[0]):
+        _element_matrix(positions, tetrahedra, dm_inverse, rest_volume, e, material_lambda,
+                        material_mu, stress_lambda, stress_mu, stress_scale, clamp,
+                        gradients, pushed, stress, local)
+        base = MATRIX_TRIPLETS_3D * e
+        for i in range(12):
+            for j in range(12):
+                where = target[base + 12 * i + j]
+                if where >= 0:
+                    data[where] += local[i, j]
