@@ -25,9 +25,9 @@ def load(scene: Any) -> Any:
         elastoflow.scenes.SceneError: unknown scene name or an invalid file (one line per
             problem, naming the key, the value and what is allowed).
     """
-    from elastoflow.scenes import Scene, build_simulation, resolve_scene
+    from elastoflow.scenes import Scene, Scene3D, build_simulation, resolve_scene
 
-    chosen = scene if isinstance(scene, Scene) else resolve_scene(str(Path(scene)) if isinstance(
+    chosen = scene if isinstance(scene, Scene | Scene3D) else resolve_scene(str(Path(scene)) if isinstance(
         scene, Path) else scene)
     return build_simulation(chosen)
 
@@ -39,10 +39,20 @@ def frame(simulation: Any, view: str = "speed", **options: Any) -> np.ndarray:
         simulation: A `Simulation`.
         view: "speed", "vorticity", "pressure" or "dye".
         **options: Passed to `elastoflow.render.render_frame` (value_range, scale, colorbar);
-            a free surface's level set is passed unless given.
+            a free surface's level set is passed unless given. A 3D simulation is drawn
+            through a plane by `elastoflow.render.render_slice_3d` (``axis`` "x", "y" or "z",
+            default "z"; ``position`` [m], default the middle), its bodies' and obstacles'
+            sections filled.
     """
-    from elastoflow.render import render_frame
+    from elastoflow.render import render_frame, render_slice_3d
 
+    if getattr(simulation, "dimension", 2) == 3:
+        solids = [(state.positions, body.mesh.tetrahedra)
+                  for body, state in zip(simulation.bodies, simulation.state.bodies)]
+        solids += [solid for obstacle in simulation.obstacles
+                   if (solid := obstacle.solid_at(simulation.time)) is not None]
+        return render_slice_3d(simulation.grid, simulation.state.fluid, view=view,
+                               bodies=solids, time=simulation.time, **options)
     options.setdefault("level_set", getattr(simulation, "level_set", None))
     return render_frame(
         simulation.grid, simulation.state.fluid, simulation.body_geometry(),

@@ -62,8 +62,12 @@ def run_settling(cells_per_diameter: int = 6, duration: float = 4.0, dt: float =
     data["bodies"][0]["shape"]["element_size"] = h
     data["time"] = {"dt": dt, "duration": duration}
     data["outputs"] = {}
+    from elastoflow.simulation import CoupledModel3D
+
     simulation = build_simulation(parse_scene(data, source="sphere_settling"))
-    body = simulation.bodies[0]
+    model = simulation.model
+    assert isinstance(model, CoupledModel3D)
+    body = model.bodies[0]
     mass = body.mass / body.mass.sum()
     radius = 0.5 * DIAMETER
     floor = float(simulation.grid.origin[1])
@@ -82,7 +86,7 @@ def run_settling(cells_per_diameter: int = 6, duration: float = 4.0, dt: float =
             progress(f"D/h = {cells_per_diameter}: t = {times[-1]:.2f} s, u = "
                      f"{speeds[-1]:.4f} m/s, gap/D = {gaps[-1] / DIAMETER:.2f}")
     return SettlingRun(cells_per_diameter, np.array(times), np.array(speeds), np.array(gaps),
-                       _time.perf_counter() - began, simulation.grid.shape_cells,
+                       _time.perf_counter() - began, model.grid.shape_cells,
                        body.mesh.tetrahedron_count)
 
 

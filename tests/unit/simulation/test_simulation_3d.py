@@ -165,3 +165,16 @@ def test_a_diverging_3d_run_keeps_the_last_good_state() -> None:
         simulation.step()
     assert simulation.step_index == 0
     np.testing.assert_array_equal(simulation.state.fluid.velocity_x, stream().velocity_x)
+
+
+def test_the_api_draws_a_3d_simulation_through_a_plane() -> None:
+    import elastoflow
+
+    sphere = obstacle_sphere((0.6, 0.5, 0.5), 0.2, 0.06)
+    simulation = Simulation(GRID, channel_solver(), state=stream(), obstacles=[sphere],
+                            bodies=[soft_cube()], dt=0.05)
+    simulation.step()
+    image = elastoflow.frame(simulation, "speed", axis="z", position=0.5)
+    assert image.ndim == 3 and image.dtype == np.uint8
+    flat = elastoflow.frame(simulation, "pressure", axis="x")
+    assert flat.shape != image.shape  # a y-z plane of 8 x 8 cells against x-y's 12 x 8
