@@ -242,12 +242,20 @@ class Viewer:
 def run_viewer(scene: Any, *, scale: int | None = None, max_fps: int = 60,
                max_frames: int | None = None) -> Viewer:
     """Open the window and run until closed (q, Esc or the window's close button), or for
-    ``max_frames`` frames; returns the viewer."""
+    ``max_frames`` frames; returns the viewer.
+
+    A 3D scene (``scene.dimension == 3``) opens a `elastoflow.viewer.Viewer3D`: a slice
+    through the fluid, the simulation stepping in a background thread."""
     os.environ.setdefault("PYGAME_HIDE_SUPPORT_PROMPT", "1")
     import pygame
 
     pygame.init()
     try:
+        if getattr(scene, "dimension", 2) == 3:
+            from elastoflow.viewer._viewer3d import Viewer3D, run_viewer_3d
+
+            return run_viewer_3d(Viewer3D(scene, scale=scale), max_fps=max_fps,
+                                 max_frames=max_frames, caption=f"elastoflow: {scene.name}")
         viewer = Viewer(scene, scale=scale)
         surface = viewer.draw()
         screen = pygame.display.set_mode(surface.get_size())
