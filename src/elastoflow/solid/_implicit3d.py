@@ -44,9 +44,16 @@ from elastoflow.solid import _kernels3d
 from elastoflow.solid._body import SolidInversionError, SolidStepReport
 from elastoflow.solid._body3d import ElasticBody3D
 from elastoflow.solid._integrators import EnergyMomentumFem, MidpointFem, NewmarkFem
-from elastoflow.solid._response import _BLAS, _DENSE_LIMIT, StepResponse, _banded_cholesky
+from elastoflow.solid._response import _BLAS, StepResponse, _banded_cholesky
 from elastoflow.solid._rod import BodyModel
 from elastoflow.solid._state import BodyState
+
+# Free degrees of freedom up to which the matrix is inverted dense (2D: `_DENSE_LIMIT`, 600,
+# chosen for the compliance on many boundary dofs). A 3D body's Newton step pays the whole
+# inverse: the k = 2 cantilever (540 free dofs) took 63 ms a step dense against 9.2 ms with
+# the banded factor (its compliance on 81 dofs: 1.7 ms dense, 18 ms banded); at 108 free
+# dofs both take 6-7 ms.
+_DENSE_LIMIT_3D = 192
 
 
 @dataclass
@@ -162,7 +169,7 @@ def step_response_3d(body: ElasticBody3D, positions: np.ndarray, dt: float,
                      layout: StepMatrixLayout3D | None = None, *,
                      exact: bool = False) -> StepResponse3D:
     """Assemble (`step_matrix_3d`) and factor ``A``; its answer is ``scale A^-1 f`` (default
-    ``dt``). Up to ``_DENSE_LIMIT`` free degrees of freedom the inverse is formed (dense
+    ``dt``). Up to ``_DENSE_LIMIT_3D`` free degrees of freedom the inverse is formed (dense
     Cholesky); above, a banded Cholesky in reverse Cuthill-McKee order when the band is
     narrow enough (`_response._banded_cholesky`: slender bodies), SuperLU otherwise."""
     if layout is None:
@@ -172,7 +179,7 @@ def step_response_3d(body: ElasticBody3D, positions: np.ndarray, dt: float,
     if free.size == 0:
         return StepResponse3D(free, answer, None)
     matrix = step_matrix_3d(body, positions, dt, stiffness_step, layout, exact=exact)
-    if free.size <= _DENSE_LIMIT:
+    if free.size <= _DENSE_LIMIT_3D:
         with _BLAS.limit(limits=1, user_api="blas"):
             try:
                 factor = linalg.cho_factor(matrix.toarray(), check_finite=False)
