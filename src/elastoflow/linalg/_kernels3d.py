@@ -20,6 +20,10 @@ PARALLEL_MINIMUM_3D = 16 * 16 * 16
 # Gauss-Seidel colours: a point (i, j, k) is red when i + j + k is even.
 RED = 0
 BLACK = 1
+# Operators whose face weights are all equal (the pressure operator without bodies, and its
+# coarse levels) are applied with that one number: the weight arrays are half the memory
+# traffic of a Gauss-Seidel sweep, and the sweeps are memory-bound.
+NOT_UNIFORM = -1.0
 
 
 @njit(cache=True, inline="always")
@@ -296,33 +300,6 @@ def coarsen_kernel_3d(fine_diagonal, fine_weights_x, fine_weights_y, fine_weight
                            fine_total, diagonal, weights_x, weights_y, weights_z)
 
 
-def _make_smooth(loop):
-    def kernel(x, b, inverse, weights_x, weights_y, weights_z, colour):
-        m, n, l = x.shape
-        for i in loop(m):
-            for j in range(n):
-                for k in range((colour + i + j) & 1, l, 2):
-                    inv = inverse[i, j, k]
-                    if inv == 0.0:
-                        x[i, j, k] = 0.0
-                        continue
-                    coupled = _coupled_sum(weights_x, weights_y, weights_z, x, i, j, k, m, n, l)
-                    x[i, j, k] = (b[i, j, k] + coupled) * inv
-    return kernel
-
-
-_smooth_serial, _smooth_parallel = serial_and_parallel(_make_smooth)
-
-
-@njit(cache=True)
-def smooth_kernel_3d(x, b, inverse, weights_x, weights_y, weights_z, colour):
-    """One half sweep of red-black Gauss-Seidel on ``A x = b``: the points of ``colour``
-    (`RED`: i + j + k even, `BLACK`: odd) get ``x = (b + sum w x_nb) / D``."""
-    if x.size > PARALLEL_MINIMUM_3D:
-        return _smooth_parallel(x, b, inverse, weights_x, weights_y, weights_z, colour)
-    return _smooth_serial(x, b, inverse, weights_x, weights_y, weights_z, colour)
-
-
 def _make_restrict(loop):
     def kernel(x, b, total, weights_x, weights_y, weights_z, coarse_b):
         m, n, l = x.shape
@@ -404,30 +381,6 @@ def prolong_add_all_kernel_3d(coarse_x, x):
     if x.size > PARALLEL_MINIMUM_3D:
         return _prolong_all_parallel(coarse_x, x)
     return _prolong_all_serial(coarse_x, x)
-
-
-def _make_smooth_from_zero(loop):
-    def kernel(x, b, inverse, colour):
-        m, n, l = x.shape
-        for i in loop(m):
-            for j in range(n):
-                first = (colour + i + j) & 1
-                for k in range(l):
-                    x[i, j, k] = b[i, j, k] * inverse[i, j, k] if (k & 1) == first else 0.0
-    return kernel
-
-
-_smooth_from_zero_serial, _smooth_from_zero_parallel = serial_and_parallel(
-    _make_smooth_from_zero)
-
-
-@njit(cache=True)
-def smooth_from_zero_kernel_3d(x, b, inverse, colour):
-    """``x = 0``, then the half sweep of ``colour`` (`smooth_kernel_3d`, either operator): with
-    every neighbour 0 it is ``x = b / D`` there; one pass instead of a fill and a sweep."""
-    if x.size > PARALLEL_MINIMUM_3D:
-        return _smooth_from_zero_parallel(x, b, inverse, colour)
-    return _smooth_from_zero_serial(x, b, inverse, colour)
 
 
 @njit(cache=True)
@@ -742,12 +695,6 @@ def masked_copy_kernel_3d(values, active, out):
     return _masked_copy_serial(values, active, out)
 
 
-# Operators whose face weights are all equal (the pressure operator without bodies, and its
-# coarse levels) are applied with that one number: the weight arrays are half the memory
-# traffic of a Gauss-Seidel sweep, and the sweeps are memory-bound.
-NOT_UNIFORM = -1.0
-
-
 @njit(cache=True)
 def uniform_weight_kernel(weights_x, weights_y, weights_z):
     """The common value of all weights when they are equal and positive, else `NOT_UNIFORM`."""
@@ -780,27 +727,91 @@ def _neighbour_values(x, i, j, k, m, n, l):
     return summed
 
 
-def _make_smooth_uniform(loop):
-    def kernel(x, b, inverse, weight, colour):
-        m, n, l = x.shape
-        for i in loop(m):
-            for j in range(n):
-                for k in range((colour + i + j) & 1, l, 2):
-                    x[i, j, k] = (b[i, j, k] + weight * _neighbour_values(x, i, j, k, m, n, l)
-                                  ) * inverse[i, j, k]
+@njit(cache=True, inline="always")
+def _half_sweep_plane(x, b, inverse, weights_x, weights_y, weights_z, weight, i, colour,
+                      from_zero):
+    """The points of ``colour`` on plane ``i``: ``x = (b + sum w x_nb) / D`` (0 where
+    inactive), with the one ``weight`` unless it is `NOT_UNIFORM`; ``from_zero``: x is 0
+    everywhere before, so the plane becomes ``b / D`` on ``colour`` and 0 on the other."""
+    m, n, l = x.shape
+    for j in range(n):
+        start = (colour + i + j) & 1
+        if from_zero:
+            for k in range(l):
+                x[i, j, k] = b[i, j, k] * inverse[i, j, k] if (k & 1) == start else 0.0
+        elif weight != NOT_UNIFORM:
+            for k in range(start, l, 2):
+                x[i, j, k] = (b[i, j, k] + weight * _neighbour_values(x, i, j, k, m, n, l)
+                              ) * inverse[i, j, k]
+        else:
+            for k in range(start, l, 2):
+                inv = inverse[i, j, k]
+                if inv == 0.0:
+                    x[i, j, k] = 0.0
+                    continue
+                coupled = _coupled_sum(weights_x, weights_y, weights_z, x, i, j, k, m, n, l)
+                x[i, j, k] = (b[i, j, k] + coupled) * inv
+
+
+def _make_sweep(loop):
+    def kernel(x, b, inverse, weights_x, weights_y, weights_z, weight, first, from_zero,
+               chunks):
+        m = x.shape[0]
+        second = 1 - first
+        size = (m + chunks - 1) // chunks
+        # Each chunk of planes walks its planes once: the first colour on plane i, then the
+        # second on plane i - 1, whose neighbours of the first colour are all new by then.
+        # The second colour on a chunk's end planes needs the neighbouring chunk's first
+        # colour: it waits for the second loop.
+        for c in loop(chunks):
+            start = c * size
+            stop = min(start + size, m)
+            for i in range(start, stop + 1):
+                if i < stop:
+                    _half_sweep_plane(x, b, inverse, weights_x, weights_y, weights_z, weight,
+                                      i, first, from_zero)
+                plane = i - 1
+                if plane < start or (plane == start and start > 0) or (
+                        plane == stop - 1 and stop < m):
+                    continue
+                _half_sweep_plane(x, b, inverse, weights_x, weights_y, weights_z, weight,
+                                  plane, second, False)
+        for c in loop(chunks):
+            start = c * size
+            stop = min(start + size, m)
+            if start >= stop:
+                continue
+            if start > 0:
+                _half_sweep_plane(x, b, inverse, weights_x, weights_y, weights_z, weight,
+                                  start, second, False)
+            if stop < m and (stop - 1 != start or start == 0):
+                _half_sweep_plane(x, b, inverse, weights_x, weights_y, weights_z, weight,
+                                  stop - 1, second, False)
     return kernel
 
 
-_smooth_uniform_serial, _smooth_uniform_parallel = serial_and_parallel(_make_smooth_uniform)
+_sweep_serial, _sweep_parallel = serial_and_parallel(_make_sweep)
 
 
 @njit(cache=True)
-def smooth_uniform_kernel_3d(x, b, inverse, weight, colour):
-    """`smooth_kernel_3d` for an operator whose weights all equal ``weight`` (every point
-    active)."""
+def sweep_kernel_3d(x, b, inverse, weights_x, weights_y, weights_z, weight, first, from_zero,
+                    chunks):
+    """One red-black Gauss-Seidel sweep on ``A x = b``: the points of colour ``first`` (`RED`:
+    i + j + k even, `BLACK`: odd) get ``x = (b + sum w x_nb) / D``, then those of the other
+    colour; ``weight``: the one value of all weights, or `NOT_UNIFORM` (then the weight
+    arrays are read); ``from_zero``: x starts at 0 (not read; no fill needed); ``chunks``:
+    the number of plane ranges walked in parallel (the thread count: `numba.get_num_threads`
+    from the caller, which a cached kernel cannot call).
+
+    Both colours in one walk over the planes (the second one plane behind the first), which
+    reads the arrays once instead of twice; the result is exactly that of the two half
+    sweeps one after the other.
+    """
     if x.size > PARALLEL_MINIMUM_3D:
-        return _smooth_uniform_parallel(x, b, inverse, weight, colour)
-    return _smooth_uniform_serial(x, b, inverse, weight, colour)
+        return _sweep_parallel(x, b, inverse, weights_x, weights_y, weights_z, weight, first,
+                               from_zero, chunks)
+    return _sweep_serial(x, b, inverse, weights_x, weights_y, weights_z, weight, first,
+                         from_zero, 1)
 
 
 def _make_restrict_uniform(loop):

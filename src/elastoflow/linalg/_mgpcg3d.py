@@ -11,6 +11,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+from numba import get_num_threads
 from numpy.typing import NDArray
 
 from elastoflow.linalg._kernels import (
@@ -39,9 +40,7 @@ from elastoflow.linalg._kernels3d import (
     residual_uniform_kernel_3d,
     restrict_residual_kernel_3d,
     restrict_residual_uniform_kernel_3d,
-    smooth_from_zero_kernel_3d,
-    smooth_kernel_3d,
-    smooth_uniform_kernel_3d,
+    sweep_kernel_3d,
     step_jacobi_kernel_3d,
     step_kernel_3d,
     uniform_weight_kernel,
@@ -115,13 +114,12 @@ class _Level:
                    np.zeros((m, n, l - 1)), np.zeros(shape), np.zeros(shape), np.zeros(shape),
                    np.zeros(shape))
 
-    def smooth(self, x: NDArray[np.float64], b: NDArray[np.float64], colour: int) -> None:
-        """One red or black half sweep of Gauss-Seidel on this level."""
-        if self.uniform != NOT_UNIFORM:
-            smooth_uniform_kernel_3d(x, b, self.inverse, self.uniform, colour)
-        else:
-            smooth_kernel_3d(x, b, self.inverse, self.weights_x, self.weights_y,
-                             self.weights_z, colour)
+    def sweep(self, x: NDArray[np.float64], b: NDArray[np.float64], first: int,
+              from_zero: bool, chunks: int) -> None:
+        """One red-black Gauss-Seidel sweep on this level, colour ``first`` first;
+        ``from_zero``: x is taken as 0 (and need not be filled); ``chunks``: the threads."""
+        sweep_kernel_3d(x, b, self.inverse, self.weights_x, self.weights_y, self.weights_z,
+                        self.uniform, first, from_zero, chunks)
 
     def prolong(self, coarse_x: NDArray[np.float64], x: NDArray[np.float64]) -> None:
         """``x += P coarse_x`` at this level's active points (all of a uniform level)."""
@@ -244,18 +242,15 @@ class _Hierarchy3D:
         after)."""
         levels = self.levels
         count = len(levels)
+        chunks = get_num_threads()
         for index, level in enumerate(levels):
             x = z if index == 0 else level.x
             b = r if index == 0 else level.b
             if index == count - 1:
                 dense_solve_kernel(self.factor, b, x)
                 break
-            # From x = 0, the first red half sweep is x = b / D (one pass, no fill).
-            smooth_from_zero_kernel_3d(x, b, level.inverse, RED)
-            level.smooth(x, b, BLACK)
-            for _ in range(sweeps - 1):
-                level.smooth(x, b, RED)
-                level.smooth(x, b, BLACK)
+            for sweep in range(sweeps):
+                level.sweep(x, b, RED, sweep == 0, chunks)
             if index < count - 1:
                 level.restrict(x, b, levels[index + 1].b)
         for index in range(count - 2, -1, -1):
@@ -264,8 +259,7 @@ class _Hierarchy3D:
             b = r if index == 0 else level.b
             level.prolong(levels[index + 1].x, x)
             for _ in range(sweeps):
-                level.smooth(x, b, BLACK)
-                level.smooth(x, b, RED)
+                level.sweep(x, b, BLACK, False, chunks)
 
 
 @dataclass(frozen=True)

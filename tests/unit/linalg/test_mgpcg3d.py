@@ -14,6 +14,14 @@ from elastoflow.linalg import (
     SolveReport,
     apply_operator_3d,
 )
+from elastoflow.linalg._kernels3d import (
+    BLACK,
+    RED,
+    _sweep_parallel,
+    _sweep_serial,
+    load_operator_kernel_3d,
+    uniform_weight_kernel,
+)
 
 
 def laplacian(n: int, outflow: bool = False, shape: tuple[int, int, int] | None = None,
@@ -212,3 +220,33 @@ def test_shapes_of_equal_size_share_vectors_without_mixing_answers() -> None:
             assert report.converged
             np.testing.assert_array_equal(x, alone)
     assert len(solver._vector_pool) == 1 and len(solver._hierarchies) == 3
+
+
+@pytest.mark.parametrize("uniform", [True, False])
+def test_a_sweep_is_its_two_half_sweeps_however_the_planes_are_split(uniform: bool) -> None:
+    # The fused red-black sweep walks chunks of planes, the second colour one plane behind:
+    # it must give the two half sweeps one after the other, for any split into chunks.
+    shape = (11, 6, 5)
+    operator = laplacian(0, outflow=True, shape=shape) if uniform else random_operator(shape, 4)
+    a = (operator.diagonal, operator.weights_x, operator.weights_y, operator.weights_z)
+    total, inverse = np.empty(shape), np.empty(shape)
+    load_operator_kernel_3d(*a, total, inverse, np.empty(shape, dtype=np.bool_))
+    weight = uniform_weight_kernel(*a[1:])
+    assert (weight == 1.0) == uniform
+    rng = np.random.default_rng(5)
+    b, start = rng.standard_normal(shape), rng.standard_normal(shape)
+    colour = np.indices(shape).sum(axis=0) % 2
+    for first, from_zero in ((RED, False), (BLACK, False), (RED, True)):
+        expected = np.zeros(shape) if from_zero else start.copy()
+        for half in (first, 1 - first):
+            coupled = total * expected - apply_operator_3d(operator, expected)
+            expected = np.where(colour == half, (b + coupled) * inverse, expected)
+        swept = []
+        for chunks in (1, 2, 3, 4, 11, 20):
+            x = start.copy()
+            sweep = _sweep_serial if chunks == 1 else _sweep_parallel
+            sweep(x, b, inverse, *a[1:], weight, first, from_zero, chunks)
+            swept.append(x)
+        np.testing.assert_allclose(swept[0], expected, rtol=1e-13, atol=1e-13)
+        for x in swept[1:]:
+            np.testing.assert_array_equal(x, swept[0])
