@@ -8,7 +8,6 @@ import numpy as np
 from elastoflow.coupling import _kernels3d
 from elastoflow.coupling._map3d import (
     BoundaryMap3D,
-    _to_xyz,
     cut_distances_3d,
     face_open_fractions_3d,
     solid_cells_3d,
@@ -30,16 +29,14 @@ def _points_inside(bmap: BoundaryMap3D, component: int) -> tuple[np.ndarray, np.
     shape = tuple(counts[a] + (1 if a == component else 0) for a in range(3))
     u, v = (component + 1) % 3, (component + 2) % 3
     crossings = bmap.lines[component]
-    solid = np.empty((shape[component], shape[u], shape[v]), dtype=np.bool_)
-    velocity = np.empty(solid.shape)
+    solid = np.zeros(shape, dtype=np.bool_)
+    velocity = np.zeros(shape)
     _kernels3d.inside_along_lines(
         crossings.offsets, crossings.coordinate, crossings.sign, crossings.triangle,
-        crossings.weights, bmap.triangles, bmap.velocities, component, crossings.lines_v, 1, 1,
-        shape[u], shape[v], float(grid.origin[component]), 0.0, grid.h, shape[component], solid,
-        velocity)
-    order = _to_xyz(component)
-    return (np.ascontiguousarray(np.transpose(solid, order)),
-            np.ascontiguousarray(np.transpose(velocity, order)))
+        crossings.weights, bmap.triangles, bmap.velocities, component, component,
+        crossings.lines_v, 1, 1, shape[u], shape[v], float(grid.origin[component]), 0.0,
+        grid.h, shape[component], solid, velocity)
+    return solid, velocity
 
 
 def interior_boundary_3d(bmap: BoundaryMap3D) -> InteriorBoundary3D:

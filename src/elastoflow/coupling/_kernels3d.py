@@ -278,91 +278,11 @@ def section_areas(segments, offsets, origin_u, origin_v, h, out):
 THETA_FLOOR = 1e-9
 
 
-@njit(cache=True)
-def nearest_crossings(offsets, coordinate, triangle_of, weights, triangles, velocities,
-                      component, lines_v, line_u0, line_v0, count_u, count_v, origin, shift,
-                      h, count, theta_low, theta_high, velocity_low, velocity_high):
-    """For the points ``origin + (i + shift) h`` along the lines ``(line_u0 + 2 p, line_v0 +
-    2 q)``: the distance (fraction of h) to the nearest crossing below (strictly) and at or
-    above each point within one spacing, and the ``component`` of the surface velocity there
-    (barycentric in the crossing's triangle); ``inf`` and 0 where none lies within h.
-
-    Outputs are indexed ``[i, p, q]``, shape ``(count, count_u, count_v)``.
-    """
-    for p in range(count_u):
-        for q in range(count_v):
-            line = (line_u0 + 2 * p) * lines_v + line_v0 + 2 * q
-            begin = offsets[line]
-            end = offsets[line + 1]
-            # next_entry: the first crossing at or above the current point.
-            next_entry = begin
-            for i in range(count):
-                position = origin + (i + shift) * h
-                while next_entry < end and coordinate[next_entry] < position:
-                    next_entry += 1
-                theta_low[i, p, q] = np.inf
-                velocity_low[i, p, q] = 0.0
-                theta_high[i, p, q] = np.inf
-                velocity_high[i, p, q] = 0.0
-                if next_entry > begin:
-                    e = next_entry - 1
-                    distance = (position - coordinate[e]) / h
-                    if distance <= 1.0:
-                        theta_low[i, p, q] = max(distance, THETA_FLOOR)
-                        velocity_low[i, p, q] = _crossing_velocity(
-                            triangles, velocities, triangle_of[e], weights, e, component)
-                if next_entry < end:
-                    distance = (coordinate[next_entry] - position) / h
-                    if distance <= 1.0:
-                        theta_high[i, p, q] = max(distance, THETA_FLOOR)
-                        velocity_high[i, p, q] = _crossing_velocity(
-                            triangles, velocities, triangle_of[next_entry], weights,
-                            next_entry, component)
-
-
 @njit(cache=True, inline="always")
 def _crossing_velocity(triangles, velocities, t, weights, e, component):
     return (weights[e, 0] * velocities[triangles[t, 0], component]
             + weights[e, 1] * velocities[triangles[t, 1], component]
             + weights[e, 2] * velocities[triangles[t, 2], component])
-
-
-@njit(cache=True)
-def inside_along_lines(offsets, coordinate, sign, triangle_of, weights, triangles, velocities,
-                       component, lines_v, line_u0, line_v0, count_u, count_v, origin, shift,
-                       h, count, solid, velocity):
-    """For the points ``origin + (i + shift) h`` along the lines ``(line_u0 + 2 p, line_v0 +
-    2 q)``: whether each lies inside a body (winding number > 0, a point exactly on a
-    crossing counting it as passed) and, inside, the ``component`` of the body velocity
-    interpolated linearly between the crossings before and after it on the line (METHOD.md
-    §5.4: exact for rigid motion along the line); 0 outside.
-
-    Outputs are indexed ``[i, p, q]``, shape ``(count, count_u, count_v)``.
-    """
-    for p in range(count_u):
-        for q in range(count_v):
-            line = (line_u0 + 2 * p) * lines_v + line_v0 + 2 * q
-            begin = offsets[line]
-            end = offsets[line + 1]
-            entry = begin
-            winding = 0
-            for i in range(count):
-                position = origin + (i + shift) * h
-                while entry < end and coordinate[entry] <= position:
-                    winding += sign[entry]
-                    entry += 1
-                inside = winding > 0
-                solid[i, p, q] = inside
-                velocity[i, p, q] = 0.0
-                if inside and entry > begin and entry < end:
-                    before = entry - 1
-                    low = _crossing_velocity(triangles, velocities, triangle_of[before],
-                                             weights, before, component)
-                    high = _crossing_velocity(triangles, velocities, triangle_of[entry],
-                                              weights, entry, component)
-                    span = coordinate[entry] - coordinate[before]
-                    t = (position - coordinate[before]) / span if span > 0.0 else 0.5
-                    velocity[i, p, q] = low + t * (high - low)
 
 
 @njit(cache=True)
@@ -517,3 +437,114 @@ def traction_triangles(points, velocities, triangles, u, v, w, p, solid_u, solid
                 force[ia, r] += alpha * piece_force[r]
                 force[ib, r] += beta * piece_force[r]
                 force[ic, r] += gamma * piece_force[r]
+
+
+@njit(cache=True, inline="always")
+def _xyz(axis, i, p, q):
+    """The (x, y, z) index of the point ``i`` along a line along ``axis`` at ``(p, q)`` in
+    the two other axes ``((axis + 1) % 3, (axis + 2) % 3)``."""
+    if axis == 0:
+        return i, p, q
+    if axis == 1:
+        return q, i, p
+    return p, q, i
+
+
+@njit(cache=True)
+def nearest_crossings(offsets, coordinate, triangle_of, weights, triangles, velocities,
+                          component, axis, lines_v, line_u0, line_v0, count_u, count_v, origin,
+                          shift, h, count, theta_low, theta_high, velocity_low, velocity_high):
+    """For the points ``origin + (i + shift) h`` along the lines ``(line_u0 + 2 p, line_v0 +
+    2 q)`` along ``axis``: the distance (fraction of h) to the nearest crossing below
+    (strictly) and at or above each point within one spacing, and the ``component`` of the
+    surface velocity there (barycentric in the crossing's triangle).
+
+    Outputs are (x, y, z)-indexed and must come filled with ``inf`` (distances) and 0
+    (velocities): only the points next to a crossing are written, so the cost follows the
+    crossings, not the grid. A point's nearest crossing below is the last one before it, so
+    the crossings are visited upwards for ``theta_low`` (a later one overwrites) and
+    downwards for ``theta_high``.
+    """
+    for p in range(count_u):
+        for q in range(count_v):
+            line = (line_u0 + 2 * p) * lines_v + line_v0 + 2 * q
+            begin = offsets[line]
+            end = offsets[line + 1]
+            for e in range(begin, end):
+                c = coordinate[e]
+                # The first point strictly above the crossing, and the next one (one spacing
+                # away to rounding).
+                i = int(np.floor((c - origin) / h - shift)) + 1
+                while i > 0 and origin + (i - 1 + shift) * h > c:
+                    i -= 1
+                while origin + (i + shift) * h <= c:
+                    i += 1
+                for point in (i, i + 1):
+                    if 0 <= point < count:
+                        distance = (origin + (point + shift) * h - c) / h
+                        if distance <= 1.0:
+                            x, y, z = _xyz(axis, point, p, q)
+                            theta_low[x, y, z] = max(distance, THETA_FLOOR)
+                            velocity_low[x, y, z] = _crossing_velocity(
+                                triangles, velocities, triangle_of[e], weights, e, component)
+            for e in range(end - 1, begin - 1, -1):
+                c = coordinate[e]
+                # The last point at or below the crossing, and the one before it when the
+                # crossing sits exactly on a point (one spacing away).
+                i = int(np.floor((c - origin) / h - shift))
+                while origin + (i + 1 + shift) * h <= c:
+                    i += 1
+                while i >= 0 and origin + (i + shift) * h > c:
+                    i -= 1
+                for point in (i, i - 1):
+                    if 0 <= point < count:
+                        distance = (c - (origin + (point + shift) * h)) / h
+                        if distance <= 1.0:
+                            x, y, z = _xyz(axis, point, p, q)
+                            theta_high[x, y, z] = max(distance, THETA_FLOOR)
+                            velocity_high[x, y, z] = _crossing_velocity(
+                                triangles, velocities, triangle_of[e], weights, e, component)
+
+
+@njit(cache=True)
+def inside_along_lines(offsets, coordinate, sign, triangle_of, weights, triangles,
+                           velocities, component, axis, lines_v, line_u0, line_v0, count_u,
+                           count_v, origin, shift, h, count, solid, velocity):
+    """For the points ``origin + (i + shift) h`` along the lines ``(line_u0 + 2 p, line_v0 +
+    2 q)`` along ``axis``: whether each lies inside a body (winding number > 0, a point
+    exactly on a crossing counting it as passed) and, inside, the ``component`` of the body
+    velocity interpolated linearly between the crossings before and after it on the line
+    (METHOD.md §5.4: exact for rigid motion along the line).
+
+    Outputs are (x, y, z)-indexed and must come filled with False and 0: lines without
+    crossings are skipped (all their points are outside), and a line is left once its last
+    crossing is passed.
+    """
+    for p in range(count_u):
+        for q in range(count_v):
+            line = (line_u0 + 2 * p) * lines_v + line_v0 + 2 * q
+            begin = offsets[line]
+            end = offsets[line + 1]
+            if begin == end:
+                continue
+            entry = begin
+            winding = 0
+            for i in range(count):
+                position = origin + (i + shift) * h
+                while entry < end and coordinate[entry] <= position:
+                    winding += sign[entry]
+                    entry += 1
+                if entry == end and winding <= 0:
+                    break
+                if winding > 0:
+                    x, y, z = _xyz(axis, i, p, q)
+                    solid[x, y, z] = True
+                    if entry > begin and entry < end:
+                        before = entry - 1
+                        low = _crossing_velocity(triangles, velocities, triangle_of[before],
+                                                 weights, before, component)
+                        high = _crossing_velocity(triangles, velocities, triangle_of[entry],
+                                                  weights, entry, component)
+                        span = coordinate[entry] - coordinate[before]
+                        t = (position - coordinate[before]) / span if span > 0.0 else 0.5
+                        velocity[x, y, z] = low + t * (high - low)

@@ -246,7 +246,8 @@ class CutDistances3D:
 
 def cut_distances_3d(bmap: BoundaryMap3D) -> CutDistances3D:
     """`CutDistances3D` of every u, v and w point, from the crossings on the lines through
-    the points (METHOD.md's cut distances, one line per direction)."""
+    the points (METHOD.md's cut distances, one line per direction). The arrays are filled
+    with "none" and only the points next to a crossing are visited."""
     grid = bmap.grid
     counts = (grid.nx, grid.ny, grid.nz)
     thetas = []
@@ -255,29 +256,20 @@ def cut_distances_3d(bmap: BoundaryMap3D) -> CutDistances3D:
         # The points of this component: integer positions along their own axis, half
         # positions along the two others (in half-grid units: even along it, odd across).
         shape = tuple(counts[a] + (1 if a == component else 0) for a in range(3))
-        theta = np.empty((6, *shape))
-        velocity = np.empty((6, *shape))
+        theta = np.full((6, *shape), np.inf)
+        velocity = np.zeros((6, *shape))
         for axis in range(3):
             u, v = (axis + 1) % 3, (axis + 2) % 3
             crossings = bmap.lines[axis]
             half_u = 0 if u == component else 1
             half_v = 0 if v == component else 1
             shift = 0.0 if axis == component else 0.5
-            low = np.empty((shape[axis], shape[u], shape[v]))
-            high = np.empty_like(low)
-            speed_low = np.empty_like(low)
-            speed_high = np.empty_like(low)
             _kernels3d.nearest_crossings(
                 crossings.offsets, crossings.coordinate, crossings.triangle,
-                crossings.weights, bmap.triangles, bmap.velocities, component,
+                crossings.weights, bmap.triangles, bmap.velocities, component, axis,
                 crossings.lines_v, half_u, half_v, shape[u], shape[v],
-                float(grid.origin[axis]), shift, grid.h, shape[axis], low, high, speed_low,
-                speed_high)
-            order = _to_xyz(axis)
-            theta[2 * axis] = np.transpose(low, order)
-            theta[2 * axis + 1] = np.transpose(high, order)
-            velocity[2 * axis] = np.transpose(speed_low, order)
-            velocity[2 * axis + 1] = np.transpose(speed_high, order)
+                float(grid.origin[axis]), shift, grid.h, shape[axis], theta[2 * axis],
+                theta[2 * axis + 1], velocity[2 * axis], velocity[2 * axis + 1])
         thetas.append(theta)
         speeds.append(velocity)
     return CutDistances3D((thetas[0], thetas[1], thetas[2]), (speeds[0], speeds[1], speeds[2]))
