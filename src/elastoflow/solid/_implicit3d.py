@@ -33,6 +33,7 @@ The building block of a strongly coupled 3D scheme, the 3D counterpart of
 
 from __future__ import annotations
 
+import weakref
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -291,6 +292,48 @@ def _newton_step(
     )
 
 
+class _FactorCache:
+    """The last response a rule built for each 3D body, handed out again while no element's
+    deformation gradient has changed by more than ``reuse_strain`` since (and the step is the
+    same): the step matrix of slightly earlier positions. Newton still solves the step's
+    equations to its tolerance (with a fresh tangent when the old one contracts slowly);
+    what changes is the coupled pressure solve's answer of the body, linearised at those
+    earlier positions instead of the step's start (still symmetric positive definite, and
+    the same matrix in the predictor and the pressure solve)."""
+
+    def __init__(self, reuse_strain: float) -> None:
+        if not (np.isfinite(reuse_strain) and reuse_strain >= 0.0):
+            raise ValueError(f"reuse_strain = {reuse_strain!r}: must be finite and >= 0")
+        self.reuse_strain = float(reuse_strain)
+        self.built = 0
+        self._held: weakref.WeakKeyDictionary[ElasticBody3D, tuple[float, np.ndarray,
+                                                                   StepResponse]] = (
+            weakref.WeakKeyDictionary())
+
+    def response(self, body: BodyModel | ElasticBody3D, state: BodyState, dt: float,
+                 build: Callable[[BodyState], StepResponse]) -> StepResponse:
+        if self.reuse_strain > 0.0 and isinstance(body, ElasticBody3D):
+            held = self._held.get(body)
+            if (held is not None and held[0] == dt
+                    and _largest_strain_change(body, held[1], state.positions)
+                    <= self.reuse_strain):
+                return held[2]
+        self.built += 1
+        response = build(state)
+        if self.reuse_strain > 0.0 and isinstance(body, ElasticBody3D):
+            self._held[body] = (dt, state.positions.copy(), response)
+        return response
+
+
+def _largest_strain_change(body: ElasticBody3D, reference: np.ndarray,
+                           positions: np.ndarray) -> float:
+    """``max |F(positions) - F(reference)|`` over the elements and entries."""
+    change = positions - reference
+    t = body.mesh.tetrahedra
+    edges = np.stack([change[t[:, k]] - change[t[:, 0]] for k in (1, 2, 3)], axis=2)
+    return float(np.abs(edges @ body.dm_inverse).max())
+
+
 class NewmarkFem3D(NewmarkFem):
     """`NewmarkFem` (Newmark's rule with ``beta = gamma / 2``, Newton on the step matrix) for
     2D and 3D bodies: a 2D body goes to `NewmarkFem.advance`, an `ElasticBody3D` takes the
@@ -302,7 +345,25 @@ class NewmarkFem3D(NewmarkFem):
         gamma: Newmark's gamma in [0.5, 1]; 1/2 keeps the energy of linear vibrations.
         tolerance: Stop when the Newton update is below ``tolerance`` times the body's size.
         max_iterations: Newton iterations at most.
+        reuse_strain: 0 (default): ``response`` builds and factors the step matrix at the
+            state's positions every call, as in 2D. > 0: a 3D body's last response is
+            reused while no element's deformation gradient has moved by more than this
+            since it was built (`_FactorCache`; the factorization is most of a large body's
+            step).
     """
+
+    def __init__(self, gamma: float = 0.5, tolerance: float = 1e-10,
+                 max_iterations: int = 12, *, reuse_strain: float = 0.0) -> None:
+        super().__init__(gamma, tolerance, max_iterations)
+        self.factors = _FactorCache(reuse_strain)
+
+    def response(self, body: BodyModel | ElasticBody3D, state: BodyState,
+                 dt: float) -> StepResponse:
+        """As `NewmarkFem.response` (``reuse_strain``: the class docstring)."""
+        build = super().response
+        # BodyModel names the 2D bodies; the 2D rule reads only what ElasticBody3D also has.
+        return self.factors.response(body, state, dt,
+                                     lambda s: build(body, s, dt))  # type: ignore[arg-type]
 
     def advance(
         self, body: BodyModel | ElasticBody3D, state_in: BodyState, state_out: BodyState,
@@ -372,7 +433,21 @@ class MidpointFem3D(MidpointFem):
     Args:
         tolerance: Stop when the Newton update is below ``tolerance`` times the body's size.
         max_iterations: Newton iterations at most.
+        reuse_strain: Reuse of a 3D body's factor, as `NewmarkFem3D`.
     """
+
+    def __init__(self, tolerance: float = 1e-10, max_iterations: int = 12, *,
+                 reuse_strain: float = 0.0) -> None:
+        super().__init__(tolerance, max_iterations)
+        self.factors = _FactorCache(reuse_strain)
+
+    def response(self, body: BodyModel | ElasticBody3D, state: BodyState,
+                 dt: float) -> StepResponse:
+        """As `MidpointFem.response` (``reuse_strain``: `NewmarkFem3D`)."""
+        build = super().response
+        # BodyModel names the 2D bodies; the 2D rule reads only what ElasticBody3D also has.
+        return self.factors.response(body, state, dt,
+                                     lambda s: build(body, s, dt))  # type: ignore[arg-type]
 
     def advance(
         self, body: BodyModel | ElasticBody3D, state_in: BodyState, state_out: BodyState,
@@ -399,7 +474,21 @@ class EnergyMomentumFem3D(EnergyMomentumFem):
             constants), as `EnergyMomentumFem`.
         tolerance: Stop when the Newton update is below ``tolerance`` times the body's size.
         max_iterations: Newton iterations at most.
+        reuse_strain: Reuse of a 3D body's factor, as `NewmarkFem3D`.
     """
+
+    def __init__(self, damping: float = 0.0, tolerance: float = 1e-10,
+                 max_iterations: int = 12, *, reuse_strain: float = 0.0) -> None:
+        super().__init__(damping, tolerance, max_iterations)
+        self.factors = _FactorCache(reuse_strain)
+
+    def response(self, body: BodyModel | ElasticBody3D, state: BodyState,
+                 dt: float) -> StepResponse:
+        """As `EnergyMomentumFem.response` (``reuse_strain``: `NewmarkFem3D`)."""
+        build = super().response
+        # BodyModel names the 2D bodies; the 2D rule reads only what ElasticBody3D also has.
+        return self.factors.response(body, state, dt,
+                                     lambda s: build(body, s, dt))  # type: ignore[arg-type]
 
     def advance(
         self, body: BodyModel | ElasticBody3D, state_in: BodyState, state_out: BodyState,
