@@ -268,17 +268,17 @@ class ElasticBody3D:
 
     def response_at(self, positions: np.ndarray, dt: float,
                     stiffness_step: float | None = None,
-                    scale: float | None = None, *, exact: bool = False) -> StepResponse:
+                    scale: float | None = None) -> StepResponse:
         """The linearised answer ``(M + dt D + s^2 K + dt alpha M) dv = scale f`` at
         ``positions`` (``s = stiffness_step``, default ``dt``; ``scale`` default ``dt``;
-        held nodes get 0; K with the compressive stress clamped, or ``exact``):
+        held nodes get 0; K with the compressive stress clamped):
         `elastoflow.solid._implicit3d.step_response_3d`."""
         from elastoflow.solid._implicit3d import StepMatrixLayout3D, step_response_3d
 
         if self._matrix_layout is None:
             self._matrix_layout = StepMatrixLayout3D.build(self)
         return step_response_3d(self, positions, float(dt), stiffness_step, scale,
-                                self._matrix_layout, exact=exact)
+                                self._matrix_layout)
 
     def step_response(self, state: BodyState, dt: float) -> StepResponse:
         """The body's linearised backward-Euler answer to a force held over ``dt`` [s]:

@@ -24,10 +24,9 @@ The building block of a strongly coupled 3D scheme, the 3D counterpart of
   hand 2D bodies to them unchanged; a 3D body runs the same residual through `_newton_step`.
   Why not the 2D classes themselves: their ``advance`` checks the forces against shape
   (n, 2) (``_integrators._checked_forces``), and their Newton (`_integrators._implicit_step`:
-  the start's tangent until the residual grows, the clamped tangent) converged too slowly
-  in 3D rotations; `_newton_step` refactors when the residual contracts slowly and takes the
-  exact tangent. With the check taking the body's dimension and that Newton shared, these
-  three would reduce to the 2D classes;
+  the start's tangent until the residual grows) converged too slowly in 3D rotations;
+  `_newton_step` also refactors when the residual contracts slowly. With the check taking
+  the body's dimension and that Newton shared, these three would reduce to the 2D classes;
 * `static_equilibrium_3d`: the rest state under loads (static deflection).
 """
 
@@ -141,13 +140,14 @@ class StepMatrixLayout3D:
 
 def step_matrix_3d(body: ElasticBody3D, positions: np.ndarray, dt: float,
                    stiffness_step: float | None = None,
-                   layout: StepMatrixLayout3D | None = None, *,
-                   exact: bool = False) -> sparse.csr_matrix:
+                   layout: StepMatrixLayout3D | None = None) -> sparse.csr_matrix:
     """``A = M + dt D + s^2 K + dt alpha M`` on the free degrees of freedom (``s =
     stiffness_step``, default ``dt``), sparse CSR (f, f) in the order of ``layout.free``;
     ``K`` with the compressive stress clamped (positive semi-definite), so ``A`` is
-    symmetric positive definite; ``exact``: the exact tangent instead (Newton's matrix;
-    indefinite where compression outweighs the masses)."""
+    symmetric positive definite. (Newton with the exact, indefinite tangent instead
+    converged worse: a spinning, vibrating block at 20 x the explicit substep inverted at
+    step 3 under the energy-momentum rule, where the clamped one keeps the angular
+    momentum to 3e-8.)"""
     if layout is None:
         layout = StepMatrixLayout3D.build(body)
     s = dt if stiffness_step is None else float(stiffness_step)
@@ -156,7 +156,7 @@ def step_matrix_3d(body: ElasticBody3D, positions: np.ndarray, dt: float,
     _kernels3d.step_matrix_scatter_3d(
         np.ascontiguousarray(positions, dtype=np.float64), body.mesh.tetrahedra,
         body.dm_inverse, body.rest_volume, dt * m.damping_lambda + s * s * m.lame_lambda,
-        dt * m.damping_mu + s * s * m.lame_mu, m.lame_lambda, m.lame_mu, s * s, not exact,
+        dt * m.damping_mu + s * s * m.lame_mu, m.lame_lambda, m.lame_mu, s * s, True,
         layout.target, data,
     )
     lumped = np.repeat(body.mass * (1.0 + dt * body.velocity_damping), 3)[layout.free]
@@ -167,8 +167,7 @@ def step_matrix_3d(body: ElasticBody3D, positions: np.ndarray, dt: float,
 
 def step_response_3d(body: ElasticBody3D, positions: np.ndarray, dt: float,
                      stiffness_step: float | None = None, scale: float | None = None,
-                     layout: StepMatrixLayout3D | None = None, *,
-                     exact: bool = False) -> StepResponse3D:
+                     layout: StepMatrixLayout3D | None = None) -> StepResponse3D:
     """Assemble (`step_matrix_3d`) and factor ``A``; its answer is ``scale A^-1 f`` (default
     ``dt``). Up to ``_DENSE_LIMIT_3D`` free degrees of freedom the inverse is formed (dense
     Cholesky); above, a banded Cholesky in reverse Cuthill-McKee order when the band is
@@ -179,7 +178,7 @@ def step_response_3d(body: ElasticBody3D, positions: np.ndarray, dt: float,
     free = layout.free
     if free.size == 0:
         return StepResponse3D(free, answer, None)
-    matrix = step_matrix_3d(body, positions, dt, stiffness_step, layout, exact=exact)
+    matrix = step_matrix_3d(body, positions, dt, stiffness_step, layout)
     if free.size <= _DENSE_LIMIT_3D:
         with _BLAS.limit(limits=1, user_api="blas"):
             try:
@@ -211,10 +210,13 @@ def _checked_forces_3d(body: ElasticBody3D, external_forces: np.ndarray) -> np.n
 
 # Newton keeps a factor while each update shrinks the residual at least this much; slower
 # contraction gets a fresh tangent at the new iterate (2D: only when the residual grows).
-# The start's tangent, rotated against the step's midpoint, contracts at about 0.2 an
-# iteration on a 3D block spinning 0.09 rad a step: cheaper to iterate with it (a solve and a
-# force evaluation each, ~2 ms at 5000 tetrahedra) than to refactor (~90 ms).
-_CONTRACTION = 0.5
+# A block spinning 0.09 rad a step and vibrating (strains ~1 %), 10 x the explicit
+# substep, 12 iterations at most, 60 steps: the start's tangent, rotated against the
+# midpoint, contracts by ~0.2 an iteration; angular momentum kept to 1e-5 (2D rule), 6e-6
+# (0.5), 4e-8 (0.25), 4e-11 (0.1) by the midpoint rule, 5e-5 / 8e-6 / 4e-9 / 2e-11 by
+# energy-momentum (at 20 x: the 2D rule inverts an element at step 27, 0.25 keeps 3e-8).
+# A refactor costs ~30-50 Newton iterations of a 5000-tetrahedron body.
+_CONTRACTION = 0.25
 
 
 def _newton_step(
@@ -226,9 +228,9 @@ def _newton_step(
     """Newton on an implicit rule's residual in the end positions (end velocity ``2 (x1 -
     x0) / dt - v0``), as `_integrators._implicit_step`: first with the matrix of
     ``response`` (the tangent at the start, the linearised step's exact answer), a fresh
-    tangent at the iterate (``tangent_at``: the exact one, compressive stress kept) whenever
-    an update contracts the residual by less than ``_CONTRACTION`` or fails to reduce it,
-    and a halving line search when even a fresh one does not."""
+    tangent at the iterate whenever an update contracts the residual by less than
+    ``_CONTRACTION`` or fails to reduce it, and a halving line search when even a fresh one
+    does not."""
     held = body.fixed_mask
     x0 = state_in.positions
     v0 = state_in.velocities
@@ -392,7 +394,7 @@ class NewmarkFem3D(NewmarkFem):
             return beta * dt * dt * (body.forces_at(x, v) + f_external) - mass * (x - drift)
 
         def tangent_at(x: np.ndarray) -> StepResponse:
-            return body.response_at(x, gamma * dt, np.sqrt(beta) * dt, 0.5 * dt, exact=True)
+            return body.response_at(x, gamma * dt, np.sqrt(beta) * dt, 0.5 * dt)
 
         return _newton_step(body, state_in, state_out, dt, residual_at, response, tangent_at,
                             self.tolerance, self.max_iterations, step)
@@ -419,7 +421,7 @@ def _midpoint_advance(
     stiffness = dt * np.sqrt(0.25 + 0.5 * getattr(rule, "damping", 0.0))
 
     def tangent_at(x: np.ndarray) -> StepResponse:
-        return body.response_at(0.5 * (x0 + x), 0.5 * dt, stiffness, 0.5 * dt, exact=True)
+        return body.response_at(0.5 * (x0 + x), 0.5 * dt, stiffness, 0.5 * dt)
 
     return _newton_step(body, state_in, state_out, dt, residual_at, response, tangent_at,
                         rule.tolerance, rule.max_iterations, step)
