@@ -352,3 +352,47 @@ def test_reused_factor_gives_the_same_steps(rule_class) -> None:
     # The reused response is the one built: same object while the strain stays put.
     assert reusing.response(body, b, dt) is reusing.response(body, b, dt)
     assert reusing.response(body, b, 2.0 * dt) is not reusing.response(body, b, dt)
+
+
+@pytest.mark.parametrize("factor", ["dense", "banded", "superlu"])
+def test_every_factor_solves_the_step_matrix(factor, monkeypatch) -> None:
+    import scipy.sparse.linalg as sparse_linalg
+
+    import elastoflow.solid._implicit3d as implicit3d
+
+    if factor == "dense":
+        monkeypatch.setattr(implicit3d, "_DENSE_LIMIT_3D", 10**6)
+    elif factor == "superlu":
+        monkeypatch.setattr(implicit3d, "_banded_cholesky", lambda matrix: None)
+    mesh = mesh_box((0.3, 0.1, 0.1), counts=(6, 3, 3))
+    fixed = nodes_in_box_3d(mesh, (0.0, -1.0, -1.0, 0.0, 1.0, 1.0))
+    body = ElasticBody3D(mesh, DAMPED, fixed_nodes=fixed)
+    rng = np.random.default_rng(7)
+    positions = mesh.points + 0.003 * rng.standard_normal(mesh.points.shape)
+    dt = 1e-3
+    response = body.response_at(positions, dt, 2.0 * dt, 0.5 * dt)
+    assert isinstance(response, StepResponse3D)
+    assert (response._inverse is not None) == (factor == "dense")
+    assert (response._banded is not None) == (factor == "banded")
+    assert (response._factor is not None) == (factor == "superlu")
+    layout = StepMatrixLayout3D.build(body)
+    matrix = step_matrix_3d(body, positions, dt, 2.0 * dt, layout)
+    force = rng.standard_normal(mesh.points.shape)
+    expected = np.zeros(force.size)
+    expected[layout.free] = sparse_linalg.spsolve(matrix.tocsc(), force.ravel()[layout.free])
+    scale = np.abs(expected).max()
+    np.testing.assert_allclose(response.solve(force).ravel(), expected, rtol=0.0,
+                               atol=1e-10 * scale)
+    np.testing.assert_allclose(response.velocity_change(force).ravel(), 0.5 * dt * expected,
+                               rtol=0.0, atol=1e-10 * dt * scale)
+    dofs = np.array([5, 3 * fixed[1], 100, 7, 250])
+    compliance = response.compliance(dofs)
+    unit = np.zeros(force.size)
+    unit[100] = 1.0
+    column = np.zeros(force.size)
+    column[layout.free] = sparse_linalg.spsolve(matrix.tocsc(), unit[layout.free])
+    np.testing.assert_allclose(compliance[:, 2], 0.5 * dt * column[dofs], rtol=1e-9,
+                               atol=1e-12 * np.abs(column).max() * dt)
+    np.testing.assert_allclose(compliance, compliance.T, rtol=0.0,
+                               atol=1e-12 * np.abs(compliance).max())
+    assert np.all(compliance[1] == 0.0)
