@@ -270,7 +270,7 @@ def _newton_step(
         if step_length * float(np.abs(update).max()) <= tolerance * size:
             break
         fresh = False
-        if contraction > _CONTRACTION:
+        if contraction > _CONTRACTION and iterations < max_iterations:
             factor = tangent_at(x1)
             fresh = True
     v1 = 2.0 * (x1 - x0) / dt - v0
