@@ -206,24 +206,50 @@ class ViscosityWholeGrid:
         out[...] = 0.0
 
 
+VISCOSITY_FORMS = ("stress", "laplacian")
+"""Choices of `ViscosityStressFree`'s ``form``."""
+
+
 @dataclass(frozen=True)
 class ViscosityStressFree:
-    """Implicit viscosity (backward Euler) on the liquid's faces only, with a stress-free
-    surface: the air faces next to the liquid enter as fixed ghost values that make the
-    surface's shear stress zero (Harlow & Welch 1965; `stress_free_ghosts`), walls as in the
-    fluid (no-slip reflected, free-slip zero gradient, moving walls their velocity).
+    """Implicit viscosity (backward Euler) on the liquid only, with a stress-free surface.
+
+    ``form="stress"`` (default): the divergence of the full viscous stress
+    ``mu (grad u + grad u^T)``, variational (Batty & Bridson 2008): the new velocity minimises
+    the kinetic energy of the change plus ``dt`` times the dissipation ``2 mu e:e``, with the
+    strain's samples (``e_xx``, ``e_yy`` at the cells, ``e_xy`` at the corners) and the faces'
+    masses weighted by their liquid fractions ``clamp(1/2 - phi / h, 0, 1)``; the surface's
+    condition is the natural one, zero viscous traction; u and v are solved together
+    (`solve_stress_viscosity`). Walls as in the fluid (no-slip reflected, free slip no
+    shear, moving walls their velocity).
+
+    ``form="laplacian"``: each component's Laplacian on the liquid's faces, the air faces
+    next to the liquid entering as fixed ghost values that make the surface's shear stress
+    zero (Harlow & Welch 1965; `stress_free_ghosts`). Near a free surface this dissipates
+    ``mu |grad u|^2`` instead of ``2 mu e:e`` (they differ by a surface integral that vanishes
+    at flat walls, not at a free surface): a potential-flow wave, for which the two are ``1 : 2``,
+    is damped at about half the rate (docs/validation/free_surface.md).
 
     Attributes:
-        normal_stress: Also balance the surface's normal stress: the projection's surface
-            pressure becomes ``2 mu du_n/dn`` of the step's starting velocity
-            (`surface_normal_stress`) instead of 0. Off by default: on the viscous standing
-            wave it brings the damping from 0.73 / 0.77 to 1.30 / 1.32 1/s (Lamb's mode:
-            1.23) at 32 / 64 cells per wavelength, but at 128 the run diverges within a
+        form: "stress" or "laplacian" (above).
+        normal_stress: Also put the surface's normal viscous stress into the projection:
+            the surface pressure becomes ``2 mu du_n/dn`` of the step's starting velocity
+            (`surface_normal_stress`) instead of 0. Off by default. With ``form="stress"``
+            it counts the normal stress twice (the variational step already dissipates it):
+            the viscous standing wave is damped 34 / 37 % above Lamb's mode at 32 / 64 cells
+            per wavelength. With ``form="laplacian"`` it brought the damping from 0.74 / 0.77
+            to 1.29 / 1.32 1/s (Lamb: 1.23), but at 128 cells the run diverged within a
             period, also with nu dt / h^2 lowered from 0.53 to 0.1: the explicit surface
-            pressure feeds back through the surface faces (1/theta), not a time-step limit.
+            pressure feeds back through the surface faces (1/theta).
     """
 
     normal_stress: bool = False
+    form: str = "stress"
+
+    def __post_init__(self) -> None:
+        if self.form not in VISCOSITY_FORMS:
+            raise ValueError(
+                f"ViscosityStressFree.form = {self.form!r}: must be one of {VISCOSITY_FORMS}")
 
     def surface_pressure(self, solver: FluidSolver, state: FluidState, level_set: FloatArray,
                          out: FloatArray) -> None:
@@ -244,10 +270,20 @@ class ViscosityStressFree:
         grid = solver.grid
         c = solver.viscosity * dt / grid.h ** 2
         u, v = state.velocity_x, state.velocity_y
+        left, right, bottom, top = solver.boundaries.sides()
+        if self.form == "stress":
+            w_cell, w_node, mass_u, mass_v, scratch = workspace.stress_arrays(grid)
+            kernels.stress_viscosity_weights(
+                level_set, grid.h, _wall_factor(left) / 2, _wall_factor(right) / 2,
+                _wall_factor(bottom) / 2, _wall_factor(top) / 2, STRESS_MASS_FLOOR,
+                w_cell, w_node, mass_u, mass_v)
+            walls = np.array([_wall_velocity(side) for side in (left, right, bottom, top)])
+            return int(kernels.solve_stress_viscosity(
+                u, v, w_cell, w_node, mass_u, mass_v, c, walls, STRESS_RTOL,
+                STRESS_MAX_ITERATIONS, scratch))
         kernels.mark_liquid_faces(level_set, workspace.valid_u, workspace.valid_v)
         ghost_u, ghost_v = workspace.ghosts
         kernels.stress_free_ghosts(u, v, workspace.valid_u, workspace.valid_v, ghost_u, ghost_v)
-        left, right, bottom, top = solver.boundaries.sides()
         iterations = 0
         for field_values, valid, ghost, axis, low, high, arrays in (
                 (u, workspace.valid_u, ghost_u, 0, bottom, top, workspace.viscosity_u),
@@ -261,6 +297,14 @@ class ViscosityStressFree:
             np.copyto(field_values, solution, where=diagonal > 0.0)
             iterations += int(report.iterations)
         return iterations
+
+
+# The variational viscosity's solve: the floor of a face's mass where a strain sample with
+# liquid reads a face with (almost) none, so that the system stays definite (such a face
+# follows the strain, as a stress-free ghost would); CG tolerance and iteration cap.
+STRESS_MASS_FLOOR = 1e-3
+STRESS_RTOL = 1e-8
+STRESS_MAX_ITERATIONS = 2000
 
 
 def _wall_factor(side: object) -> float:
@@ -295,9 +339,22 @@ class FreeSurfaceWorkspace:
         # forward and backward results of u and v, and four departure arrays per component
         # (forward x, y; backward x, y), and the dye's semi-Lagrangian result.
         self.maccormack: tuple[FloatArray, ...] | None = None
+        self.stress: tuple[FloatArray, FloatArray, FloatArray, FloatArray,
+                           tuple[FloatArray, ...]] | None = None
         self.dye: FloatArray | None = None
         self.liquid_faces = (np.zeros(grid.shape_faces_x, dtype=np.int32),
                              np.zeros(grid.shape_faces_y, dtype=np.int32))
+
+    def stress_arrays(self, grid: Grid2D) -> tuple[FloatArray, FloatArray, FloatArray,
+                                                    FloatArray, tuple[FloatArray, ...]]:
+        """The variational viscosity's arrays (allocated once): cell and corner weights,
+        face masses, and twelve scratch arrays (six per component) for its CG."""
+        if self.stress is None:
+            nx, ny = grid.shape_cells
+            fx, fy = grid.shape_faces_x, grid.shape_faces_y
+            self.stress = (np.zeros((nx, ny)), np.zeros((nx + 1, ny + 1)), np.zeros(fx),
+                           np.zeros(fy), tuple(np.zeros(shape) for shape in (fx, fy) * 6))
+        return self.stress
 
     def maccormack_arrays(self, grid: Grid2D) -> tuple[FloatArray, ...]:
         """The MacCormack scratch arrays (allocated once)."""
@@ -360,9 +417,10 @@ class FreeSurfaceSolver:
             pressure or BDF2 (they assume one pressure over the whole grid).
         projection: The free-surface pressure projection.
         transport: How the level set moves.
-        viscosity: How viscosity acts: `ViscosityStressFree` (default; on the liquid's faces,
-            zero shear stress at the surface) or `ViscosityWholeGrid` (the fluid's own
-            `diffuse` over the whole grid, air included).
+        viscosity: How viscosity acts: `ViscosityStressFree` (default; the full stress
+            tensor on the liquid, zero viscous traction at the surface) or
+            `ViscosityWholeGrid` (the fluid's own `diffuse` over the whole grid, air
+            included).
         extrapolation_layers: Layers of faces the velocity is extended into the air; must
             exceed the CFL number of the step, since back-traces sample that far.
         maccormack_fallback: With the fluid's ``advection="maccormack"``, where the

@@ -107,10 +107,14 @@ def correct_volume(level_set: FloatArray, h: float, target: float, iterations: i
 class RedistanceFastSweeping:
     """Redistancing by first-order fast sweeping (Zhao 2005) in a Numba kernel.
 
-    The cells next to the interface keep their zero crossing (``phi / |grad phi|``); the rest
-    get the upwind distance from them.
+    The cells next to the interface keep their zero crossing (``phi / |grad phi|``; where
+    |grad phi| < 1, at most the distance to their nearest crossing along a grid direction);
+    the rest get the upwind distance from them.
 
     Attributes:
+        bound_by_crossings: Bound the cells next to the interface by their crossing distance
+            (default); False: ``phi / |grad phi|`` alone (the former scheme, which thickened
+            sheets one or two cells thick; kept for comparison).
         rounds: Rounds of four sweeps. One is exact for a straight surface; far from a folded
             one it leaves distances too large, which nothing reads (only the sign and the
             values next to the surface are used): the dam break at a / 16 gave the same
@@ -119,6 +123,7 @@ class RedistanceFastSweeping:
     """
 
     rounds: int = 1
+    bound_by_crossings: bool = True
 
     def __post_init__(self) -> None:
         if not isinstance(self.rounds, int) or self.rounds < 1:
@@ -128,7 +133,8 @@ class RedistanceFastSweeping:
                    scratch: NDArray[np.bool_]) -> None:
         """Write the signed distance [m] to the zero level of ``level_set`` into ``out``
         (shape (nx, ny), not ``level_set``); ``scratch``: bool, shape (nx, ny)."""
-        kernels.redistance_fast_sweeping(level_set, float(h), self.rounds, out, scratch)
+        kernels.redistance_fast_sweeping(level_set, float(h), self.rounds, out, scratch,
+                                         bool(self.bound_by_crossings))
 
 
 @dataclass(frozen=True)

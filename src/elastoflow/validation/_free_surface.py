@@ -13,10 +13,13 @@ Each case is built through the fluid's Python API (`FreeSurfaceSolver`), run, an
   Prosperetti's viscous gravity wave from ../shared/reference/free_surface.json (wavelength 1,
   a0 = 0.01, g = 50, mu = 0.0182571749236, rho = 1) with the light phase replaced by the void
   of this model; damping and frequency against Lamb's normal mode of a viscous free surface
-  on deep water (`lamb_viscous_mode`), whose damping is 2 nu k^2 to first order.
+  on deep water (`lamb_viscous_mode`), whose damping is 2 nu k^2 to first order, and a(t)
+  against the wave released from rest (`free_surface_wave_amplitude`, Prosperetti's
+  initial-value solution for one fluid).
 * `run_dam_break`: Martin & Moyce's n^2 = 2 column (width a = 2.25 in, height 2 a) collapsing
   along a dry floor; the surge front Z/a against T = t sqrt(2 g / a) and the liquid area over
-  the run, with and without the global volume correction.
+  the run, with and without the global volume correction; the experiment's spread from the
+  same figure's a = 1.125 in column, and the best release lag (`fit_release_lag`).
 
 `write_free_surface_report` writes docs/validation/free_surface.md's tables and the PNG plots.
 """
@@ -62,6 +65,14 @@ MARTIN_MOYCE_ROWS = np.array([
     [0.832, 1.217], [1.219, 1.474], [1.997, 2.292], [2.547, 2.995], [3.345, 4.134],
     [4.034, 4.944], [4.418, 5.881], [5.091, 6.98], [5.685, 7.945], [6.306, 8.966],
     [6.822, 9.986], [7.439, 10.963], [8.031, 11.977], [8.633, 13.005], [9.237, 13.97],
+])
+# The same figure's n^2 = 2 column of half the size (a = 1.125 in), from the same file of
+# pysph (pypr/pysph pysph/examples/db_exp_data.py @ 483e4449f50719350fc2857e8163ea3aae637cc7,
+# ``mm_data_1``; the reference file holds only the a = 2.25 in series): the experiment's own
+# spread between two sizes of the same column.
+MARTIN_MOYCE_SMALL_ROWS = np.array([
+    [0.849, 1.245], [1.212, 1.443], [1.602, 1.884], [2.283, 2.689], [2.950, 3.728],
+    [3.598, 4.528], [3.905, 4.999], [4.592, 5.841], [4.961, 6.271], [5.316, 6.717],
 ])
 GRAVITY = 9.81
 WATER_DENSITY = 1000.0
@@ -251,6 +262,42 @@ def lamb_viscous_mode(gravity: float, wavenumber: float, viscosity: float) -> co
     return s
 
 
+def free_surface_wave_amplitude(time: FloatArray, gravity: float, wavenumber: float,
+                                viscosity: float, amplitude: float) -> FloatArray:
+    """Amplitude a(t) [m] of a free-surface wave released from rest (Prosperetti's 1981
+    initial-value problem for one fluid on deep water, no surface tension), at ``time`` [s].
+
+    The linearised Navier-Stokes equations with the stress-free surface, Laplace-transformed
+    (u = grad phi + curl psi, phi ~ e^{k y}, psi ~ e^{m y}, m^2 = k^2 + s / nu), give
+    ``a^(s) = a0 Q / (s (Q + g k))``, ``Q = (s + 2 nu k^2)^2 - 4 nu^2 k^3 m``; a(t) is the sum
+    of the residues at Lamb's two modes (`lamb_viscous_mode`) and the integral along the
+    branch cut ``s = -nu (k^2 + q^2)``, q > 0 (done by quadrature). a(0) = a0 to 1e-15 and
+    the long-time decay is Lamb's mode's."""
+    from scipy.integrate import quad
+
+    g, k, nu, a0 = gravity, wavenumber, viscosity, amplitude
+    mode = lamb_viscous_mode(g, k, nu)
+    m_mode = cmath.sqrt(k * k + mode / nu)
+    derivative = 2.0 * (mode + 2.0 * nu * k * k) - 2.0 * nu * k ** 3 / m_mode
+    residue = -g * k * a0 / (mode * derivative)
+
+    def transform(s: float, m: complex) -> complex:
+        q_value = (s + 2.0 * nu * k * k) ** 2 - 4.0 * nu * nu * k ** 3 * m
+        return a0 * q_value / (s * (q_value + g * k))
+
+    def cut(t: float) -> float:
+        def integrand(q: float) -> float:
+            s = -nu * (k * k + q * q)
+            jump = transform(s, 1j * q) - transform(s, -1j * q)
+            return float((jump * math.exp(s * t) * nu * q / (1j * math.pi)).real)
+        value, _ = quad(integrand, 0.0, math.inf, limit=400)
+        return -value
+
+    times = np.asarray(time, dtype=np.float64)
+    modes = 2.0 * (residue * np.exp(mode * times)).real
+    return np.array([modes[index] + cut(float(t)) for index, t in enumerate(times)])
+
+
 def tadjbakhsh_keller_frequency(gravity: float, wavenumber: float, depth: float,
                                 amplitude: float) -> float:
     """Third-order standing-wave frequency [rad/s] (Tadjbakhsh & Keller 1960), in the form of
@@ -277,6 +324,8 @@ class StandingWave:
         omega_nonlinear: Tadjbakhsh & Keller's third order (inviscid case; nan otherwise).
         damping: Measured damping rate [1/s] (fit of the log of the peaks; nan if inviscid).
         damping_reference: Lamb's mode's damping rate [1/s] (2 nu k^2 to first order).
+        amplitude_reference: The viscous wave's a(t) [m] released from rest
+            (`free_surface_wave_amplitude`) at ``time``; empty for the inviscid one.
         area_change: Relative change of the liquid area over the run.
         pressure_iterations: Mean and largest pressure iterations per step.
         seconds: Wall time [s].
@@ -296,6 +345,25 @@ class StandingWave:
     area_change: float
     pressure_iterations: tuple[float, int]
     seconds: float
+    amplitude_reference: FloatArray = field(default_factory=lambda: np.zeros(0))
+
+    @property
+    def rms_error(self) -> float:
+        """Gerris's and Basilisk's measure: ``sqrt(mean((a - a_ref)^2)) / a_ref(0)`` over the
+        samples (nan for the inviscid wave)."""
+        if len(self.amplitude_reference) != len(self.amplitude):
+            return math.nan
+        difference = self.amplitude - self.amplitude_reference
+        return float(np.sqrt(np.mean(difference ** 2)) / self.amplitude_reference[0])
+
+    @property
+    def damping_reference_fitted(self) -> float:
+        """The damping rate [1/s] of ``amplitude_reference`` measured as `damping` is (the
+        fit of the log of its peaks); nan for the inviscid wave."""
+        if len(self.amplitude_reference) != len(self.amplitude):
+            return math.nan
+        peak_times, peak_values = _peaks(self.time, self.amplitude_reference)
+        return -float(np.polyfit(peak_times, np.log(peak_values), 1)[0])
 
 
 def _zero_crossings(time: FloatArray, signal: FloatArray) -> FloatArray:
@@ -320,10 +388,12 @@ def _peaks(time: FloatArray, signal: FloatArray) -> tuple[FloatArray, FloatArray
 def run_standing_wave(cells_per_length: int, *, viscous: bool = False,
                       periods: float = 3.0, cfl: float = 0.5,
                       viscosity_part: ViscosityStressFree | ViscosityWholeGrid | None = None,
-                      maccormack_fallback: str = "walls_and_air") -> StandingWave:
+                      maccormack_fallback: str = "walls_and_air",
+                      steps_per_period: float = 200.0) -> StandingWave:
     """Run one standing wave (module docstring) with ``cells_per_length`` cells along the
     tank, for ``periods`` periods; ``viscosity_part``: the free-surface solver's viscosity
-    (None: its default); ``maccormack_fallback``: the solver's (MacCormack velocity)."""
+    (None: its default); ``maccormack_fallback``: the solver's (MacCormack velocity);
+    ``steps_per_period``: at least this many steps per period (the step's usual bound)."""
     if viscous:
         length, depth, height, amplitude = 1.0, 1.0, 1.25, 0.01
         gravity, viscosity = 50.0, 0.0182571749236
@@ -349,7 +419,7 @@ def run_standing_wave(cells_per_length: int, *, viscous: bool = False,
     # The wave's speed is a omega; a fixed step from the CFL number of the gravity wave's
     # orbital speed and from sqrt(h / g), so that every step samples the same.
     dt = min(cfl * h / max(amplitude * omega_linear, 1e-12), 0.5 * math.sqrt(h / gravity),
-             period / 200.0)
+             period / steps_per_period)
     steps = int(math.ceil(periods * period / dt))
     x, _ = grid.cell_centers()
     weights = np.cos(wavenumber * x[:, 0])
@@ -381,6 +451,11 @@ def run_standing_wave(cells_per_length: int, *, viscous: bool = False,
         damping = -float(slope)
     fallback = ("" if maccormack_fallback == "walls_and_air"
                 else f", MacCormack fallback {maccormack_fallback!r}")
+    reference = (free_surface_wave_amplitude(time, gravity, wavenumber, viscosity,
+                                             float(amplitude_series[0]))
+                 if viscous else np.zeros(0))
+    if steps_per_period != 200.0:
+        fallback += f", {steps_per_period:g} steps per period"
     return StandingWave(
         label=(f"viscous (Prosperetti set-up, no air), {_describe(solver.viscosity)}{fallback}"
                if viscous else f"inviscid (air-water-vv){fallback}"),
@@ -389,14 +464,16 @@ def run_standing_wave(cells_per_length: int, *, viscous: bool = False,
         damping=damping, damping_reference=damping_reference,
         area_change=float(liquid_area(state.level_set, h) / state.liquid_area - 1.0),
         pressure_iterations=(float(np.mean(iterations)), int(np.max(iterations))),
-        seconds=seconds,
+        seconds=seconds, amplitude_reference=reference,
     )
 
 
 def _describe(part: ViscosityStressFree | ViscosityWholeGrid) -> str:
     if isinstance(part, ViscosityWholeGrid):
         return "whole-grid viscosity"
-    return "stress-free" + (" + normal stress" if part.normal_stress else " (shear only)")
+    form = ("full stress (variational)" if part.form == "stress"
+            else "component Laplacian, Harlow & Welch ghosts")
+    return form + (" + normal stress in the projection" if part.normal_stress else "")
 
 
 # -- dam break -------------------------------------------------------------------------------
@@ -438,6 +515,7 @@ class DamBreak:
     energy: FloatArray = field(default_factory=lambda: np.zeros(0))
     maccormack_fallback: str = "walls_and_air"
     redistance_interval: int = 1
+    bound_by_crossings: bool = True
 
     @property
     def advection_label(self) -> str:
@@ -446,6 +524,8 @@ class DamBreak:
                  else f"maccormack, fallback {self.maccormack_fallback}")
         if self.redistance_interval != 1:
             label += f", redistanced every {self.redistance_interval} steps"
+        if not self.bound_by_crossings:
+            label += ", redistancing unbounded"
         return label
 
     def energies_at(self, times: tuple[float, ...] = (3.0, 5.0, 7.0)) -> list[float]:
@@ -461,6 +541,50 @@ class DamBreak:
         t = self.time * scale
         chosen = (t >= start) & (t <= end)
         return float(np.polyfit(t[chosen], self.front[chosen] / MARTIN_MOYCE_A, 1)[0])
+
+
+@dataclass(frozen=True)
+class ReleaseLagFit:
+    """The front's curve shifted later by a release lag, fitted to one experimental series.
+
+    Attributes:
+        series: Which series ("a = 2.25 in", "a = 1.125 in").
+        lag: The shift dT (units of T) that minimises the rms of Z/a here minus measured.
+        rms: That rms [a]; ``rms_unshifted``: the rms without a shift [a].
+        residual: Z/a here (shifted) minus measured at the series' times.
+        speed_measured: The series' front speed dZ/dT (a line through its points with
+            3 <= T <= 7.5).
+    """
+
+    series: str
+    lag: float
+    rms: float
+    rms_unshifted: float
+    residual: FloatArray
+    speed_measured: float
+
+
+def fit_release_lag(dam: DamBreak, rows: FloatArray, series: str,
+                    largest_lag: float = 1.5) -> ReleaseLagFit:
+    """`ReleaseLagFit` of ``dam``'s front against the (T, Z/a) ``rows`` (lags 0 to
+    ``largest_lag`` in steps of 0.01)."""
+    scale = math.sqrt(2.0 * GRAVITY / MARTIN_MOYCE_A)
+    t = dam.time * scale
+    z = dam.front / MARTIN_MOYCE_A
+    inside = rows[:, 0] <= t[-1]
+    rows = rows[inside]
+
+    def residual(lag: float) -> FloatArray:
+        return np.interp(rows[:, 0] - lag, t, z) - rows[:, 1]
+
+    lags = np.arange(0.0, largest_lag + 1e-9, 0.01)
+    errors = [float(np.sqrt(np.mean(residual(lag) ** 2))) for lag in lags]
+    best = int(np.argmin(errors))
+    chosen = (rows[:, 0] >= 3.0) & (rows[:, 0] <= 7.5)
+    speed = float(np.polyfit(rows[chosen, 0], rows[chosen, 1], 1)[0])
+    return ReleaseLagFit(series=series, lag=float(lags[best]), rms=errors[best],
+                         rms_unshifted=errors[0], residual=residual(float(lags[best])),
+                         speed_measured=speed)
 
 
 def martin_moyce_reference(path: Path | None = None) -> FloatArray:
@@ -504,13 +628,14 @@ def run_dam_break(cells_per_width: int, *, tank_widths: float = 16.0, end_time: 
                   theta_min: float = GhostFluidProjection().theta_min,
                   reference_path: Path | None = None,
                   maccormack_fallback: str = "walls_and_air", tank_height: float = 2.5,
-                  redistance_interval: int = 1) -> DamBreak:
+                  redistance_interval: int = 1, bound_by_crossings: bool = True) -> DamBreak:
     """The column a wide and 2 a tall in the corner of a tank ``tank_widths`` a long and
     2.5 a tall (no-slip walls, water), with ``cells_per_width`` cells across a, run to
     T = ``end_time``; ``advection``: the velocity's (the level set always uses MacCormack),
     with `FreeSurfaceSolver`'s ``maccormack_fallback`` ("none", the fluid's own MacCormack
     step, gains 60 % of the energy by T = 7 at a / 16; the page); ``tank_height`` in units
-    of a; ``redistance_interval``: the level set's (`LevelSetTransport`)."""
+    of a; ``redistance_interval``: the level set's (`LevelSetTransport`);
+    ``bound_by_crossings``: its redistancing's (`RedistanceFastSweeping`)."""
     a = MARTIN_MOYCE_A
     h = a / cells_per_width
     grid = Grid2D(int(round(tank_widths * cells_per_width)),
@@ -521,7 +646,9 @@ def run_dam_break(cells_per_width: int, *, tank_widths: float = 16.0, end_time: 
     solver = FreeSurfaceSolver(fluid, projection=GhostFluidProjection(theta_min=theta_min),
                                transport=LevelSetTransport(
                                    volume_correction=volume_correction,
-                                   redistance_interval=redistance_interval),
+                                   redistance_interval=redistance_interval,
+                                   redistancing=RedistanceFastSweeping(
+                                       bound_by_crossings=bound_by_crossings)),
                                maccormack_fallback=maccormack_fallback)
     state = solver.state(level_set_box(grid, (0.0, 0.0, a, 2.0 * a)))
     time_scale = math.sqrt(a / (2.0 * GRAVITY))  # t = T time_scale
@@ -554,7 +681,7 @@ def run_dam_break(cells_per_width: int, *, tank_widths: float = 16.0, end_time: 
         reference=reference, front_error=measured - reference[usable, 1], seconds=seconds,
         theta_min=theta_min, step_seconds=step_seconds, advection=advection,
         energy=np.array(energies), maccormack_fallback=maccormack_fallback,
-        redistance_interval=redistance_interval,
+        redistance_interval=redistance_interval, bound_by_crossings=bound_by_crossings,
     )
 
 
@@ -584,13 +711,16 @@ class DropIntoPool:
 
 def run_drop_into_pool(cells: int, advection: str = "maccormack",
                        maccormack_fallback: str = "walls_and_air",
-                       end_time: float = 1.5) -> DropIntoPool:
-    """The drop of `DropIntoPool` on ``cells`` x ``cells`` cells."""
+                       end_time: float = 1.5, bound_by_crossings: bool = True) -> DropIntoPool:
+    """The drop of `DropIntoPool` on ``cells`` x ``cells`` cells; ``bound_by_crossings``:
+    the redistancing's (`RedistanceFastSweeping`)."""
     grid = Grid2D(cells, cells, 1.0 / cells)
     fluid = FluidSolver(grid, density=WATER_DENSITY, viscosity=WATER_VISCOSITY,
                         boundaries=DomainBoundaries.closed_box(), gravity=(0.0, -GRAVITY),
                         advection=advection)
-    solver = FreeSurfaceSolver(fluid, maccormack_fallback=maccormack_fallback)
+    solver = FreeSurfaceSolver(fluid, maccormack_fallback=maccormack_fallback,
+                               transport=LevelSetTransport(redistancing=RedistanceFastSweeping(
+                                   bound_by_crossings=bound_by_crossings)))
     state = solver.state(level_set_from_function(
         grid, lambda x, y: np.minimum(y - 0.3, np.hypot(x - 0.5, y - 0.75) - 0.12)))
     initial = mechanical_energy(state, grid, WATER_DENSITY, GRAVITY)
@@ -604,6 +734,8 @@ def run_drop_into_pool(cells: int, advection: str = "maccormack",
         largest = max(largest, mechanical_energy(state, grid, WATER_DENSITY, GRAVITY) / initial)
     label = (advection if advection != "maccormack"
              else f"maccormack, fallback {maccormack_fallback}")
+    if not bound_by_crossings:
+        label += ", redistancing unbounded"
     return DropIntoPool(cells, label, largest,
                         mechanical_energy(state, grid, WATER_DENSITY, GRAVITY) / initial, steps,
                         _time.perf_counter() - start)
@@ -626,25 +758,36 @@ def plot_standing_waves(waves: list[StandingWave], path: Path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    figure, axis = plt.subplots(figsize=(8, 3.6))
+    figure, axes = plt.subplots(1, 2, figsize=(14, 4.2))
+    drawn_reference = False
     for wave in waves:
+        viscous = len(wave.amplitude_reference) == len(wave.amplitude)
+        if "fallback" in wave.label or "steps per period" in wave.label or (
+                viscous and ("whole-grid" in wave.label or "normal stress" in wave.label)):
+            continue  # the plot shows the defaults and the Laplacian form
+        axis = axes[1] if viscous else axes[0]
         a0 = wave.amplitude[0]
-        axis.plot(wave.time * wave.omega_linear / (2 * math.pi), wave.amplitude / a0, lw=0.9,
-                  label=f"{wave.label}, {wave.cells[0]}x{wave.cells[1]}")
-        if wave.damping_reference > 0.0:
-            envelope = np.exp(-wave.damping_reference * wave.time)
-            axis.plot(wave.time * wave.omega_linear / (2 * math.pi), envelope, "k--", lw=0.7)
-    axis.set_xlabel("t / reference period")
-    axis.set_ylabel("mode amplitude a(t) / a(0)")
-    axis.grid(alpha=0.3)
-    axis.legend(fontsize=7)
+        periods = wave.time * wave.omega_linear / (2 * math.pi)
+        axis.plot(periods, wave.amplitude / a0, lw=0.9,
+                  label=f"{wave.label.split(', ', 1)[-1]}, {wave.cells[0]}x{wave.cells[1]}")
+        if viscous and not drawn_reference:
+            axis.plot(periods, wave.amplitude_reference / wave.amplitude_reference[0], "k--",
+                      lw=1.0, label="released from rest (Prosperetti, one fluid)")
+            drawn_reference = True
+    axes[0].set_title("inviscid (air-water-vv)", fontsize=9)
+    axes[1].set_title("viscous (Prosperetti's set-up, no air)", fontsize=9)
+    for axis in axes:
+        axis.set_xlabel("t / reference period")
+        axis.set_ylabel("mode amplitude a(t) / a(0)")
+        axis.grid(alpha=0.3)
+        axis.legend(fontsize=7)
     figure.tight_layout()
     _save(figure, path)
 
 
 def plot_dam_break(runs: list[DamBreak], path: Path) -> None:
     """Surge front Z/a against T with Martin & Moyce's points, the area change and the
-    mechanical energy."""
+    mechanical energy; one legend below the three panels."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -652,27 +795,35 @@ def plot_dam_break(runs: list[DamBreak], path: Path) -> None:
 
     a = MARTIN_MOYCE_A
     scale = math.sqrt(2.0 * GRAVITY / a)
-    figure, axes = plt.subplots(1, 3, figsize=(15, 3.8))
-    for run in runs:
+    figure, axes = plt.subplots(1, 3, figsize=(15, 7.0))
+    for index, run in enumerate(runs):
         label = (f"{run.cells[0]}x{run.cells[1]}, {run.advection_label}"
                  + ("" if run.volume_correction else ", no volume correction")
                  + ("" if run.theta_min == GhostFluidProjection().theta_min
                     else f", theta_min {run.theta_min:g}"))
-        axes[0].plot(run.time * scale, run.front / a, lw=0.9, label=label)
-        axes[1].plot(run.time * scale, 100 * (run.area / run.area[0] - 1.0), lw=0.9, label=label)
-        axes[2].plot(run.time * scale, run.energy, lw=0.9, label=label)
+        # Ten colours, then the next line style.
+        style = {"lw": 0.9, "color": f"C{index % 10}", "ls": ("-", "--", ":", "-.")[index // 10 % 4]}
+        axes[0].plot(run.time * scale, run.front / a, label=label, **style)
+        axes[1].plot(run.time * scale, 100 * (run.area / run.area[0] - 1.0), **style)
+        axes[2].plot(run.time * scale, run.energy, **style)
     reference = runs[0].reference
-    axes[0].plot(reference[:, 0], reference[:, 1], "ko", ms=4, label="Martin & Moyce 1952")
+    axes[0].plot(reference[:, 0], reference[:, 1], "ko", ms=4,
+                 label="Martin & Moyce 1952, a = 2.25 in")
+    axes[0].plot(MARTIN_MOYCE_SMALL_ROWS[:, 0], MARTIN_MOYCE_SMALL_ROWS[:, 1], "k^", ms=4,
+                 mfc="none", label="Martin & Moyce 1952, a = 1.125 in")
+    axes[0].set_xlim(0.0, 10.0)
+    axes[0].set_ylim(0.0, 16.5)
     axes[0].set_xlabel("T = t sqrt(2 g / a)")
-    axes[0].set_ylabel("Z / a")
+    axes[0].set_ylabel("Z / a (the 8 a tank's rows stop at its far wall)")
     axes[1].set_xlabel("T")
     axes[1].set_ylabel("liquid area change [%]")
     axes[2].set_xlabel("T")
     axes[2].set_ylabel("energy E / E0 (kinetic + potential)")
     for axis in axes:
         axis.grid(alpha=0.3)
-        axis.legend(fontsize=6, loc="upper left")
-    figure.tight_layout()
+    figure.legend(*axes[0].get_legend_handles_labels(), loc="lower center", ncol=3,
+                  fontsize=7, frameon=False)
+    figure.tight_layout(rect=(0.0, 0.22, 1.0, 1.0))
     _save(figure, path)
 
 
@@ -709,8 +860,9 @@ def write_free_surface_report(path: Path, tanks: list[TankAtRest], waves: list[S
                      f"| {rotation.max_error / h:.3f} | {rotation.rms_error / h:.4f} | {order} |")
     lines += ["", "## Standing waves", "",
               "| case | grid | dt [s] | omega [rad/s] | reference | error | T&K 3rd order "
-              "| damping [1/s] | reference | error | area change | CG its mean/max | wall [s] |",
-              "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+              "| damping [1/s] | reference | error | a(t): rel. RMS error "
+              "| area change | CG its mean/max | wall [s] |",
+              "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for wave in waves:
         error = wave.omega / wave.omega_linear - 1.0
         nonlinear = (f"{wave.omega_nonlinear:.4f} ({100 * (wave.omega / wave.omega_nonlinear - 1):+.2f} %)"
@@ -725,6 +877,7 @@ def write_free_surface_report(path: Path, tanks: list[TankAtRest], waves: list[S
         lines.append(
             f"| {wave.label} | {wave.cells[0]}x{wave.cells[1]} | {wave.dt:.3g} | {wave.omega:.4f} "
             f"| {wave.omega_linear:.4f} | {100 * error:+.2f} % | {nonlinear} | {damping} "
+            f"| {'-' if math.isnan(wave.rms_error) else f'{wave.rms_error:.4f}'} "
             f"| {wave.area_change:.1e} | {wave.pressure_iterations[0]:.1f}/"
             f"{wave.pressure_iterations[1]} | {wave.seconds:.1f} |")
     if waves:
@@ -761,6 +914,32 @@ def write_free_surface_report(path: Path, tanks: list[TankAtRest], waves: list[S
         for (t_ref, z_ref), error in zip(finest.reference, finest.front_error):
             here = float(np.interp(t_ref / scale, finest.time, finest.front)) / MARTIN_MOYCE_A
             lines.append(f"| {t_ref:.3f} | {z_ref:.3f} | {here:.3f} | {error:+.3f} |")
+        spread = np.interp(MARTIN_MOYCE_SMALL_ROWS[:, 0], finest.reference[:, 0],
+                           finest.reference[:, 1]) - MARTIN_MOYCE_SMALL_ROWS[:, 1]
+        lines += ["", "The experiment's own spread: Martin & Moyce's a = 2.25 in series "
+                  "(interpolated) minus their a = 1.125 in series, same n^2 = 2, at the "
+                  "latter's times:", "",
+                  "| T | " + " | ".join(f"{t:.2f}" for t in MARTIN_MOYCE_SMALL_ROWS[:, 0]) + " |",
+                  "|---|" + "---|" * len(spread),
+                  "| dZ/a | " + " | ".join(f"{d:+.2f}" for d in spread) + " |"]
+        lines += ["", "A release lag: the computed front shifted later by dT, fitted to each "
+                  "series (`fit_release_lag`):", "",
+                  "| grid | series | measured speed dZ/dT (its points with T = 3-7.5) | rms, no shift [a] "
+                  "| best dT | rms at best dT [a] | residual at best dT, first / last points [a] |",
+                  "|---|---|---|---|---|---|---|"]
+        runs = [dam for dam in dams if dam.volume_correction and dam.advection == "maccormack"
+                and dam.maccormack_fallback == "walls_and_air" and dam.redistance_interval == 1
+                and dam.theta_min == GhostFluidProjection().theta_min
+                and dam.cells[0] >= 16 * dam.cells[1] / 2.5 - 1]
+        for dam in runs:
+            for rows, name in ((finest.reference, "a = 2.25 in"),
+                               (MARTIN_MOYCE_SMALL_ROWS, "a = 1.125 in")):
+                fit = fit_release_lag(dam, rows, name)
+                ends = (f"{' / '.join(f'{r:+.2f}' for r in fit.residual[:3])} ... "
+                        f"{' / '.join(f'{r:+.2f}' for r in fit.residual[-3:])}")
+                lines.append(f"| {dam.cells[0]}x{dam.cells[1]} | {name} "
+                             f"| {fit.speed_measured:.2f} | {fit.rms_unshifted:.3f} "
+                             f"| {fit.lag:.2f} | {fit.rms:.3f} | {ends} |")
         plot = folder / "free_surface_dam_break.png"
         plot_dam_break(dams, plot)
         written.append(plot)
@@ -786,12 +965,16 @@ def main() -> None:
     waves += [run_standing_wave(n, maccormack_fallback=fallback)
               for fallback in ("none", "walls") for n in (32, 64)]
     waves += [run_standing_wave(n, viscous=True) for n in (32, 64, 128)]
+    waves += [run_standing_wave(n, viscous=True, steps_per_period=400.0) for n in (32, 64)]
     waves += [run_standing_wave(n, viscous=True, maccormack_fallback="none") for n in (32, 64)]
+    waves += [run_standing_wave(n, viscous=True,
+                                viscosity_part=ViscosityStressFree(form="laplacian"))
+              for n in (32, 64, 128)]
     waves += [run_standing_wave(n, viscous=True, viscosity_part=ViscosityWholeGrid())
               for n in (32, 64)]
     waves += [run_standing_wave(n, viscous=True,
-                                viscosity_part=ViscosityStressFree(normal_stress=True))
-              for n in (32, 64)]
+                                viscosity_part=ViscosityStressFree(normal_stress=True, form=form))
+              for form in ("stress", "laplacian") for n in (32, 64)]
     choices: tuple[dict[str, Any], ...] = (
         {}, {"maccormack_fallback": "walls"}, {"maccormack_fallback": "none"},
         {"advection": "semi_lagrangian"})
@@ -803,9 +986,16 @@ def main() -> None:
     # T ~ 6.6 and splashes.
     dams += [run_dam_break(32, tank_widths=8.0, tank_height=4.0, end_time=18.5,
                            redistance_interval=interval) for interval in (1, 5)]
+    dams += [run_dam_break(32, tank_widths=8.0, tank_height=4.0, end_time=18.5,
+                           bound_by_crossings=False),
+             run_dam_break(32, tank_widths=8.0, tank_height=4.0, end_time=18.5,
+                           volume_correction=False),
+             run_dam_break(32, volume_correction=False, bound_by_crossings=False)]
     drops = [run_drop_into_pool(n, *choice) for n in (32, 48) for choice in (
         ("maccormack", "walls_and_air"), ("maccormack", "walls"), ("maccormack", "none"),
         ("semi_lagrangian", "walls_and_air"))]
+    drops += [run_drop_into_pool(48, advection, bound_by_crossings=False)
+              for advection in ("maccormack", "semi_lagrangian")]
     rotations = [run_level_set_rotation(n, advection)
                  for advection in ("semi_lagrangian", "maccormack") for n in (32, 64, 128)]
     write_free_surface_report(root / "docs" / "validation" / "free_surface.md", tanks, waves,
@@ -816,12 +1006,18 @@ NOTES = """
 ## What the numbers say
 
 Method (docs/method_notes.md, item 12): level set on the cells, MacCormack transport,
-redistancing by fast sweeping (one round) every step, global volume correction (the level set
+redistancing by fast sweeping (one round) every step, the cells next to the surface rescaled
+by phi / |grad phi| and, where that deepens them (|grad phi| < 1), bounded by their distance
+to the nearest crossing along a grid direction; global volume correction (the level set
 shifted by (V - V0) / (h x cells on the ramp), Newton to round-off), ghost-fluid pressure with
 theta >= 1e-3, velocity extrapolated 5 layers into the air, gravity on the faces, MacCormack
 advection of the velocity with the free surface's fallback to the semi-Lagrangian value
-(`FreeSurfaceSolver(maccormack_fallback="walls_and_air")`, below), implicit viscosity on the
-liquid's faces with zero shear stress at the surface. Surface tension is not in.
+(`FreeSurfaceSolver(maccormack_fallback="walls_and_air")`, below), implicit viscosity with
+the full stress tensor on the liquid (variational, Batty & Bridson 2008; zero viscous
+traction at the surface). Surface tension is not in. The ms/step and wall columns were
+measured while other processes loaded the 2 cores (the default dam breaks: 23 / 92 ms/step
+at 256x40 / 512x80 here, 12 / 44 on the former page; `docs/benchmarks.md` has the unloaded
+figures).
 
 **Level-set transport.** MacCormack is second order near the surface (observed order of the
 rms error 2.3-2.6 from 32 to 128 cells; the semi-Lagrangian step 1.0), with an rms error of
@@ -835,97 +1031,128 @@ later solves start from the hydrostatic pressure and take one CG iteration.
 
 **Why the fluid's MacCormack step gained energy, and the fallback.** With the fluid's own
 clamped MacCormack step for the velocity (fallback "none" in the tables) the dam break's
-E/E0 reached 1.59 at T = 7 at a / 16 and a drop into a pool 2.05. The cause is the no-slip
+E/E0 reached 1.65 at T = 7 at a / 16. The cause is the no-slip
 floor: its ghost value for u is the reflection -u. Where liquid moves down onto the floor,
 the forward (semi-Lagrangian) step of the lowest row samples above, inside the liquid, while
 the backward step samples below, across the wall, where the ghost pulls the value towards 0;
 MacCormack reads the difference as the forward step's error and adds half of it back, so
 the flow along the floor is accelerated every step (Selle's clamp does not stop it: the
 range of the four samples above the face allows it). Measured (a one-off script, not kept,
-dam break a / 16 to T = 7, fallback "none"): with the floor free-slip and the three other
-walls no-slip E/E0 = 0.978; with only the floor no-slip 1.58; free-slip everywhere 0.982.
-The fallback keeps the semi-Lagrangian value wherever the forward or backward sample reads
-a side's ghost value ("walls": E/E0 = 0.979 at T = 7), and also at the faces with no liquid
-on a side and those whose forward sample reads one ("walls_and_air", the default): air
-velocities are extrapolated afresh each step, not carried, so the two steps' difference
-there is not the transport's error either. "walls" alone still let the drop gain 38 % (1.375
-at 32 cells, 1.52 at 48); with the air too it gains 0.5 % at 32 cells (as the
-semi-Lagrangian step does) and 6 % at 48 (the semi-Lagrangian step: 19 %), so some gain
-remains at 48 cells that is not MacCormack's (not traced). What it costs: the inviscid
-standing wave's numerical damping is 0.013 / 0.009 / 0.007 1/s at 32 / 64 / 128 cells (its
-amplitude loses 0.5 % per period at 32 cells) against 0.001 / 0.006 with the fluid's step;
-the frequencies do not change.
+dam break a / 16 to T = 7, fallback "none", before the changes below): with the floor
+free-slip and the three other walls no-slip E/E0 = 0.978; with only the floor no-slip 1.58;
+free-slip everywhere 0.982. The fallback keeps the semi-Lagrangian value wherever the forward
+or backward sample reads a side's ghost value ("walls": E/E0 = 0.986 at T = 7), and also at
+the faces with no liquid on a side and those whose forward sample reads one ("walls_and_air",
+the default): air velocities are extrapolated afresh each step, not carried, so the two
+steps' difference there is not the transport's error either. What it costs: the inviscid
+standing wave's numerical damping is 0.012 / 0.010 / 0.007 1/s at 32 / 64 / 128 cells (its
+amplitude loses 0.5 % per period at 32 cells) against 0.007 / 0.006 with the fluid's step;
+the frequencies do not change. The drop into a pool no longer separates the choices (largest
+E/E0 1.005 at 32 cells with the fallbacks and the semi-Lagrangian step, 1.24 with the fluid's
+step; 1.02-1.03 for all four at 48): its former gains at 48 cells (1.06 with the default,
+1.19 semi-Lagrangian, 1.52 "walls", 1.92 the fluid's step) came mostly from the
+redistancing (below: 1.77 with the former, unbounded, redistancing and the default).
 
 **Inviscid standing wave.** Within 1 % of the linear dispersion relation from 64 cells along
-the tank; the error falls with h (-1.16, -0.66, -0.43 % at 32, 64, 128), against Tadjbakhsh &
-Keller's third order (which this 5 mm amplitude shifts by -0.24 %) -0.92, -0.42, -0.19 %:
-first order in h (the level set's and the surface position's sub-cell errors).
+the tank; the error falls with h (-1.18, -0.68, -0.44 % at 32, 64, 128), against Tadjbakhsh &
+Keller's third order (which this 5 mm amplitude shifts by -0.24 %) -0.94, -0.44, -0.20 %:
+first order in h (the level set's and the surface position's sub-cell errors). The
+redistancing's bound moved these by -0.02 / -0.02 / -0.01 % (the former page: -1.16, -0.66,
+-0.43 %).
 
-**Viscous standing wave: damping missed, by about -40 % with the default.** The frequency
-is within 1 % of Lamb's viscous mode. The damping depends on how viscosity meets the
-surface (the damping rates are steady from the first period on, so it is not the start from
-rest): the fluid's own viscosity over the whole grid, with the air holding the extrapolated
-velocity, acts as a zero normal gradient of each component at the surface and gives
-0.47-0.49 1/s (38-40 % of the mode's 1.23; for a potential-flow wave that dissipates
-nu integral |grad u|^2, half of the 2 nu integral e:e a free surface dissipates). The default
-part (`ViscosityStressFree`: viscosity on the liquid's faces, the air faces next to the
-liquid held at Harlow & Welch's ghost values of zero shear stress) gives 0.74-0.77 1/s (the
-MacCormack fallback changes it by under 1 %), and
-adding the normal stress balance (the surface holds p = 2 mu du_n/dn in the projection;
-option `normal_stress=True`) 1.29 / 1.32 1/s at 32 / 64 cells, 5-7 % above the mode; but at
-128 cells that option diverges within a period (also with nu dt / h^2 lowered to 0.1: the
-explicit surface pressure feeds back through the surface faces), so it is not the default and
-is not in the table at 128. The reference set-up is two-phase (density ratio 10); here the
-light phase is a void, so Prosperetti's tables (withheld anyway) would not apply directly;
-Lamb's mode is the matching single-phase theory.
+**Viscous standing wave: the damping was 40 % low because the viscous step dissipated
+mu |grad u|^2 instead of 2 mu e:e.** A free surface's liquid dissipates 2 mu integral e:e
+(e the strain rate). The former default (`ViscosityStressFree(form="laplacian")`: each
+velocity component's Laplacian on the liquid's faces, the air faces next to the liquid at
+Harlow & Welch's zero-shear-stress ghost values) dissipates mu integral |grad u|^2: the two
+differ by a surface integral that vanishes at flat walls but not at a free surface, and for
+the potential flow of a gravity wave (grad u symmetric, trace free) |grad u|^2 = e:e, so
+that step removes half the energy it should; the wave decayed at 0.74-0.77 1/s, 60 % of Lamb's
+mode (1.23 1/s; 2 nu k^2 = 1.44 to first order), at every resolution (rows "component
+Laplacian"). The fluid's own viscosity over the whole grid (air holding the extrapolated
+velocity) gives 0.47-0.49 1/s. The default is now the variational form of Batty & Bridson
+(2008) (`ViscosityStressFree()`, form "stress"): the new velocity minimises the kinetic
+energy of the change plus dt times 2 mu sum e:e, with e_xx, e_yy at the cells and e_xy at the
+corners, each weighted by its liquid fraction (and the faces' masses by theirs), u and v
+solved together by a Jacobi-preconditioned CG; its natural condition at the surface is zero
+viscous traction, and in a tank full of liquid it is each component's Laplacian exactly
+(tests/unit/fluid/test_free_surface_viscosity.py). The wave now decays at 1.096 / 1.147 /
+1.171 1/s at 32 / 64 / 128 cells per wavelength, -11.1 / -6.9 / -4.9 % off Lamb's mode,
+converging at about first order (the frequency -1.22 / -0.49 / -0.18 %). Halving the step
+(400 per period) lowers the damping by 2.1 / 0.7 % at 32 / 64 cells, so what is left is spatial (the surface's
+vortical layer, sqrt(2 nu / omega) = 0.046, is 1.5 cells thick at 32 cells). Against the
+wave released from rest (Prosperetti's initial-value solution for one fluid,
+`free_surface_wave_amplitude`, whose peaks decay at 1.235 1/s over these three periods, 0.2 %
+above the normal mode) the rms error of a(t), Gerris's and Basilisk's measure, is 0.049 /
+0.024 / 0.014 of a0 (the Laplacian form 0.10; Gerris's two-phase reference run reaches 0.011
+at level 5, i.e. 32 cells per wavelength). Adding the surface's normal stress to the
+projection (`normal_stress=True`) counts it twice with the stress form (+34 / +37 %); with the
+Laplacian form it gave +5 / +7 % at 32 / 64 cells but diverged at 128 (the explicit surface
+pressure feeds back through the 1/theta faces), which is why it is off. The reference set-up is
+two-phase (density ratio 10); here the light phase is a void, so Lamb's single-fluid mode
+and Prosperetti's single-fluid initial-value solution are the matching theory.
 
-**Dam break.** With the fallback the energy of the liquid cells stays within 5 % of the
-initial up to T = 7 (1.002 / 0.998 / 0.957 at T = 3 / 5 / 7 at a / 16, 1.000 / 0.986 / 0.972
-at a / 32; cells changing sides make the measure jitter), and the front (the zero of phi along
-the bottom row of cells) runs at 1.79-1.81 a per unit of T between T = 3 and 7 at both
-resolutions, like the semi-Lagrangian step's 1.78-1.79, against 2.30 with the fluid's own
-MacCormack step and Ritter's inviscid shallow-water 2 (2 sqrt(g H), H = 2 a). Martin &
-Moyce's points give 1.70 (a line through those from T = 3.3 to 7.4). The front is ahead of
-the experiment from the start: by 0.15 a at T = 0.83, 0.30 a at T = 2.0, 0.45 a at T = 3.3,
-1.0 a at T = 7.4 and 1.4 a at T = 9.2 (a / 32, the table above), so the surge is inside the
-experiment's scatter only in the first instants, if at all (the reference file gives no
-scatter to compare with); the difference is what an
-inviscid model is expected to leave (the floor's friction and the gate's opening slow the
-real front; here nu = 1e-6 m^2/s and no wall model). With the fluid's own step the front
-reaches the far wall (16 a) at T ~ 8, so its later rows mean nothing.
+**Dam break: the set-up.** Checked against the reference file: the column is a wide and
+2 a tall (n^2 = 2, height over width), a = 2.25 in = 0.05715 m, released from rest in the
+corner of a closed tank (no-slip walls, nu = 1e-6 m^2/s, g = 9.81 m/s^2); T = t sqrt(2 g / a)
+and Z / a with Z from the back wall, as the file's convention says; the rows compared are the
+file's (`martin_moyce_reference(path)` equals the copy in this module). The front is the
+zero of phi along the bottom row of cells (h / 2 above the floor). No error was found there.
+With the fallback the energy of the liquid cells stays within 4 % of the initial up to T = 7
+(0.993 / 0.967 / 0.979 at T = 3 / 5 / 7 at a / 16, 0.996 / 0.991 / 0.970 at a / 32; cells
+changing sides make the measure jitter), and the front runs at 1.81 / 1.80 a per unit of T
+between T = 3 and 7 (a / 16, a / 32; semi-Lagrangian 1.79 / 1.78), between Martin & Moyce's
+1.70 (their a = 2.25 in points from T = 3 to 7.5) and Ritter's inviscid shallow-water 2
+(2 sqrt(g H), H = 2 a).
 
-**Splashing: redistancing every step gains energy, every 5 steps does not.** In the tank of
-the scene `dam_break` (8 a x 4 a, a / 32; the last two rows, run to T = 18.5, t = 1 s) the
-surge hits the far wall at T ~ 6.6 (so their front columns mean nothing after that: the
-speed's fit over T = 3-7 includes the wall), a film one or two cells thick runs up the wall
-to the ceiling and breaks into drops. Redistanced every step (the default) the liquid's energy then
-grows: largest E/E0 2.27, 1.9 at T = 18.5. It is not the velocity's advection (with the
-semi-Lagrangian step, a scratch run of the scene, the energy jumped between 0.44 and 1.09
-of E0 in the same phase) nor the volume correction alone (without it, the energy still rose
-to 1.53 at t = 0.72 s while the level set lost 64 % of its area by t = 1 s; scratch runs of
-the scene, not kept). Redistanced every 5 steps (`LevelSetTransport(redistance_interval=5)`,
-scene key `liquid.redistance_interval`) the largest E/E0 is 1.018 and the energy falls to
-0.43 by T = 18.5 as the splash dissipates it, the area kept by the correction (without the
-correction it stayed within 4 % up to t = 0.72 s, then 57 % was lost by t = 1 s). In the
-16 a tank the same setting gives what every step gives: E/E0 at most 1.036 / 1.018, front
-speed 1.78, front error +0.62 / +0.67 a on average, 1.25 / 1.23 a at most (a / 16, a / 32).
-Coarser grids of the same tank do not show it with either interval (largest E/E0 1.106 /
-1.086 at a / 8, 1.040 / 1.036 at a / 16, 1.028 / 1.027 at a / 24, every step / every 5;
-`run_dam_break(n, tank_widths=8, tank_height=4, end_time=18.5, redistance_interval=...)`),
-so it needs a film the grid resolves as one or two cells up to the ceiling, and finer grids
-were not run. Why redistancing every step feeds such a film energy was not traced further (its rescaling
-of the cells next to the surface by phi / |grad phi| with central differences is wrong
-across a film one or two cells thick, and the correction puts the area it removes back
-along the whole surface, the film's included); the scene `dam_break` redistances every 5
-steps, the library default stays 1 (the standing waves and the rest of this page use it).
+**Dam break: against the experiment.** The front is ahead of Martin & Moyce from the start:
+by 0.15 a at T = 0.83, 0.31 a at T = 2.0, 0.45 a at T = 3.3, 1.05 a at T = 7.4 and 1.43 a at
+T = 9.2 (a / 32, the table above). The reference file gives no scatter; the same figure's
+n^2 = 2 column of half the size (a = 1.125 in, from the same pysph file, table above) shows
+the experiment's own spread: the two sizes agree within 0.21 a up to T = 4, then the smaller
+column falls behind, by 0.32 / 0.50 / 0.63 a at T = 4.6 / 5.0 / 5.3, its front slowing to
+1.26 a per unit of T (the larger: 1.70). The slower front at the smaller scale points at what
+this model leaves out or does not resolve: the floor's friction (the boundary layer,
+sqrt(nu t) ~ 0.5 mm at T = 5, is under a third of a cell at a / 32; the front speed hardly
+changes from a / 16 to a / 32) and surface tension at the thin tip (not in), both acting more
+on a smaller column. So the surge is outside the experiment's spread as these two series
+measure it, at every time: 0.15-0.45 a ahead up to T = 3.3, where the two sizes differ by at
+most 0.21 a, and 0.5-1.4 a later, where they differ by 0.3-0.6 a (the faster, larger column
+being the one compared). A release lag (the gate's removal) alone does not explain it: the best pure
+shift of the computed curve, dT = 0.47 at a / 32 (0.44 at a / 16; 25 ms at this scale), brings
+the rms difference from 0.82 a to 0.26 a but leaves a drift from -0.3 a at T = 2-3 to +0.56 a
+at T = 9.2, the speed excess; fitted to the smaller column the shift is 0.41 with a drift to
++0.56 a by T = 5.3. Nothing was tuned. (pysph's file also holds a third series, Koshizuka &
+Oka 1996, without saying whether it is measured or computed; it is not used.)
+
+**Splashing: redistancing thickened sheets one or two cells thick (traced and fixed).** In
+the tank of the scene `dam_break` (8 a x 4 a, a / 32, run to T = 18.5, t = 1 s) the surge
+hits the far wall at T ~ 6.6 (so the front columns of those rows mean nothing after that),
+a film one or two cells thick runs up the wall to the ceiling and breaks into drops. With
+the former redistancing every step the liquid's energy then grew (largest E/E0 1.65 in this
+run, 2.27 on the former page; row "redistancing unbounded"). The cause: the cells next to
+the surface were rescaled by phi / |grad phi| with central differences, which across a sheet
+one or two cells thick nearly cancel (|grad phi| ~ 0: a cell 0.25 h inside the sheet became
+5 h deep in the unit test), so each redistancing thickened the sheets, up on the wall and in
+the splash, and the global volume correction took that area back along the whole surface,
+most of it from the pool below: liquid moved upwards, and the sheets' new cells took the
+extrapolated speeds of the film. The cells next to the surface are now bounded by their
+distance to the nearest crossing along a grid direction (the theta h of the ghost-fluid
+projection) where |grad phi| < 1 (`RedistanceFastSweeping(bound_by_crossings=True)`, the
+default; bounding also where |grad phi| >= 1 moved the inviscid standing wave's frequency
+by a further -0.04 / -0.02 / -0.01 % at 32 / 64 / 128 cells). Redistanced every step, the splash's largest E/E0 is now 1.018 (in the
+first steps) and the energy falls to 0.29 by T = 18.5; every 5 steps gives 1.018 and 0.42.
+In the 16 a tank every step and every 5 steps give fronts within 0.06 a of each other on
+average.
 
 **Volume.** With the global correction the liquid area is kept to round-off at every step
 (this is the measure the correction keeps: the cell fractions clamp(1/2 - phi / h, 0, 1)).
-Without it, the level set alone gains area: +4.3 % at the end at 512x80, +7.6 % at 256x40,
-mostly from thin sheets one or two cells thick (the surge tip, the run-up on the far wall),
-where redistancing's rescaling of the cells at the surface (phi / |grad phi| with central
-differences) moves the surface outwards. The 0.5 % target is met only with the correction;
-marker particles (Enright et al. 2002) would fix it locally, not done.
+Without it, the level set alone gains area in the 16 a tank: +3.2 % at the end at 512x80
+(+4.3 % with the former redistancing), +6.5 % at 256x40 (+7.6 % on the former page),
+mostly from thin sheets
+(the surge tip, the run-up on the far wall); in the splash tank it loses 8.5 % by t = 1 s
+(largest change 8.9 %). The 0.5 % target is met only with the correction; marker particles
+(Enright et al. 2002) would fix it locally, not done.
 
 **theta_min.** 1e-2, 1e-3 and 1e-4 give the same iteration counts in the dam break (mean
 4.9, largest 6) and the same front to 0.001 a, so the solver is not what sets the floor;

@@ -125,6 +125,26 @@ def test_redistancing_rescales_a_stretched_level_set() -> None:
     assert np.max(np.abs(out - distance)) < 1.0 * grid.h
 
 
+def test_redistancing_keeps_a_sheet_one_cell_thick() -> None:
+    """A horizontal sheet of liquid 0.6 h thick around a row of cell centres (0.25 h below
+    it, 0.35 h above): across it the central differences of phi nearly cancel (|grad phi| =
+    0.05), and phi / |grad phi| alone made the row 5 h deep (the sheet thickened to a whole
+    cell and more); bounded by the crossing distance (0.25 h) the row keeps its value and
+    the sheet its area."""
+    grid = Grid2D(12, 10, 0.1)
+    _, y = grid.cell_centers()
+    centre = (5 + 0.5) * grid.h
+    phi = np.maximum(centre - 0.25 * grid.h - y, y - centre - 0.35 * grid.h)
+    out = np.empty_like(phi)
+    scratch = np.zeros(phi.shape, dtype=np.bool_)
+    RedistanceFastSweeping().redistance(phi, grid.h, out, scratch)
+    assert np.allclose(out[:, 5], -0.25 * grid.h, rtol=1e-12)
+    assert liquid_area(out, grid.h) == pytest.approx(liquid_area(phi, grid.h), rel=1e-12)
+    RedistanceFastSweeping(bound_by_crossings=False).redistance(phi, grid.h, out, scratch)
+    assert np.allclose(out[:, 5], -5.0 * grid.h, rtol=1e-9)
+    assert liquid_area(out, grid.h) > 1.3 * liquid_area(phi, grid.h)
+
+
 def test_volume_correction_restores_the_area() -> None:
     grid = Grid2D(16, 16, 1.0 / 16)
     phi = level_set_from_function(grid, lambda x, y: np.hypot(x - 0.5, y - 0.4) - 0.25)
