@@ -626,12 +626,17 @@ def _make_viscosity(loop):
         for i in loop(m):
             for j in range(n):
                 for k in range(l):
-                    if not assemble_operator:
-                        rhs[i, j, k] = _known_operator_rhs(f, c, axis, fixed_low, fixed_high,
-                                                           tangential_modes, tangential_values,
-                                                           i, j, k)
-                        continue
                     own = i if axis == 0 else (j if axis == 1 else k)
+                    if not assemble_operator:
+                        if (0 < i < m - 1 and 0 < j < n - 1 and 0 < k < l - 1
+                                and 1 < own < size - 2):
+                            # No side and no held face next to it (nearly every point).
+                            rhs[i, j, k] = f[i, j, k]
+                        else:
+                            rhs[i, j, k] = _known_operator_rhs(
+                                f, c, axis, fixed_low, fixed_high, tangential_modes,
+                                tangential_values, i, j, k)
+                        continue
                     if i + 1 < m:
                         weights_x[i, j, k] = 0.0
                     if j + 1 < n:
