@@ -8,6 +8,7 @@ import numpy as np
 from elastoflow.coupling import _kernels3d
 from elastoflow.coupling._map3d import (
     BoundaryMap3D,
+    CutDistances3D,
     cut_distances_3d,
     face_open_fractions_3d,
     solid_cells_3d,
@@ -39,11 +40,15 @@ def _points_inside(bmap: BoundaryMap3D, component: int) -> tuple[np.ndarray, np.
     return solid, velocity
 
 
-def interior_boundary_3d(bmap: BoundaryMap3D) -> InteriorBoundary3D:
+def interior_boundary_3d(bmap: BoundaryMap3D, out: InteriorBoundary3D | None = None
+                         ) -> InteriorBoundary3D:
     """`InteriorBoundary3D` of the map's bodies: cells and velocity points inside them (ray
     parity along x for cells, along each component's own axis for its points), the body
     velocity at the points inside (linear between the crossings that bound them, METHOD.md
-    §5.4), the faces' exact open fractions and the cut distances of every velocity point."""
+    §5.4), the faces' exact open fractions and the cut distances of every velocity point.
+
+    ``out``: an earlier interior of the same grid that is no longer read; its cut-distance
+    arrays are refilled instead of allocated (their fill is most of the build's cost)."""
     solid_faces = []
     velocity_faces = []
     for component in range(3):
@@ -51,7 +56,10 @@ def interior_boundary_3d(bmap: BoundaryMap3D) -> InteriorBoundary3D:
         solid_faces.append(solid)
         velocity_faces.append(velocity)
     open_x, open_y, open_z = face_open_fractions_3d(bmap)
-    cuts = cut_distances_3d(bmap)
+    reuse = None if out is None else CutDistances3D(
+        (out.cut_theta_x, out.cut_theta_y, out.cut_theta_z),
+        (out.cut_velocity_x, out.cut_velocity_y, out.cut_velocity_z))
+    cuts = cut_distances_3d(bmap, out=reuse)
     return InteriorBoundary3D(
         solid_cells=solid_cells_3d(bmap),
         solid_faces_x=solid_faces[0], solid_faces_y=solid_faces[1],

@@ -244,10 +244,13 @@ class CutDistances3D:
     velocity: tuple[np.ndarray, np.ndarray, np.ndarray]
 
 
-def cut_distances_3d(bmap: BoundaryMap3D) -> CutDistances3D:
+def cut_distances_3d(bmap: BoundaryMap3D, out: CutDistances3D | None = None
+                     ) -> CutDistances3D:
     """`CutDistances3D` of every u, v and w point, from the crossings on the lines through
     the points (METHOD.md's cut distances, one line per direction). The arrays are filled
-    with "none" and only the points next to a crossing are visited."""
+    with "none" and only the points next to a crossing are visited; ``out`` (the same grid's
+    earlier result, no longer needed) is filled instead of new arrays (the fill is most of
+    the cost on a large grid)."""
     grid = bmap.grid
     counts = (grid.nx, grid.ny, grid.nz)
     thetas = []
@@ -256,8 +259,13 @@ def cut_distances_3d(bmap: BoundaryMap3D) -> CutDistances3D:
         # The points of this component: integer positions along their own axis, half
         # positions along the two others (in half-grid units: even along it, odd across).
         shape = tuple(counts[a] + (1 if a == component else 0) for a in range(3))
-        theta = np.full((6, *shape), np.inf)
-        velocity = np.zeros((6, *shape))
+        if out is not None and out.theta[component].shape == (6, *shape):
+            theta, velocity = out.theta[component], out.velocity[component]
+            theta.fill(np.inf)
+            velocity.fill(0.0)
+        else:
+            theta = np.full((6, *shape), np.inf)
+            velocity = np.zeros((6, *shape))
         for axis in range(3):
             u, v = (axis + 1) % 3, (axis + 2) % 3
             crossings = bmap.lines[axis]

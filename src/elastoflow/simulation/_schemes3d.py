@@ -83,7 +83,10 @@ class ExplicitCoupling3D:
             t0 = clock()
             points, velocities, triangles, owner = model.boundary_points(state_in)
             bmap = build_boundary_map_3d(model.grid, points, velocities, triangles, owner)
-            interior = interior_boundary_3d(bmap)
+            # The spare state's boundary is two steps old and read by nobody: reuse its
+            # arrays (the current state's, which outputs and forces read, stays intact).
+            reuse = None if state_out.boundary is None else state_out.boundary.interior
+            interior = interior_boundary_3d(bmap, out=reuse)
             boundary = StepBoundary3D(bmap, interior)
             seconds["map"] = clock() - t0
 

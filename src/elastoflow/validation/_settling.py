@@ -38,6 +38,8 @@ class SettlingRun:
     seconds: float
     cells: tuple[int, int, int]
     tetrahedra: int
+    failure: str | None = None
+    """Why the run stopped early (a `SimulationBlowUp`'s message), None if it did not."""
 
     @property
     def u_max(self) -> float:
@@ -75,9 +77,16 @@ def run_settling(cells_per_diameter: int = 6, duration: float = 4.0, dt: float =
     times, speeds, gaps = [0.0], [0.0], []
     state = simulation.state.bodies[0]
     gaps.append(float(mass @ state.positions[:, 1]) - radius - floor)
+    from elastoflow.simulation import SimulationBlowUp
+
     began = _time.perf_counter()
+    failure = None
     for step in range(steps):
-        simulation.step()
+        try:
+            simulation.step()
+        except SimulationBlowUp as error:
+            failure = str(error)
+            break
         state = simulation.state.bodies[0]
         times.append(simulation.time)
         speeds.append(-float(mass @ state.velocities[:, 1]))
@@ -87,7 +96,7 @@ def run_settling(cells_per_diameter: int = 6, duration: float = 4.0, dt: float =
                      f"{speeds[-1]:.4f} m/s, gap/D = {gaps[-1] / DIAMETER:.2f}")
     return SettlingRun(cells_per_diameter, np.array(times), np.array(speeds), np.array(gaps),
                        _time.perf_counter() - began, model.grid.shape_cells,
-                       body.mesh.tetrahedron_count)
+                       body.mesh.tetrahedron_count, failure)
 
 
 def plot_settling(runs: list[SettlingRun], path: Path) -> None:
@@ -126,15 +135,22 @@ def settling_block(runs: list[SettlingRun], machine: str) -> str:
              "coupling with the traction force, dt = 0.01 s. The sphere's speed is its nodes' "
              "mass-weighted mean velocity. Published: ten Cate measured u_max = 0.0360 m/s "
              "in the box (u_inf = 0.038 m/s unbounded, from the Abraham correlation).", "",
-             "| D/h | cells | tetrahedra | u_max [m/s] | vs 0.0360 | at t [s] | gap/D at the "
-             "end | run time [s] |",
+             "| D/h | cells | tetrahedra | u_max [m/s] | vs 0.0360 | at t [s] | end: t [s], "
+             "gap/D | run time [s] |",
              "|---|---|---|---|---|---|---|---|"]
     for run in runs:
         nx, ny, nz = run.cells
+        end = f"{run.times[-1]:.2f}, {run.gaps[-1] / DIAMETER:.2f}"
+        if run.failure is not None:
+            end += " (diverged)"
         lines.append(
             f"| {run.cells_per_diameter} | {nx}x{ny}x{nz} | {run.tetrahedra} | "
             f"{run.u_max:.4f} | {100 * (run.u_max / U_MAX_MEASURED - 1):+.1f} % | "
-            f"{run.time_of_u_max:.2f} | {run.gaps[-1] / DIAMETER:.2f} | {run.seconds:.0f} |")
+            f"{run.time_of_u_max:.2f} | {end} | {run.seconds:.0f} |")
+    failures = [run for run in runs if run.failure is not None]
+    if failures:
+        lines += [""] + [f"D/h = {run.cells_per_diameter} stopped: {run.failure}"
+                         for run in failures]
     lines += ["", f"Machine: {machine}. Command: `python -m elastoflow.validation._settling "
               f"{' '.join(str(r.cells_per_diameter) for r in runs)}`.", "",
               "![settling](three_d_settling.png)", "", END]
