@@ -46,3 +46,20 @@ def fill_triangles_depth(image: np.ndarray, depth: np.ndarray, points: np.ndarra
                         depth[row, col] = z
                         for k in range(3):
                             image[row, col, k] = colors[t, k]
+
+
+@njit(cache=True)
+def blend_picture(image: np.ndarray, depth: np.ndarray, pixels: np.ndarray, rows: np.ndarray,
+                  cols: np.ndarray, pixel_depth: np.ndarray, picture: np.ndarray,
+                  opacity: float) -> None:
+    """Lay ``picture`` over the flat panel pixels ``pixels`` (row-major indices into
+    ``image``), pixel ``k`` showing ``picture[rows[k], cols[k]]`` with ``opacity``, where it
+    is not behind what ``depth`` holds (the surfaces in front of the plane stay)."""
+    width = image.shape[1]
+    for k in range(pixels.shape[0]):
+        row, col = pixels[k] // width, pixels[k] % width
+        if pixel_depth[k] < depth[row, col]:
+            continue
+        for c in range(3):
+            image[row, col, c] = np.uint8(opacity * picture[rows[k], cols[k], c]
+                                          + (1.0 - opacity) * image[row, col, c])

@@ -37,7 +37,7 @@ HELP_3D: tuple[str, ...] = (
     "v: cycle the view (speed, vorticity along the slice's normal, dye, pressure)",
     "space: pause, s: one step, r: reset, p: screenshot (PNG), q or Esc: quit",
     "magenta: the surfaces' outline seen along the slice's normal",
-    "right panel: the box (x red, y green, z blue), the plane (yellow), the surfaces",
+    "right: the box (x red, y green, z blue), the slice on its plane, the surfaces",
     "grabbing a body node (right-drag in 2D) is not available in 3D",
     "h: hide this help",
 )
@@ -123,6 +123,7 @@ class Viewer3D(Viewer):
         self._grab_target: np.ndarray | None = None
         self._frame: np.ndarray | None = None
         self._slice: np.ndarray | None = None
+        self._panel: np.ndarray | None = None
         self._font: Any = None
         self._surface: Any = None
         side = max(_OVERVIEW_MIN_PIXELS, max(grid.ny, grid.nz) * self.scale)
@@ -384,8 +385,11 @@ class Viewer3D(Viewer):
             image = np.empty(shape, dtype=np.uint8)
         image[:picture.shape[0], :picture.shape[1]] = picture
         image[picture.shape[0]:, :picture.shape[1]] = 255
-        panel = image[:side, picture.shape[1]:]
-        self.overview.draw(panel, AXES[self.axis], self.slice_position, surfaces, obstacles)
+        if self._panel is None:
+            self._panel = np.empty((side, side, 3), dtype=np.uint8)
+        self.overview.draw(self._panel, AXES[self.axis], self.slice_position, surfaces,
+                           obstacles, picture[:self.plane_height, :self.plane_width])
+        image[:side, picture.shape[1]:] = self._panel
         image[side:, picture.shape[1]:] = 255
         self._frame = image
         return image

@@ -242,3 +242,22 @@ def test_run_viewer_opens_a_3d_window_and_stops_its_thread(scene) -> None:
     viewer = run_viewer(scene, scale=4, max_frames=3)
     assert isinstance(viewer, Viewer3D)
     assert not viewer.stepping_in_background
+
+
+def test_the_overview_lays_the_slice_on_its_plane_behind_what_is_in_front() -> None:
+    from elastoflow.grid import Grid3D
+    from elastoflow.solid import mesh_box
+    from elastoflow.viewer._overview import Overview
+
+    overview = Overview(Grid3D(8, 8, 8, 0.1), 200)
+    image = np.empty((200, 200, 3), dtype=np.uint8)
+    red = np.zeros((32, 32, 3), dtype=np.uint8)
+    red[..., 0] = 255
+    overview.draw(image, 2, 0.4, picture=red)
+    pixels, _ = overview.to_pixels(np.array([[0.4, 0.4, 0.4]]))
+    col, row = pixels[0]
+    assert image[int(row), int(col), 0] > 200 and image[int(row), int(col), 1] < 10
+    # A box from the plane towards the eye hides the plane's centre.
+    box = mesh_box((0.3, 0.3, 0.4), counts=(1, 1, 1), origin=(0.3, 0.3, 0.4))
+    overview.draw(image, 2, 0.4, bodies=[(box.points, box.boundary_triangles)], picture=red)
+    assert image[int(row), int(col), 1] > 50
