@@ -207,8 +207,9 @@ class LiquidSpec(_Spec):
     """Water below ``y = height`` at t = 0 [m]: a number, or an expression in ``x`` (as for
     ``fluid.initial_velocity``), e.g. ``"0.05 + 0.005 * cos(pi * x / 0.1)"``."""
     viscosity: Literal["stress_free", "whole_grid"] = "stress_free"
-    """How viscosity meets the surface: "stress_free" (implicit on the liquid's faces, zero
-    shear stress at the surface; `elastoflow.fluid.ViscosityStressFree`) or "whole_grid"
+    """How viscosity meets the surface: "stress_free" (implicit, the full viscous stress on
+    the liquid, zero viscous stress at the surface; `elastoflow.fluid.ViscosityStressFree`,
+    docs/method_notes.md item 12) or "whole_grid"
     (the fluid's own viscosity over the whole grid, the air holding the extrapolated
     velocity; `elastoflow.fluid.ViscosityWholeGrid`)."""
     maccormack_fallback: Literal["walls_and_air", "walls", "none"] = "walls_and_air"
