@@ -31,7 +31,7 @@ DIAMETER = 0.015
 class SettlingRun:
     """One run: time [s], the sphere's settling speed [m/s] and gap to the floor [m]."""
 
-    cells_per_diameter: int
+    cells_per_diameter: float
     times: np.ndarray
     speeds: np.ndarray
     gaps: np.ndarray
@@ -50,9 +50,12 @@ class SettlingRun:
         return float(self.times[int(np.argmax(self.speeds))])
 
 
-def run_settling(cells_per_diameter: int = 6, duration: float = 4.0, dt: float = 0.01,
+def run_settling(cells_per_diameter: float = 6.0, duration: float = 4.0, dt: float = 0.01,
                  progress: Callable[[str], None] | None = None) -> SettlingRun:
-    """The library scene at ``cells_per_diameter`` to ``duration`` [s] with step ``dt``."""
+    """The library scene at ``cells_per_diameter`` to ``duration`` [s] with step ``dt``.
+
+    The box (100 x 160 x 100 mm) must be a whole number of cells: h = 20 mm / k, i.e. 0.75 k
+    cells per diameter (4.5, 6, 7.5, 9, ...)."""
     from elastoflow.scenes import build_simulation, get_scene, parse_scene, scene_to_toml
 
     scene = get_scene("sphere_settling")
@@ -92,7 +95,7 @@ def run_settling(cells_per_diameter: int = 6, duration: float = 4.0, dt: float =
         speeds.append(-float(mass @ state.velocities[:, 1]))
         gaps.append(float(mass @ state.positions[:, 1]) - radius - floor)
         if progress is not None and (step % 20 == 0 or step == steps - 1):
-            progress(f"D/h = {cells_per_diameter}: t = {times[-1]:.2f} s, u = "
+            progress(f"D/h = {cells_per_diameter:g}: t = {times[-1]:.2f} s, u = "
                      f"{speeds[-1]:.4f} m/s, gap/D = {gaps[-1] / DIAMETER:.2f}")
     return SettlingRun(cells_per_diameter, np.array(times), np.array(speeds), np.array(gaps),
                        _time.perf_counter() - began, model.grid.shape_cells,
@@ -107,7 +110,7 @@ def plot_settling(runs: list[SettlingRun], path: Path) -> None:
 
     figure, (left, right) = plt.subplots(1, 2, figsize=(10, 4))
     for run in runs:
-        label = f"D/h = {run.cells_per_diameter}"
+        label = f"D/h = {run.cells_per_diameter:g}"
         left.plot(run.times, run.speeds, label=label)
         right.plot(run.times, run.gaps / DIAMETER, label=label)
     left.axhline(U_MAX_MEASURED, color="k", linestyle="--", label="ten Cate u_max (0.036)")
@@ -144,15 +147,15 @@ def settling_block(runs: list[SettlingRun], machine: str) -> str:
         if run.failure is not None:
             end += " (diverged)"
         lines.append(
-            f"| {run.cells_per_diameter} | {nx}x{ny}x{nz} | {run.tetrahedra} | "
+            f"| {run.cells_per_diameter:g} | {nx}x{ny}x{nz} | {run.tetrahedra} | "
             f"{run.u_max:.4f} | {100 * (run.u_max / U_MAX_MEASURED - 1):+.1f} % | "
             f"{run.time_of_u_max:.2f} | {end} | {run.seconds:.0f} |")
     failures = [run for run in runs if run.failure is not None]
     if failures:
-        lines += [""] + [f"D/h = {run.cells_per_diameter} stopped: {run.failure}"
+        lines += [""] + [f"D/h = {run.cells_per_diameter:g} stopped: {run.failure}"
                          for run in failures]
     lines += ["", f"Machine: {machine}. Command: `python -m elastoflow.validation._settling "
-              f"{' '.join(str(r.cells_per_diameter) for r in runs)}`.", "",
+              f"{' '.join(f'{r.cells_per_diameter:g}' for r in runs)}`.", "",
               "![settling](three_d_settling.png)", "", END]
     return "\n".join(lines)
 
@@ -176,11 +179,13 @@ def write_settling(runs: list[SettlingRun], folder: Path, machine: str) -> Path:
 def main(argv: list[str]) -> None:
     import platform
 
-    resolutions = [int(a) for a in argv] or [6]
-    runs = [run_settling(n, progress=lambda line: print(line, flush=True))
-            for n in resolutions]
+    resolutions = [float(a) for a in argv] or [6.0]
     machine = f"{platform.machine()}, {platform.processor() or 'cpu'}, 2 cores"
-    print(write_settling(runs, Path("docs/validation"), machine))
+    runs = []
+    for n in resolutions:
+        runs.append(run_settling(n, progress=lambda line: print(line, flush=True)))
+        # Written after each run: a long study keeps what it has finished.
+        print(write_settling(runs, Path("docs/validation"), machine), flush=True)
 
 
 if __name__ == "__main__":
