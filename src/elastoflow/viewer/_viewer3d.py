@@ -74,7 +74,9 @@ class Viewer3D(Viewer):
 
     The plane is normal to `axis` ("x", "y" or "z") and shows the cell layer `layer`: the
     field of `view`, the bodies' and obstacles' sections and their outlines seen along the
-    normal (`elastoflow.render.render_slice_3d`). Mouse: left-drag pushes the fluid within
+    normal (`elastoflow.render.render_slice_3d`); on its right the `Overview`, the domain
+    in 3D with the slice's picture on its plane and the surfaces shaded (the module's
+    picture shows the layout). Mouse: left-drag pushes the fluid within
     the plane (the drag's velocity blended into the faces within a few cells of the cursor,
     the layers next to the plane included, with dye); the wheel moves the plane. Grabbing a
     body node (right-drag in 2D) is not available in 3D. Keys: x, y, z slice across that
