@@ -20,6 +20,9 @@ triangles with the grid lines along x, y and z (``LineCrossings``), and the cell
 (``solid_cells_3d``), the cut distances of the velocity points (``cut_distances_3d``), and the fluid share of every face from the bodies' exact cross-sections
 (``face_open_fractions_3d``); from them the 3D fluid's ``InteriorBoundary3D``
 (``interior_boundary_3d``) and the traction on the surface triangles (``force_traction_3d``).
+The bodies' flux through the faces as a linear map of their nodal velocities, whose
+transpose is the pressure's nodal force (``interface_flux_3d``), is the 3D twin of
+``interface_flux``.
 Obstacles in 3D are closed surfaces (``Obstacle3D``: ``obstacle_sphere``, ``obstacle_box``,
 ``obstacle_cylinder``) with an optional ``RigidMotion3D``.
 """
@@ -46,6 +49,7 @@ from elastoflow.coupling._interface import (
     SparseRows,
     interface_flux,
 )
+from elastoflow.coupling._interface3d import InterfaceFlux3D, interface_flux_3d
 from elastoflow.coupling._interior3d import force_traction_3d, interior_boundary_3d
 from elastoflow.coupling._map import BoundaryMap, build_boundary_map
 from elastoflow.coupling._map3d import (
@@ -100,6 +104,7 @@ __all__ = [
     "DualCellInteriorBoundary",
     "DualCover",
     "InterfaceFlux",
+    "InterfaceFlux3D",
     "LineCrossings",
     "Obstacle",
     "Obstacle3D",
@@ -124,6 +129,7 @@ __all__ = [
     "force_traction",
     "force_traction_3d",
     "interface_flux",
+    "interface_flux_3d",
     "interface_flux_dual",
     "interface_flux_staircase",
     "interior_boundary_dual_cell",

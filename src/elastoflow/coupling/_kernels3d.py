@@ -548,3 +548,355 @@ def inside_along_lines(offsets, coordinate, sign, triangle_of, weights, triangle
                         span = coordinate[entry] - coordinate[before]
                         t = (position - coordinate[before]) / span if span > 0.0 else 0.5
                         velocity[x, y, z] = low + t * (high - low)
+
+
+# The most vertices a tetrahedron's plane section (4) keeps after clipping to a square: each
+# of the square's four sides adds at most one.
+_CLIPPED_MAX = 8
+# A plane cuts a tetrahedron in at most four edges.
+_SECTION_MAX = 4
+# Corners of a tetrahedron.
+_CORNERS = 4
+
+
+# Columns of `tetrahedron_sections`' values.
+SECTION_WEIGHT = 0
+SECTION_SLOPE_U = 1
+SECTION_SLOPE_V = 2
+SECTION_AREA = 3
+SECTION_MOMENT_U = 4
+SECTION_MOMENT_V = 5
+SECTION_COLUMNS = 6
+
+
+@njit(cache=True, inline="always")
+def _edge_vector(points, tetrahedra, t, k, d):
+    """Component d of the edge from corner 0 to corner k of tetrahedron t."""
+    return points[tetrahedra[t, k], d] - points[tetrahedra[t, 0], d]
+
+
+@njit(cache=True, inline="always")
+def _tetrahedron_volume6(points, tetrahedra, t):
+    """Six times the signed volume ``((b - a) x (c - a)).(d - a)``."""
+    e1x, e1y, e1z = (_edge_vector(points, tetrahedra, t, 1, 0),
+                     _edge_vector(points, tetrahedra, t, 1, 1),
+                     _edge_vector(points, tetrahedra, t, 1, 2))
+    e2x, e2y, e2z = (_edge_vector(points, tetrahedra, t, 2, 0),
+                     _edge_vector(points, tetrahedra, t, 2, 1),
+                     _edge_vector(points, tetrahedra, t, 2, 2))
+    e3x, e3y, e3z = (_edge_vector(points, tetrahedra, t, 3, 0),
+                     _edge_vector(points, tetrahedra, t, 3, 1),
+                     _edge_vector(points, tetrahedra, t, 3, 2))
+    return (e1x * (e2y * e3z - e2z * e3y) - e1y * (e2x * e3z - e2z * e3x)
+            + e1z * (e2x * e3y - e2y * e3x))
+
+
+@njit(cache=True)
+def _barycentric_gradients(points, tetrahedra, t, out):
+    """``out[c]``: the gradient [1/m] of corner c's barycentric function in tetrahedron t
+    (not flat): ``grad lambda_1 = (e2 x e3) / 6V`` and cyclically, corner 0's minus their
+    sum."""
+    volume6 = _tetrahedron_volume6(points, tetrahedra, t)
+    for k in range(3):
+        # lambda_{k+1} is 0 on the face opposite corner k+1: its gradient is that face's
+        # normal (e_{k+2} x e_{k+3}) over 6V.
+        b = (k + 1) % 3 + 1
+        c = (k + 2) % 3 + 1
+        bx, by, bz = (_edge_vector(points, tetrahedra, t, b, 0),
+                      _edge_vector(points, tetrahedra, t, b, 1),
+                      _edge_vector(points, tetrahedra, t, b, 2))
+        cx, cy, cz = (_edge_vector(points, tetrahedra, t, c, 0),
+                      _edge_vector(points, tetrahedra, t, c, 1),
+                      _edge_vector(points, tetrahedra, t, c, 2))
+        out[k + 1, 0] = (by * cz - bz * cy) / volume6
+        out[k + 1, 1] = (bz * cx - bx * cz) / volume6
+        out[k + 1, 2] = (bx * cy - by * cx) / volume6
+    for d in range(3):
+        out[0, d] = -(out[1, d] + out[2, d] + out[3, d])
+
+
+@njit(cache=True, inline="always")
+def _tetrahedron_sign(points, tetrahedra, t):
+    """Sign of the tetrahedron's volume: +1, -1, or 0 when flat."""
+    volume6 = _tetrahedron_volume6(points, tetrahedra, t)
+    if volume6 > 0.0:
+        return 1.0
+    if volume6 < 0.0:
+        return -1.0
+    return 0.0
+
+
+@njit(cache=True)
+def tetrahedron_section_bound(points, tetrahedra, axis, origin, h, counts, wanted,
+                              face_offset):
+    """An upper bound of the entries `tetrahedron_sections` writes: per tetrahedron, four per
+    wanted face square inside its bounding box in each plane it crosses."""
+    u = (axis + 1) % 3
+    v = (axis + 2) % 3
+    shape_y = counts[1] + (1 if axis == 1 else 0)
+    shape_z = counts[2] + (1 if axis == 2 else 0)
+    total = 0
+    for t in range(tetrahedra.shape[0]):
+        low, high = np.inf, -np.inf
+        low_u, high_u = np.inf, -np.inf
+        low_v, high_v = np.inf, -np.inf
+        for k in range(_CORNERS):
+            q = tetrahedra[t, k]
+            low, high = min(low, points[q, axis]), max(high, points[q, axis])
+            low_u, high_u = min(low_u, points[q, u]), max(high_u, points[q, u])
+            low_v, high_v = min(low_v, points[q, v]), max(high_v, points[q, v])
+        first = max(int(np.floor((low - origin[axis]) / h)) + 1, 0)
+        last = min(int(np.floor((high - origin[axis]) / h)), counts[axis])
+        first_u = max(int(np.floor((low_u - origin[u]) / h)), 0)
+        last_u = min(int(np.floor((high_u - origin[u]) / h)), counts[u] - 1)
+        first_v = max(int(np.floor((low_v - origin[v]) / h)), 0)
+        last_v = min(int(np.floor((high_v - origin[v]) / h)), counts[v] - 1)
+        for p in range(first, last + 1):
+            for iu in range(first_u, last_u + 1):
+                for iv in range(first_v, last_v + 1):
+                    x, y, z = _xyz(axis, p, iu, iv)
+                    if wanted[face_offset + (x * shape_y + y) * shape_z + z]:
+                        total += _CORNERS
+    return total
+
+
+@njit(cache=True, inline="always")
+def _edge_section(points, tetrahedra, t, i, j, axis, u, v, level, section, weights, slot):
+    """Where the edge between corners i and j of tetrahedron t meets the plane: its (u, v)
+    in ``section[slot]`` and its corner weights in ``weights[slot]``, computed from the lower
+    point index first (the same point, to the last bit, in every tetrahedron that shares the
+    edge)."""
+    if tetrahedra[t, i] > tetrahedra[t, j]:
+        i, j = j, i
+    p, q = tetrahedra[t, i], tetrahedra[t, j]
+    s = (level - points[p, axis]) / (points[q, axis] - points[p, axis])
+    section[slot, 0] = points[p, u] + s * (points[q, u] - points[p, u])
+    section[slot, 1] = points[p, v] + s * (points[q, v] - points[p, v])
+    for k in range(_CORNERS):
+        weights[slot, k] = 0.0
+    weights[slot, i] = 1.0 - s
+    weights[slot, j] = s
+
+
+@njit(cache=True, inline="always")
+def _clip_half(count, section, weights, out_section, out_weights, coordinate, bound, keep_below):
+    """Sutherland-Hodgman: the convex polygon ``section[:count]`` (with its vertices' corner
+    weights, interpolated along the cut edges) clipped to ``x_coordinate <= bound``
+    (``keep_below``) or ``>= bound``; returns the new vertex count."""
+    kept = 0
+    for k in range(count):
+        n = (k + 1) % count
+        a = section[k, coordinate] - bound
+        b = section[n, coordinate] - bound
+        if not keep_below:
+            a, b = -a, -b
+        if a <= 0.0:
+            out_section[kept, 0] = section[k, 0]
+            out_section[kept, 1] = section[k, 1]
+            for q in range(_CORNERS):
+                out_weights[kept, q] = weights[k, q]
+            kept += 1
+        if (a < 0.0 < b) or (b < 0.0 < a):
+            s = a / (a - b)
+            out_section[kept, 0] = section[k, 0] + s * (section[n, 0] - section[k, 0])
+            out_section[kept, 1] = section[k, 1] + s * (section[n, 1] - section[k, 1])
+            out_section[kept, coordinate] = bound
+            for q in range(_CORNERS):
+                out_weights[kept, q] = weights[k, q] + s * (weights[n, q] - weights[k, q])
+            kept += 1
+    return kept
+
+
+@njit(cache=True)
+def tetrahedron_sections(points, tetrahedra, axis, origin, h, counts, face_offset, wanted,
+                         rows, columns, values, start):
+    """The flux weights of the tetrahedra's sections in the face planes normal to ``axis``.
+
+    Each plane ``x_axis = origin + p h`` (``p = 0 .. counts[axis]``) cuts a tetrahedron in a
+    triangle or quadrilateral on which the velocity is linear (the corners' barycentric
+    weights); clipped to each face square it meets, the piece ``Q`` adds to that face's row,
+    for each corner ``c``, ``sign * int_Q lambda_c dA / h^2`` on column ``3 c + axis``
+    (``sign`` that of the tetrahedron's volume: negative ones subtract, so that signed cones
+    over a closed surface add up to its inside). A vertex on a plane counts as above it (the
+    convention of `plane_sections`), so the pieces add up to the sections the open fractions
+    are computed from.
+
+    Args:
+        points: Node positions [m], (P, 3).
+        tetrahedra: Corner node indices, int64, (T, 4); flat ones are skipped.
+        axis: 0, 1 or 2: the faces' normal.
+        origin: Grid origin [m], (3,).
+        h: Cell side [m].
+        counts: Cells along x, y, z, int64, (3,).
+        face_offset: Flat index of this axis' first face (x faces, then y, then z).
+        wanted: Per flat face index, whether to write its pieces (the others, e.g. deep
+            inside a body, are skipped before clipping), bool.
+        rows, columns: Outputs: flat face index and ``3 node + axis`` of each entry, from
+            ``start`` on (`tetrahedron_section_bound` fits).
+        values: Output, (E, `SECTION_COLUMNS`): per entry its weight (`SECTION_WEIGHT`:
+            the integral above [-]), the same integral's change per unit shift [1/m] of the
+            point where the corner's function is read (`SECTION_SLOPE_U`, `SECTION_SLOPE_V`:
+            ``sign area grad lambda_c / h^2`` in the plane), and on the piece's first entry
+            its signed area over h^2 (`SECTION_AREA`) and first moments over h^2 [m]
+            (`SECTION_MOMENT_U`, `SECTION_MOMENT_V`; 0 on its other entries).
+        start: First free entry.
+
+    Returns:
+        The next free entry.
+    """
+    u = (axis + 1) % 3
+    v = (axis + 2) % 3
+    shape_y = counts[1] + (1 if axis == 1 else 0)
+    shape_z = counts[2] + (1 if axis == 2 else 0)
+    section = np.empty((_SECTION_MAX, 2))
+    section_weights = np.empty((_SECTION_MAX, _CORNERS))
+    clip_a = np.empty((_CLIPPED_MAX, 2))
+    clip_b = np.empty((_CLIPPED_MAX, 2))
+    weights_a = np.empty((_CLIPPED_MAX, _CORNERS))
+    weights_b = np.empty((_CLIPPED_MAX, _CORNERS))
+    integral = np.empty(_CORNERS)
+    gradients = np.empty((_CORNERS, 3))
+    above = np.empty(_CORNERS, np.bool_)
+    order = np.empty(_CORNERS, np.int64)
+    entry = start
+    inv_area = 1.0 / (h * h)
+    for t in range(tetrahedra.shape[0]):
+        sign = _tetrahedron_sign(points, tetrahedra, t)
+        if sign == 0.0:
+            continue
+        low, high = np.inf, -np.inf
+        for k in range(_CORNERS):
+            low = min(low, points[tetrahedra[t, k], axis])
+            high = max(high, points[tetrahedra[t, k], axis])
+        first = max(int(np.floor((low - origin[axis]) / h)) + 1, 0)
+        last = min(int(np.floor((high - origin[axis]) / h)), counts[axis])
+        if last < first:
+            continue
+        # Formed on the first piece written: most of a body's tetrahedra lie deep inside.
+        have_gradients = False
+        for p in range(first, last + 1):
+            level = origin[axis] + p * h
+            if level <= low or level > high:
+                continue
+            above_count = 0
+            for k in range(_CORNERS):
+                above[k] = points[tetrahedra[t, k], axis] >= level
+                if above[k]:
+                    above_count += 1
+            if above_count == 0 or above_count == _CORNERS:
+                continue
+            # Corners above first, then those below.
+            n_above = 0
+            for k in range(_CORNERS):
+                if above[k]:
+                    order[n_above] = k
+                    n_above += 1
+            n_below = n_above
+            for k in range(_CORNERS):
+                if not above[k]:
+                    order[n_below] = k
+                    n_below += 1
+            if above_count == 2:
+                # Around the quadrilateral: (a0 b0) (a0 b1) (a1 b1) (a1 b0).
+                a0, a1, b0, b1 = order[0], order[1], order[2], order[3]
+                _edge_section(points, tetrahedra, t, a0, b0, axis, u, v, level, section,
+                              section_weights, 0)
+                _edge_section(points, tetrahedra, t, a0, b1, axis, u, v, level, section,
+                              section_weights, 1)
+                _edge_section(points, tetrahedra, t, a1, b1, axis, u, v, level, section,
+                              section_weights, 2)
+                _edge_section(points, tetrahedra, t, a1, b0, axis, u, v, level, section,
+                              section_weights, 3)
+                count = 4
+            else:
+                # One corner alone on its side: a triangle on its three edges.
+                alone = order[0] if above_count == 1 else order[3]
+                count = 0
+                for k in range(_CORNERS):
+                    if k != alone:
+                        _edge_section(points, tetrahedra, t, alone, k, axis, u, v, level,
+                                      section, section_weights, count)
+                        count += 1
+            low_u, high_u = np.inf, -np.inf
+            low_v, high_v = np.inf, -np.inf
+            for k in range(count):
+                low_u, high_u = min(low_u, section[k, 0]), max(high_u, section[k, 0])
+                low_v, high_v = min(low_v, section[k, 1]), max(high_v, section[k, 1])
+            first_u = max(int(np.floor((low_u - origin[u]) / h)), 0)
+            last_u = min(int(np.floor((high_u - origin[u]) / h)), counts[u] - 1)
+            first_v = max(int(np.floor((low_v - origin[v]) / h)), 0)
+            last_v = min(int(np.floor((high_v - origin[v]) / h)), counts[v] - 1)
+            for iu in range(first_u, last_u + 1):
+                u0 = origin[u] + iu * h
+                for iv in range(first_v, last_v + 1):
+                    v0 = origin[v] + iv * h
+                    x, y, z = _xyz(axis, p, iu, iv)
+                    face = face_offset + (x * shape_y + y) * shape_z + z
+                    if not wanted[face]:
+                        continue
+                    kept = _clip_half(count, section, section_weights, clip_a, weights_a, 0,
+                                      u0, False)
+                    kept = _clip_half(kept, clip_a, weights_a, clip_b, weights_b, 0, u0 + h,
+                                      True)
+                    kept = _clip_half(kept, clip_b, weights_b, clip_a, weights_a, 1, v0,
+                                      False)
+                    kept = _clip_half(kept, clip_a, weights_a, clip_b, weights_b, 1, v0 + h,
+                                      True)
+                    if kept < 3:
+                        continue
+                    # A fan from the first vertex: a linear weight integrates to each
+                    # triangle's area times the mean of its corners.
+                    area = 0.0
+                    moment_u = 0.0
+                    moment_v = 0.0
+                    for q in range(_CORNERS):
+                        integral[q] = 0.0
+                    for k in range(1, kept - 1):
+                        piece = 0.5 * ((clip_b[k, 0] - clip_b[0, 0])
+                                       * (clip_b[k + 1, 1] - clip_b[0, 1])
+                                       - (clip_b[k + 1, 0] - clip_b[0, 0])
+                                       * (clip_b[k, 1] - clip_b[0, 1]))
+                        area += piece
+                        moment_u += piece * (clip_b[0, 0] + clip_b[k, 0]
+                                             + clip_b[k + 1, 0]) / 3.0
+                        moment_v += piece * (clip_b[0, 1] + clip_b[k, 1]
+                                             + clip_b[k + 1, 1]) / 3.0
+                        for q in range(_CORNERS):
+                            integral[q] += piece * (weights_b[0, q] + weights_b[k, q]
+                                                    + weights_b[k + 1, q]) / 3.0
+                    if area == 0.0:
+                        continue
+                    # The section's vertex order may run either way round.
+                    scale = sign * inv_area if area > 0.0 else -sign * inv_area
+                    if not have_gradients:
+                        _barycentric_gradients(points, tetrahedra, t, gradients)
+                        have_gradients = True
+                    for q in range(_CORNERS):
+                        rows[entry] = face
+                        columns[entry] = 3 * tetrahedra[t, q] + axis
+                        values[entry, SECTION_WEIGHT] = scale * integral[q]
+                        values[entry, SECTION_SLOPE_U] = scale * area * gradients[q, u]
+                        values[entry, SECTION_SLOPE_V] = scale * area * gradients[q, v]
+                        # The piece's own area and moments once, on its first entry.
+                        once = scale if q == 0 else 0.0
+                        values[entry, SECTION_AREA] = once * area
+                        values[entry, SECTION_MOMENT_U] = once * moment_u
+                        values[entry, SECTION_MOMENT_V] = once * moment_v
+                        entry += 1
+    return entry
+
+
+@njit(cache=True)
+def pressure_cells_3d(open_x, open_y, open_z, open_min, out):
+    """``out[i, j, k]``: cell (i, j, k) has an interior face open by ``open_min`` (the
+    pressure equation has it)."""
+    nx, ny, nz = out.shape
+    for i in range(nx):
+        for j in range(ny):
+            for k in range(nz):
+                out[i, j, k] = ((i >= 1 and open_x[i, j, k] >= open_min)
+                                or (i <= nx - 2 and open_x[i + 1, j, k] >= open_min)
+                                or (j >= 1 and open_y[i, j, k] >= open_min)
+                                or (j <= ny - 2 and open_y[i, j + 1, k] >= open_min)
+                                or (k >= 1 and open_z[i, j, k] >= open_min)
+                                or (k <= nz - 2 and open_z[i, j, k + 1] >= open_min))
