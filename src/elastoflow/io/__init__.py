@@ -45,7 +45,7 @@ from elastoflow.io._meshes import (
     write_ply,
     write_tetrahedral_mesh,
 )
-from elastoflow.io._probes import ProbeRecorder, plot_probes, read_probes
+from elastoflow.io._probes import ProbeRecorder, plot_probes, read_probes, write_rows_csv
 from elastoflow.io._session import (
     OutputSession,
     RangeTracker,
@@ -91,6 +91,7 @@ __all__ = [
     "write_surface_meshes",
     "write_image_data",
     "write_obj",
+    "write_rows_csv",
     "write_tetrahedral_mesh",
     "write_ply",
     "write_text_atomic",
