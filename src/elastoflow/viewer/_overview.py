@@ -31,6 +31,8 @@ BODY_SURFACE_COLOR = np.array([235, 225, 205], dtype=np.float64)
 OBSTACLE_SURFACE_COLOR = np.array([150, 150, 150], dtype=np.float64)
 _MARGIN = 0.08
 """Fraction of the panel left free around the domain's picture."""
+MAX_ELEVATION = 85.0
+"""The eye's highest (and lowest) elevation [degrees]."""
 PLANE_OPACITY = 0.85
 """How much of the slice's picture covers what lies behind the plane."""
 
@@ -53,26 +55,33 @@ class Overview:
                  elevation: float = 25.0) -> None:
         self.grid = grid
         self.size = int(size)
-        a, e = np.radians(azimuth), np.radians(elevation)
-        self.eye = np.array([np.sin(a) * np.cos(e), np.sin(e), np.cos(a) * np.cos(e)])
-        self.right = _unit(np.cross([0.0, 1.0, 0.0], self.eye))
-        self.up = np.cross(self.eye, self.right)
-        self.light = _unit(self.eye + 0.6 * self.up + 0.3 * self.right)
         low = np.asarray(grid.origin, dtype=np.float64)
         high = low + np.asarray(grid.shape_cells, dtype=np.float64) * grid.h
         self.low, self.high = low, high
         self.corners = np.array([[(low, high)[i][0], (low, high)[j][1], (low, high)[k][2]]
                                  for i in (0, 1) for j in (0, 1) for k in (0, 1)])
-        flat = self.corners @ np.stack((self.right, self.up), axis=1)
-        lowest, highest = flat.min(axis=0), flat.max(axis=0)
+        # The box's circumscribed sphere fills the panel whatever the turn: no zooming.
         self._pixels_per_metre = (1.0 - 2.0 * _MARGIN) * self.size / float(
-            (highest - lowest).max())
-        self._centre = 0.5 * (lowest + highest)
+            np.linalg.norm(high - low))
         # Box edges: corner pairs differing in one coordinate (corner index bits k, j, i).
         self._edges = np.array([(c, c | bit) for bit in (4, 2, 1) for c in range(8)
                                 if not c & bit])
         self._depth = np.empty((self.size, self.size))
         self._plane_map = lru_cache(maxsize=8)(self._plane_pixels)
+        self.orient(azimuth, elevation)
+
+    def orient(self, azimuth: float, elevation: float) -> None:
+        """Turn the eye: ``azimuth`` from +z towards +x and ``elevation`` above the x-z
+        plane [degrees] (kept within 85 degrees of level, where "up" stays defined)."""
+        self.azimuth = float(azimuth) % 360.0
+        self.elevation = float(np.clip(elevation, -MAX_ELEVATION, MAX_ELEVATION))
+        a, e = np.radians(self.azimuth), np.radians(self.elevation)
+        self.eye = np.array([np.sin(a) * np.cos(e), np.sin(e), np.cos(a) * np.cos(e)])
+        self.right = _unit(np.cross([0.0, 1.0, 0.0], self.eye))
+        self.up = np.cross(self.eye, self.right)
+        self.light = _unit(self.eye + 0.6 * self.up + 0.3 * self.right)
+        self._centre = 0.5 * (self.low + self.high) @ np.stack((self.right, self.up), axis=1)
+        self._plane_map.cache_clear()
 
     def to_pixels(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Points [m] (n, 3) to panel pixels (n, 2) (x right, y down) and depth (n,) [m],

@@ -32,6 +32,7 @@ from elastoflow.viewer._viewer import PUSH_RADIUS_CELLS, Viewer
 
 HELP_3D: tuple[str, ...] = (
     "left-drag: push the fluid within the slice plane (and add dye)",
+    "left-drag on the 3D view (right): turn it",
     "mouse wheel or Up / Down: move the slice one cell along its axis",
     "Page Up / Page Down: move the slice an eighth of the domain",
     "x, y, z: slice across that axis",
@@ -46,6 +47,8 @@ HELP_3D: tuple[str, ...] = (
 
 _PAGE_FRACTION = 8
 _OVERVIEW_MIN_PIXELS = 256
+TURN_DEGREES_PER_PIXEL = 0.5
+"""How far a drag on the overview turns it."""
 _WORKER_IDLE_S = 0.01
 
 
@@ -76,12 +79,14 @@ class Viewer3D(Viewer):
     field of `view`, the bodies' and obstacles' sections and their outlines seen along the
     normal (`elastoflow.render.render_slice_3d`); on its right the `Overview`, the domain
     in 3D with the slice's picture on its plane and the surfaces shaded (the module's
-    picture shows the layout). Mouse: left-drag pushes the fluid within
-    the plane (the drag's velocity blended into the faces within a few cells of the cursor,
-    the layers next to the plane included, with dye); the wheel moves the plane. Grabbing a
-    body node (right-drag in 2D) is not available in 3D. Keys: x, y, z slice across that
-    axis; Up / Down one layer, Page Up / Page Down an eighth of the domain; h help; space
-    pause, s single step, r reset, v cycle view, p screenshot (PNG), q or Esc quit.
+    picture shows the layout).
+
+    Mouse: left-drag pushes the fluid within the plane (the drag's velocity blended into the
+    faces within a few cells of the cursor, the layers next to the plane included, with
+    dye); left-drag on the overview turns it; the wheel moves the plane. Grabbing a body
+    node (right-drag in 2D) is not available in 3D. Keys: x, y, z slice across that axis;
+    Up / Down one layer, Page Up / Page Down an eighth of the domain; h help; space pause,
+    s single step, r reset, v cycle view, p screenshot (PNG), q or Esc quit.
 
     `update` steps in the calling thread; `start_stepping` steps in a background thread
     instead (what `run_viewer` does), so that the window stays responsive when a step takes
@@ -122,6 +127,8 @@ class Viewer3D(Viewer):
         self.edits = 0
         """Pushes applied so far: the picture changes with them while paused."""
         self._push_from: np.ndarray | None = None
+        self._turn_from: tuple[int, int] | None = None
+        self._overview_left: int | None = None
         self._grab: tuple[int, int] | None = None
         self._grab_target: np.ndarray | None = None
         self._frame: np.ndarray | None = None
@@ -179,6 +186,12 @@ class Viewer3D(Viewer):
         others = [k for k in range(3) if k != AXES[self.axis]]
         return int(grid.shape_cells[others[0]] * self.scale)
 
+    def on_overview(self, pixel: tuple[float, float]) -> bool:
+        """Whether a window pixel lies on the overview (known once a frame is drawn)."""
+        left = self._overview_left
+        return (left is not None and left <= pixel[0] < left + self.overview.size
+                and 0 <= pixel[1] < self.overview.size)
+
     def on_plane(self, pixel: tuple[float, float]) -> bool:
         """Whether a window pixel lies on the field's picture (not the colour bar or the
         overview)."""
@@ -208,12 +221,22 @@ class Viewer3D(Viewer):
         elif event.type == pg.MOUSEBUTTONDOWN:
             if event.button == 1 and self.on_plane(event.pos):
                 self._push_from = self.to_world(event.pos)
+            elif event.button == 1 and self.on_overview(event.pos):
+                self._turn_from = tuple(event.pos)
             elif event.button == 3:
                 self.message = "grabbing a body node is 2D only (h: help)"
         elif event.type == pg.MOUSEBUTTONUP:
             if event.button == 1:
                 self._push_from = None
+                self._turn_from = None
         elif event.type == pg.MOUSEMOTION:
+            if self._turn_from is not None:
+                dx = event.pos[0] - self._turn_from[0]
+                dy = event.pos[1] - self._turn_from[1]
+                self.overview.orient(
+                    self.overview.azimuth - TURN_DEGREES_PER_PIXEL * dx,
+                    self.overview.elevation + TURN_DEGREES_PER_PIXEL * dy)
+                self._turn_from = tuple(event.pos)
             if self._push_from is not None and self.on_plane(event.pos):
                 position = self.to_world(event.pos)
                 self._queue_push(self._push_from, position)
@@ -360,7 +383,8 @@ class Viewer3D(Viewer):
         """What the picture depends on: a new one is drawn only when this changes."""
         sim = self.simulation
         return (id(sim), sim.step_index, self.edits, self.view, self.axis, self.layer,
-                self.show_help, self.paused, self.message, self.last_screenshot)
+                self.show_help, self.paused, self.message, self.last_screenshot,
+                self.overview.azimuth, self.overview.elevation)
 
     def frame(self) -> np.ndarray:
         """The current picture as an RGB array (H, W, 3) uint8: the slice with its colour
@@ -393,6 +417,7 @@ class Viewer3D(Viewer):
         self.overview.draw(self._panel, AXES[self.axis], self.slice_position, surfaces,
                            obstacles, picture[:self.plane_height, :self.plane_width])
         image[:side, picture.shape[1]:] = self._panel
+        self._overview_left = picture.shape[1]
         image[side:, picture.shape[1]:] = 255
         self._frame = image
         return image

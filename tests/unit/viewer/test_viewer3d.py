@@ -238,12 +238,6 @@ def test_background_stepping_steps_and_applies_queued_pushes(viewer: Viewer3D) -
     assert not viewer.stepping_in_background
 
 
-def test_run_viewer_opens_a_3d_window_and_stops_its_thread(scene) -> None:
-    viewer = run_viewer(scene, scale=4, max_frames=3)
-    assert isinstance(viewer, Viewer3D)
-    assert not viewer.stepping_in_background
-
-
 def test_the_overview_lays_the_slice_on_its_plane_behind_what_is_in_front() -> None:
     from elastoflow.grid import Grid3D
     from elastoflow.solid import mesh_box
@@ -261,3 +255,33 @@ def test_the_overview_lays_the_slice_on_its_plane_behind_what_is_in_front() -> N
     box = mesh_box((0.3, 0.3, 0.4), counts=(1, 1, 1), origin=(0.3, 0.3, 0.4))
     overview.draw(image, 2, 0.4, bodies=[(box.points, box.boundary_triangles)], picture=red)
     assert image[int(row), int(col), 1] > 50
+
+
+def test_left_drag_on_the_overview_turns_it_and_pushes_nothing(viewer: Viewer3D) -> None:
+    _reset(viewer)
+    viewer.draw()
+    fluid = viewer.simulation.state.fluid
+    before = fluid.velocity_x.copy()
+    azimuth, elevation = viewer.overview.azimuth, viewer.overview.elevation
+    key = viewer.picture_key()
+    left = viewer.frame().shape[1] - viewer.overview.size
+    start, end = (left + 100, 100), (left + 120, 90)
+    viewer.handle_event(pygame.event.Event(pygame.MOUSEBUTTONDOWN, button=1, pos=start))
+    viewer.handle_event(pygame.event.Event(pygame.MOUSEMOTION, pos=end, rel=(20, -10),
+                                           buttons=(1, 0, 0)))
+    viewer.handle_event(pygame.event.Event(pygame.MOUSEBUTTONUP, button=1, pos=end))
+    assert viewer.overview.azimuth == pytest.approx(azimuth - 10.0)
+    assert viewer.overview.elevation == pytest.approx(elevation - 5.0)
+    assert viewer.picture_key() != key
+    np.testing.assert_array_equal(fluid.velocity_x, before)
+    viewer.overview.orient(0.0, 120.0)
+    assert viewer.overview.elevation == 85.0
+    viewer.draw()
+    viewer.overview.orient(azimuth, elevation)
+
+
+def test_run_viewer_opens_a_3d_window_and_stops_its_thread(scene) -> None:
+    # Last: run_viewer ends with pygame.quit(), which the fixture's viewer's font needs.
+    viewer = run_viewer(scene, scale=4, max_frames=3)
+    assert isinstance(viewer, Viewer3D)
+    assert not viewer.stepping_in_background
