@@ -248,8 +248,11 @@ def _closed_faces_whole(grid: Grid3D, interior: InteriorBoundary3D, rows: np.nda
     ``1 - A``, so that an affine motion gives its exact flux through the whole face (a cell
     closed all round keeps a rigid body's zero net flux, the uniform pressure's zero torque)."""
     weights = values[:, _kernels3d.SECTION_WEIGHT].copy()
-    open_fraction = np.concatenate([interior.open_fraction(axis).reshape(-1)
-                                    for axis in _AXES])[rows]
+    open_fraction = np.empty(rows.shape[0])
+    for axis in _AXES:
+        mine = (rows >= face_offsets[axis]) & (rows < face_offsets[axis + 1])
+        open_fraction[mine] = interior.open_fraction(axis).reshape(-1)[
+            rows[mine] - face_offsets[axis]]
     closed = (open_fraction < OPEN_MIN) & (open_fraction > 0.0)
     if not closed.any():
         return weights
@@ -258,10 +261,10 @@ def _closed_faces_whole(grid: Grid3D, interior: InteriorBoundary3D, rows: np.nda
     area = np.bincount(slot, chosen[:, _kernels3d.SECTION_AREA])
     centroid_u = np.bincount(slot, chosen[:, _kernels3d.SECTION_MOMENT_U]) / area
     centroid_v = np.bincount(slot, chosen[:, _kernels3d.SECTION_MOMENT_V]) / area
-    axis, index = _face_index(grid, faces, face_offsets)
+    normal, index = _face_index(grid, faces, face_offsets)
     origin = np.asarray(grid.origin, dtype=np.float64)
     along = np.arange(faces.shape[0])
-    u, v = (axis + 1) % 3, (axis + 2) % 3
+    u, v = (normal + 1) % 3, (normal + 2) % 3
     centre_u = origin[u] + (index[u, along] + 0.5) * grid.h
     centre_v = origin[v] + (index[v, along] + 0.5) * grid.h
     shift_u = (centre_u - centroid_u)[slot]
