@@ -280,6 +280,14 @@ def test_left_drag_on_the_overview_turns_it_and_pushes_nothing(viewer: Viewer3D)
     viewer.overview.orient(azimuth, elevation)
 
 
+def test_the_scene_video_chooses_the_first_plane_and_view() -> None:
+    data = {**_SCENE, "bodies": [], "obstacles": [],
+            "outputs": {"video": {"view": "dye", "axis": "x", "at": 0.3}}}
+    viewer = Viewer3D(parse_scene(data), scale=SCALE)
+    assert (viewer.view, viewer.axis, viewer.layer) == ("dye", "x", 4)  # 0.3 m in layer 4
+    assert viewer.scale == SCALE and viewer.frame().shape[0] == viewer.overview.size
+
+
 def test_run_viewer_opens_a_3d_window_and_stops_its_thread(scene) -> None:
     # Last: run_viewer ends with pygame.quit(), which the fixture's viewer's font needs.
     viewer = run_viewer(scene, scale=4, max_frames=3)
