@@ -24,17 +24,25 @@ What this makes exact (tests/unit/coupling/test_interface3d.py):
   round-off (the same cross-sections and the same "a vertex on a plane counts as above it"
   as `face_open_fractions_3d`);
 * the flux of any affine motion (rigid translation and rotation, uniform strain): the
-  covered part's area times the velocity at its centroid. A rigid body's flux therefore
-  leaves every cell it fills unchanged and any closed set of cells with the flux through
-  the body's surface inside it: ``sum_c (D W V)_c = 0`` over all cells for rigid ``V``;
+  covered part's area times the velocity at its centroid. By the divergence theorem on
+  (cell n body), a cell's net body outflow ``(D W V)_c`` is then minus the flux of the body
+  surface inside it plus ``div v`` times the body's volume there: 0 in every cell a rigid
+  body fills, and ``sum_c (D W V)_c = 0`` over the cells the pressure equation has;
 * the force as the transpose: ``f = h^2 W^T D^T p`` (``D``: a face's row counts + in its
   low cell, - in its high one, over the cells the pressure equation has), so that power
   ``f . V = h^2 p . D W V`` is the pressure's work on the flux. A uniform pressure gives
-  no net force and no torque (the flux of rigid motion out of the covered cells sums to
-  zero), hydrostatic pressure gives Archimedes' force exactly on a box lying on the grid.
+  no net force and no torque, and hydrostatic pressure Archimedes' force exactly on a box
+  lying on the grid (within 0.33 % on a sphere 8 cells across, 0.05 % at 32: each cell's
+  centre pressure acts on the body surface inside it).
 
 Faces the fluid treats as closed (open fraction below ``OPEN_MIN``) carry their whole flux,
-as in 2D: their rows are divided by ``1 - A``.
+as in 2D: each piece's functions are read at its centroid shifted by the face centre minus
+the covered part's centroid, and the row is divided by ``1 - A``: an affine motion's exact
+flux through the whole face (the velocity at its centre), so that a cell the pressure
+equation drops, closed all round, keeps a rigid motion's zero net flux.
+
+Not yet: bodies that overlap (a flag clamped in an obstacle) add both their covered parts,
+as the open fractions count the overlap twice; no thin-body cuts (none exist in 3D).
 """
 
 from __future__ import annotations
