@@ -52,7 +52,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from elastoflow.coupling import _kernels3d
-from elastoflow.coupling._interface import SparseRows, _csr_by_rows
+from elastoflow.coupling._interface import SparseRows, _cell_rows, _csr_by_rows
 from elastoflow.coupling._map3d import BoundaryMap3D
 from elastoflow.fluid import OPEN_MIN
 from elastoflow.fluid._interior3d import InteriorBoundary3D
@@ -91,6 +91,17 @@ class InterfaceFlux3D:
     high_cell: np.ndarray
     axis: np.ndarray
     active: np.ndarray
+
+    def cell_rows(self) -> tuple[np.ndarray, SparseRows]:
+        """``D W`` on the `active` cells next to ``W``'s faces, the coupling block of the
+        pressure equation: ``(cells, rows)``, ``cells`` their flat indices ascending (int64)
+        and row k cell ``cells[k]``'s net body outflow over a face area per unit nodal
+        velocity (``(D W)^T`` applied to a pressure and times h^2 is `pressure_forces`)."""
+        rows = self.rows
+        cells, indptr, indices, data = _cell_rows(
+            rows.indptr, rows.indices, rows.data, self.low_cell, self.high_cell,
+            np.ascontiguousarray(self.active).reshape(-1))
+        return cells, SparseRows(indptr, indices, data, rows.columns)
 
     def face_flux(self, velocities: np.ndarray) -> np.ndarray:
         """``W V``: body flux over each row's face area [m/s] for nodal ``velocities``

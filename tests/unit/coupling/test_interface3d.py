@@ -215,6 +215,22 @@ def test_force_is_the_transpose_of_the_flux(sphere):
     assert power == pytest.approx(work, rel=1e-12)
 
 
+def test_cell_rows_are_d_w_on_the_pressure_cells(sphere):
+    flux, _ = _flux(sphere)
+    cells, rows = flux.cell_rows()
+    assert np.all(np.diff(cells) > 0)
+    assert flux.active.reshape(-1)[cells].all()
+    generator = np.random.default_rng(5)
+    velocity = generator.normal(size=sphere.points.shape)
+    pressure = generator.normal(size=GRID.shape_cells)
+    flux_by_cell = flux.cell_flux(velocity).reshape(-1)
+    np.testing.assert_allclose(rows.times(velocity), flux_by_cell[cells], atol=1e-12)
+    others = np.setdiff1d(np.arange(flux_by_cell.shape[0]), cells)
+    np.testing.assert_array_equal(flux_by_cell[others], 0.0)
+    forces = GRID.h**2 * rows.transpose_times(pressure.reshape(-1)[cells]).reshape(-1, 3)
+    np.testing.assert_allclose(forces, flux.pressure_forces(pressure), atol=1e-14)
+
+
 def test_a_body_with_tetrahedra_beside_an_obstacle(sphere, box):
     """Body 0 by its tetrahedra, body 1 (no tetrahedra: an obstacle) by signed cones."""
     shift = np.array([0.0, 0.0, 0.0])
