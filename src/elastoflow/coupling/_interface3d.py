@@ -52,7 +52,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from elastoflow.coupling import _kernels3d
-from elastoflow.coupling._interface import SparseRows, _cell_rows, _csr_by_rows
+from elastoflow.coupling._interface import SparseRows, _cell_rows, _merge_segments
 from elastoflow.coupling._map3d import BoundaryMap3D
 from elastoflow.fluid import OPEN_MIN
 from elastoflow.fluid._interior3d import InteriorBoundary3D
@@ -235,7 +235,9 @@ def interface_flux_3d(grid: Grid3D, bmap: BoundaryMap3D, interior: InteriorBound
                                                 columns, values, entry)
     rows, columns, values = rows[:entry], columns[:entry], values[:entry]
     weights = _closed_faces_whole(grid, interior, rows, values, face_offsets)
-    faces, indptr, indices, data = _csr_by_rows(rows, columns, weights)
+    faces, indptr, indices, data = _kernels3d.group_by_row(rows, columns, weights,
+                                                           int(face_offsets[-1]))
+    indptr, indices, data = _merge_segments(indptr, indices, data)
     axis_of, _ = _face_index(grid, faces, face_offsets)
     low, high = _cells_of(grid, faces, face_offsets)
     matrix = SparseRows(indptr, indices, data, 3 * points.shape[0])

@@ -900,3 +900,37 @@ def pressure_cells_3d(open_x, open_y, open_z, open_min, out):
                                 or (j <= ny - 2 and open_y[i, j + 1, k] >= open_min)
                                 or (k >= 1 and open_z[i, j, k] >= open_min)
                                 or (k <= nz - 2 and open_z[i, j, k + 1] >= open_min))
+
+
+@njit(cache=True)
+def group_by_row(rows, columns, values, row_count):
+    """Triplets grouped by row with one counting pass over the row range (the faces of a
+    grid: no sort): ``(rows ascending that occur, indptr, columns, values)``, each row's
+    entries in their given order (`elastoflow.coupling._interface._merge_segments` then
+    sorts and sums them)."""
+    count = np.zeros(row_count + 1, np.int64)
+    for e in range(rows.shape[0]):
+        count[rows[e] + 1] += 1
+    used = 0
+    for r in range(row_count):
+        if count[r + 1] > 0:
+            used += 1
+    ids = np.empty(used, np.int64)
+    indptr = np.zeros(used + 1, np.int64)
+    slot_of = np.empty(row_count, np.int64)
+    k = 0
+    for r in range(row_count):
+        if count[r + 1] > 0:
+            ids[k] = r
+            slot_of[r] = k
+            indptr[k + 1] = indptr[k] + count[r + 1]
+            k += 1
+    fill = indptr[:-1].copy()
+    grouped_columns = np.empty(rows.shape[0], np.int64)
+    grouped_values = np.empty(rows.shape[0])
+    for e in range(rows.shape[0]):
+        k = slot_of[rows[e]]
+        grouped_columns[fill[k]] = columns[e]
+        grouped_values[fill[k]] = values[e]
+        fill[k] += 1
+    return ids, indptr, grouped_columns, grouped_values
