@@ -820,6 +820,9 @@ def view(
     """Interactive window: left-drag pushes the fluid, right-drag grabs a body node.
 
     Keys: space pause, s single step, r reset, v cycle view, p screenshot, q/esc quit.
+    A 3D scene shows a slice and a 3D view: x/y/z turn the slice, Up/Down or the wheel move
+    it a cell, PageUp/PageDown an eighth of the domain, h help; left-drag on the slice
+    pushes the fluid, on the 3D view turns it (no grabbing of body nodes in 3D).
     """
     from elastoflow.scenes import SceneError
 

@@ -20,7 +20,7 @@ import numpy as np
 from numba import njit
 
 from elastoflow.coupling._area import segment_areas
-from elastoflow.fluid._interior_kernels3d import _sample_bodies
+from elastoflow.fluid._kernels3d import _sample_bodies
 
 # A box of solid points that covers every index: the samples read the solid flags.
 _EVERYWHERE = np.array([[-(2**62), 2**62, -(2**62), 2**62, -(2**62), 2**62]], dtype=np.int64)

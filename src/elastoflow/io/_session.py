@@ -206,8 +206,8 @@ class OutputSession:
         if position is None:
             position = low_edge + 0.5 * grid.shape_cells[k] * grid.h
         index = min(int((position - low_edge) / grid.h), grid.shape_cells[k] - 1)
-        low, high = default_value_range(slice_values(grid, sim.state.fluid, k, index, view),
-                                        view)
+        values = slice_values(grid, sim.state.fluid, k, index, view)
+        low, high = default_value_range(values, view)
         solids = [(state.positions, body.mesh.tetrahedra)
                   for body, state in zip(sim.bodies, sim.state.bodies)]
         for obstacle in sim.obstacles:
@@ -215,7 +215,7 @@ class OutputSession:
             if solid is not None:
                 solids.append(solid)
         return render_slice_3d(grid, sim.state.fluid, axis=axis, position=position, view=view,
-                               bodies=solids, time=sim.time,
+                               bodies=solids, time=sim.time, values=values,
                                value_range=self._range.update(low, high), out=out)
 
     def after_step(self, simulation: Any, report: Any) -> None:

@@ -19,14 +19,20 @@ from elastoflow.render._frame import (
     view_values,
 )
 from elastoflow.render._slice3d import (
+    AXES,
     VIEWS_3D,
+    fill_segments,
+    layer_values,
     render_slice_3d,
     slice_values,
+    surface_section,
+    surface_silhouette,
     tetrahedra_section,
 )
 from elastoflow.render._video import SegmentedVideo, VideoWriter, join_videos
 
 __all__ = [
+    "AXES",
     "BODY_EDGE_COLOR",
     "BODY_FILL_COLOR",
     "OBSTACLE_FILL_COLOR",
@@ -37,12 +43,16 @@ __all__ = [
     "apply_colormap",
     "colormap_lut",
     "default_value_range",
+    "fill_segments",
     "join_videos",
+    "layer_values",
     "liquid_values",
     "render_frame",
     "render_slice_3d",
     "slice_values",
     "speed_at_cells",
+    "surface_section",
+    "surface_silhouette",
     "tetrahedra_section",
     "triangle_edges",
     "velocity_at_cells",

@@ -33,12 +33,6 @@ SILHOUETTE_COLOR = np.array([230, 0, 230], dtype=np.uint8)
 a colour none of the field's colour maps uses."""
 
 
-def _centre_velocity(state: Any) -> np.ndarray:
-    u, v, w = state.velocity_x, state.velocity_y, state.velocity_z
-    return np.stack((0.5 * (u[1:] + u[:-1]), 0.5 * (v[:, 1:] + v[:, :-1]),
-                     0.5 * (w[:, :, 1:] + w[:, :, :-1])), axis=-1)
-
-
 def slice_values(grid: Grid3D, state: Any, axis: int, index: int, view: str) -> np.ndarray:
     """The view's values on cell layer ``index`` across ``axis``, as a 2D field indexed by
     the two other axes in order ((ny, nz) for x, (nx, nz) for y, (nx, ny) for z). Vorticity
@@ -47,23 +41,11 @@ def slice_values(grid: Grid3D, state: Any, axis: int, index: int, view: str) -> 
         raise ValueError(f"view = {view!r}: must be one of {', '.join(VIEWS_3D)}")
     if not 0 <= index < grid.shape_cells[axis]:
         raise ValueError(f"slice index {index}: must be in 0..{grid.shape_cells[axis] - 1}")
-    take = [slice(None)] * 3
     if view == "pressure":
         return np.take(state.pressure, index, axis=axis)
     if view == "dye":
         return np.take(state.dye, index, axis=axis)
-    velocity = _centre_velocity(state)
-    if view == "speed":
-        return np.take(np.sqrt((velocity**2).sum(axis=-1)), index, axis=axis)
-    # Vorticity along ``axis``: d(b)/d(a) - d(a)/d(b) for the in-plane axes (a, b).
-    a, b = [k for k in range(3) if k != axis]
-    take[axis] = slice(max(index - 1, 0), index + 2)
-    local = velocity[tuple(take)]
-    position = index - max(index - 1, 0)
-    h = grid.h
-    db_da = np.gradient(local[..., b], h, axis=a) if local.shape[a] > 1 else 0.0 * local[..., b]
-    da_db = np.gradient(local[..., a], h, axis=b) if local.shape[b] > 1 else 0.0 * local[..., a]
-    return np.take(db_da - da_db, position, axis=axis)
+    return layer_values(grid, state, axis, index, view)
 
 
 def _layers(array: np.ndarray, axis: int, start: int, stop: int) -> np.ndarray:
@@ -85,9 +67,10 @@ def _centre_velocity_layers(state: Any, axis: int, start: int, stop: int) -> np.
 
 
 def layer_values(grid: Grid3D, state: Any, axis: int, index: int, view: str) -> np.ndarray:
-    """`slice_values`, the same numbers, with the cell-centre velocity computed on the layer
-    (and its two neighbours for the vorticity) alone instead of the whole volume: what a frame
-    per step can afford at 64^3 and beyond (0.1 ms instead of 30 ms there)."""
+    """`slice_values`' speed and vorticity, with the cell-centre velocity computed on the
+    layer (and its two neighbours for the vorticity, along ``axis``: d(b)/d(a) - d(a)/d(b)
+    for the in-plane axes) alone instead of the whole volume: what a frame per step can
+    afford at 64^3 and beyond (0.1 ms instead of 30 ms there)."""
     if view not in ("speed", "vorticity") or not 0 <= index < grid.shape_cells[axis]:
         return slice_values(grid, state, axis, index, view)
     if view == "speed":

@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from elastoflow.render._slice3d import AXES
+from elastoflow.render import AXES
 from elastoflow.viewer._overview import Overview
 from elastoflow.viewer._viewer import PUSH_RADIUS_CELLS, Viewer
 
@@ -389,7 +389,7 @@ class Viewer3D(Viewer):
     def frame(self) -> np.ndarray:
         """The current picture as an RGB array (H, W, 3) uint8: the slice with its colour
         bar, and the overview on its right."""
-        from elastoflow.render._slice3d import layer_values, render_slice_3d
+        from elastoflow.render import layer_values, render_slice_3d
 
         sim = self.simulation
         state = sim.state
