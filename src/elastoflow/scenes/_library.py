@@ -467,12 +467,14 @@ def _bar_in_jet_3d() -> dict:
 
 @_register("flag_3d")
 def _flag_3d() -> dict:
-    """3D: a rubber flag behind a pole in a stream, fluttering in the pole's wake (64x32x32).
+    """3D: a rubber flag behind a pole in a stream (64x32x32).
 
-    A pole (a cylinder obstacle along y, 0.1 m across: Re 100 at the 1 m/s inflow, where its
-    wake sheds vortices) holds a 0.5 x 0.4 m flag 8 cm (2.6 cells) thick. The flag's first
-    bending frequency is about 1 Hz (E = 38 kPa, 100 kg/m^3: it weighs 20x the fluid it moves,
-    which the explicit scheme needs), near the wake's shedding frequency (St U / D ~ 2 Hz).
+    A pole (a cylinder obstacle along y, 0.1 m across, Re 100 at the 1 m/s inflow) holds a
+    0.5 x 0.4 m flag 8 cm (2.6 cells) thick, first bending frequency about 1 Hz (E = 38 kPa,
+    100 kg/m^3: it weighs 20x the fluid it moves, which the explicit scheme needs). Measured:
+    the flag streams straight in a steady wake. The set-up is mirror-symmetric and the pole
+    is three cells across, and a splitter plate this long suppresses the pole's shedding;
+    the flag did not flutter either at E = 1.5 kPa (tip within 0.1 mm over 5 s).
     """
     return {
         "domain": {"lx": 2.0, "ly": 1.0, "lz": 1.0, "nx": 64},
