@@ -88,3 +88,14 @@ def test_runner_passes_option_values_to_the_benchmark(monkeypatch) -> None:
     assert runner.main(["coupling", "--steps", "3", "--size", "32"]) == 0
     assert seen == [["--steps", "3", "--size", "32"]]
     assert runner.main(["coupling", "3"]) == 2
+
+
+def test_three_d_scenes_benchmark_runs(results: Path) -> None:
+    from benchmarks import bench_three_d_scenes
+
+    rows = bench_three_d_scenes.main(["--quick", "--cases", "bar_in_jet_3d,sphere_drag",
+                                      "--size", "16"])
+    assert [row["case"] for row in rows] == ["bar_in_jet_3d", "sphere_drag"]
+    assert all(row["ms_per_step"] > 0.0 and row["pressure_iterations"] > 0 for row in rows)
+    assert rows[0]["tetrahedra"] > 0 and rows[1]["obstacles"] == 1
+    assert _written(results, "three_d_scenes")
