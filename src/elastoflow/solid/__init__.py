@@ -1,14 +1,12 @@
 """Elastic bodies: triangle meshes, St. Venant-Kirchhoff material with Voigt damping, explicit FEM.
 
 Linear triangles in 2D (METHOD §4), linear tetrahedra in 3D (:class:`TetrahedralMesh`,
-:class:`ElasticBody3D`, advanced by the same :class:`ExplicitFem`, or implicitly by
-:class:`NewmarkFem3D`, :class:`MidpointFem3D`, :class:`EnergyMomentumFem3D`, which take
-2D and 3D bodies). Model, state and what advances it are separate: a
+:class:`ElasticBody3D`). Model, state and what advances it are separate: a
 :class:`TriangleMesh` is the rest shape, an :class:`ElasticBody` the static model (mesh,
 material, constraints, masses), a :class:`BodyState` the changing positions and velocities,
-and an integrator (:class:`ExplicitFem`, :class:`EnergyMomentumFem`, :class:`MidpointFem`, :class:`NewmarkFem`,
-:func:`static_equilibrium`)
-steps one state into another::
+and an integrator (:class:`ExplicitFem`, :class:`EnergyMomentumFem`, :class:`MidpointFem`,
+:class:`NewmarkFem`, :func:`static_equilibrium`: each one for 2D and 3D bodies, the body
+bringing its forces and step matrix) steps one state into another::
 
     mesh = mesh_rectangle(0.02, 0.2, counts=(4, 24), origin=(0.5, 0.3))
     body = ElasticBody(mesh, MaterialStVK(1000.0, 1e6, 0.3, damping_mu=10.0),
@@ -21,6 +19,10 @@ steps one state into another::
     body3d = ElasticBody3D(beam, MaterialStVK(1000.0, 1e6, 0.3),
                            fixed_nodes=nodes_in_box_3d(beam, (0, 0, 0, 0, 0.02, 0.02)),
                            gravity=(0.0, -9.81, 0.0))
+    state3d = body3d.state()
+    rule = EnergyMomentumFem(damping=0.1)
+    rule.advance(body3d, state3d, state3d, 1e-3, np.zeros((beam.point_count, 3)),
+                 rule.response(body3d, state3d, 1e-3))
 """
 
 
@@ -39,13 +41,7 @@ from elastoflow.solid._integrators import (
     NewmarkFem,
     static_equilibrium,
 )
-from elastoflow.solid._implicit3d import (
-    EnergyMomentumFem3D,
-    MidpointFem3D,
-    NewmarkFem3D,
-    StepResponse3D,
-    static_equilibrium_3d,
-)
+from elastoflow.solid._implicit3d import StepResponse3D
 from elastoflow.solid._material import MaterialStVK
 from elastoflow.solid._mesh import (
     TriangleMesh,
@@ -79,11 +75,8 @@ __all__ = [
     "MaterialRod",
     "MaterialStVK",
     "EnergyMomentumFem",
-    "EnergyMomentumFem3D",
     "MidpointFem",
-    "MidpointFem3D",
     "NewmarkFem",
-    "NewmarkFem3D",
     "PolylineMesh",
     "RodBody",
     "SolidInversionError",
@@ -105,6 +98,5 @@ __all__ = [
     "read_tetrahedral_mesh",
     "stable_substep",
     "static_equilibrium",
-    "static_equilibrium_3d",
     "tetrahedralize_surface",
 ]

@@ -13,17 +13,16 @@ from elastoflow.solid import (
     BodyState,
     ElasticBody,
     ElasticBody3D,
-    EnergyMomentumFem3D,
+    EnergyMomentumFem,
     MaterialStVK,
-    MidpointFem3D,
+    MidpointFem,
     NewmarkFem,
-    NewmarkFem3D,
     StepResponse3D,
     mesh_box,
     mesh_rectangle,
     nodes_in_box,
     nodes_in_box_3d,
-    static_equilibrium_3d,
+    static_equilibrium,
 )
 from elastoflow.solid._implicit3d import StepMatrixLayout3D, step_matrix_3d
 from elastoflow.validation._solid3d import (
@@ -118,7 +117,7 @@ def test_step_matrix_is_mass_damping_and_clamped_stiffness_on_free_dofs() -> Non
     assert free.size == 3 * (mesh.point_count - fixed.size)
 
 
-@pytest.mark.parametrize("rule", [NewmarkFem3D(), MidpointFem3D(), EnergyMomentumFem3D(0.1)])
+@pytest.mark.parametrize("rule", [NewmarkFem(), MidpointFem(), EnergyMomentumFem(0.1)])
 def test_response_to_a_small_force_is_the_steps_velocity_change(rule) -> None:
     # Linear case: from the rest shape at rest, a small force held over one step. The step's
     # velocity change is twice the response's mean-velocity answer.
@@ -168,7 +167,7 @@ def test_newmark_average_acceleration_keeps_the_energy_of_small_vibrations() -> 
     # 4.1e-5, 4.1e-6 at amplitudes 1e-4, 1e-5, 1e-6), without drift.
     body, state = vibrating_block(MATERIAL, 1e-6)
     energy = body.total_energy(state)
-    rule = NewmarkFem3D(0.5)
+    rule = NewmarkFem(0.5)
     dt = 10.0 * body.stable_substep()
     energies = []
     for k in range(200):
@@ -177,7 +176,7 @@ def test_newmark_average_acceleration_keeps_the_energy_of_small_vibrations() -> 
         energies.append(body.total_energy(state))
     assert np.abs(np.array(energies) / energy - 1.0).max() < 1e-5
     # gamma > 1/2 damps them.
-    damped = NewmarkFem3D(0.7)
+    damped = NewmarkFem(0.7)
     for _ in range(20):
         damped.advance(body, state, state, dt, np.zeros_like(state.positions),
                        damped.response(body, state, dt))
@@ -202,8 +201,8 @@ def momenta(body: ElasticBody3D, state: BodyState) -> tuple[np.ndarray, np.ndarr
     return momentum.sum(axis=0), np.cross(state.positions, momentum).sum(axis=0)
 
 
-@pytest.mark.parametrize("rule", [MidpointFem3D(1e-12, 40),
-                                  EnergyMomentumFem3D(tolerance=1e-12, max_iterations=40)])
+@pytest.mark.parametrize("rule", [MidpointFem(1e-12, 40),
+                                  EnergyMomentumFem(tolerance=1e-12, max_iterations=40)])
 def test_midpoint_rules_keep_momentum_and_angular_momentum_of_a_spinning_body(rule) -> None:
     body, state = spinning_block()
     momentum, angular = momenta(body, state)
@@ -219,7 +218,7 @@ def test_midpoint_rules_keep_momentum_and_angular_momentum_of_a_spinning_body(ru
         np.testing.assert_allclose(new_angular, angular, rtol=0.0,
                                    atol=1e-9 * np.abs(angular).max())
     assert body.deformation_determinants(state).min() > 0.5
-    if isinstance(rule, EnergyMomentumFem3D):
+    if isinstance(rule, EnergyMomentumFem):
         # Simo & Tarnow: the energy too, to the Newton tolerance, in large rotations.
         assert abs(body.total_energy(state) / energy - 1.0) < 1e-7
 
@@ -229,7 +228,7 @@ def test_energy_momentum_keeps_the_energy_of_large_vibrations() -> None:
     # (above), 10 x the explicit limit.
     body, state = vibrating_block(MATERIAL, 0.003)
     energy = body.total_energy(state)
-    rule = EnergyMomentumFem3D(tolerance=1e-12, max_iterations=40)
+    rule = EnergyMomentumFem(tolerance=1e-12, max_iterations=40)
     dt = 10.0 * body.stable_substep()
     for k in range(100):
         rule.advance(body, state, state, dt, np.zeros_like(state.positions),
@@ -246,7 +245,7 @@ def test_stable_far_above_the_explicit_limit() -> None:
     body = ElasticBody3D(mesh, MATERIAL, fixed_nodes=fixed, gravity=(0.0, -1.0, 0.0))
     dt = 500.0 * body.stable_substep()
     zero = np.zeros((mesh.point_count, 3))
-    for rule in (NewmarkFem3D(0.5), NewmarkFem3D(0.6), EnergyMomentumFem3D(0.1)):
+    for rule in (NewmarkFem(0.5), NewmarkFem(0.6), EnergyMomentumFem(0.1)):
         state = body.state()
         start = body.total_energy(state)
         energies = []
@@ -258,29 +257,41 @@ def test_stable_far_above_the_explicit_limit() -> None:
         assert max(energies) < start + 1e-6 * abs(start)
     # The damped rules end near the static state.
     static = body.state()
-    static_equilibrium_3d(body, static)
+    static_equilibrium(body, static)
     tip = nodes_in_box_3d(mesh, (0.3, -1.0, -1.0, 0.3, 1.0, 1.0))
     sag = static.positions[tip, 1].mean() - mesh.points[tip, 1].mean()
     assert sag < 0.0
     assert abs(state.positions[tip, 1].mean() - mesh.points[tip, 1].mean() - sag) < 0.5 * abs(sag)
 
 
-def test_2d_bodies_go_to_the_2d_rules() -> None:
+def test_one_rule_for_both_dimensions_checks_the_forces_shape() -> None:
+    # One rule object advances a 2D and a 3D body; the forces must have the body's dimension.
     mesh = mesh_rectangle(0.2, 0.02, counts=(10, 2))
     body = ElasticBody(mesh, MATERIAL, fixed_nodes=nodes_in_box(mesh, (0.0, 0.0, 0.0, 0.02)),
                        gravity=(0.0, -9.81))
+    body3d = small_block()
     dt = 1e-3
-    zero = np.zeros((mesh.point_count, 2))
-    a, b = body.state(), body.state()
-    NewmarkFem().advance(body, a, a, dt, zero, NewmarkFem().response(body, a, dt))
-    NewmarkFem3D().advance(body, b, b, dt, zero, NewmarkFem3D().response(body, b, dt))
-    np.testing.assert_array_equal(a.positions, b.positions)
+    for rule in (NewmarkFem(), MidpointFem(), EnergyMomentumFem(0.1)):
+        for model, wrong in ((body, 3), (body3d, 2)):
+            state = model.state()
+            response = rule.response(model, state, dt)
+            with pytest.raises(ValueError, match=rf"shape \({model.point_count}, {5 - wrong}\)"):
+                rule.advance(model, state, state, dt, np.zeros((model.point_count, wrong)),
+                             response)
+            rule.advance(model, state, state, dt, np.zeros((model.point_count, 5 - wrong)),
+                         response)
+            assert np.all(np.isfinite(state.positions))
     with pytest.raises(ValueError, match="shape"):
-        body3d = small_block()
-        rule = NewmarkFem3D()
-        state = body3d.state()
-        rule.advance(body3d, state, state, dt, np.zeros((body3d.point_count, 2)),
-                     rule.response(body3d, state, dt))
+        static_equilibrium(body3d, body3d.state(), np.zeros((body3d.point_count, 2)))
+
+
+def test_reuse_strain_builds_every_call_for_2d_bodies() -> None:
+    mesh = mesh_rectangle(0.2, 0.02, counts=(10, 2))
+    body = ElasticBody(mesh, MATERIAL, fixed_nodes=nodes_in_box(mesh, (0.0, 0.0, 0.0, 0.02)))
+    rule = NewmarkFem(reuse_strain=1.0)
+    state = body.state()
+    assert rule.response(body, state, 1e-3) is not rule.response(body, state, 1e-3)
+    assert rule.factors.built == 2
 
 
 @pytest.mark.parametrize(("across", "explicit_frequency", "explicit_deflection"),
@@ -299,7 +310,7 @@ def test_cantilever_static_deflection_and_frequency(across: int, explicit_freque
     tip = nodes_in_box_3d(mesh, (LENGTH, -SIDE, -SIDE, LENGTH, SIDE, SIDE))
     sagging = ElasticBody3D(mesh, STEEL, fixed_nodes=clamp, gravity=(0.0, 0.0, -9.81))
     state = sagging.state()
-    static_equilibrium_3d(sagging, state)
+    static_equilibrium(sagging, state)
     deflection = mesh.points[tip, 2].mean() - state.positions[tip, 2].mean()
     assert deflection == pytest.approx(explicit_deflection, rel=1e-4)
     assert -0.35 < deflection / euler_bernoulli_deflection() - 1.0 < 0.0
@@ -313,7 +324,7 @@ def test_cantilever_static_deflection_and_frequency(across: int, explicit_freque
     samples = 40
     dt = 1.0 / (f_reference * 1.2 * samples)
     assert dt > 100.0 * body.stable_substep()
-    rule = NewmarkFem3D(0.5)
+    rule = NewmarkFem(0.5)
     zero = np.zeros_like(mesh.points)
     count = int(2.2 * 1.2 * samples)
     tip_z = np.empty(count)
@@ -325,7 +336,7 @@ def test_cantilever_static_deflection_and_frequency(across: int, explicit_freque
     assert 0.0 < frequency / f_reference - 1.0 < 0.25
 
 
-@pytest.mark.parametrize("rule_class", [NewmarkFem3D, EnergyMomentumFem3D])
+@pytest.mark.parametrize("rule_class", [NewmarkFem, EnergyMomentumFem])
 def test_reused_factor_gives_the_same_steps(rule_class) -> None:
     # A vibrating cantilever (tip speed 2 mm/s) at 50 x the explicit substep: reusing the
     # factor while strains move by less than 3e-4 changes Newton's path, not the step it
