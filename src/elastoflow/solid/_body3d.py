@@ -37,7 +37,7 @@ class ElasticBody3D:
 
     Static: nothing here changes during a run. The changing part is a `BodyState` (positions
     and velocities (n, 3); `state()` gives the initial one), advanced by `ExplicitFem` or
-    by the implicit `NewmarkFem3D`, `MidpointFem3D` and `EnergyMomentumFem3D`.
+    by the implicit `NewmarkFem`, `MidpointFem` and `EnergyMomentumFem`.
 
     The material's Lamé constants are the 3D ones: ``MaterialStVK(plane="strain")`` (its
     default) gives exactly ``lambda = E nu / ((1 + nu)(1 - 2 nu))`` and the 3D P-wave speed;
@@ -201,7 +201,7 @@ class ElasticBody3D:
 
         ``rate_strain`` w > 0 computes the elastic stress from ``E(F) + w Fdot^T Fdot``: at a
         step's midpoint with ``w = dt^2 / 8`` that is the mean strain of the step's ends
-        (`EnergyMomentumFem3D`)."""
+        (`EnergyMomentumFem`)."""
         forces = np.empty((self.mesh.point_count, 3))
         determinants = np.empty(self.mesh.tetrahedron_count)
         m = self.material
