@@ -287,20 +287,12 @@ class CoupledModel:
             fluid = FluidState.zeros(self.grid)
         else:
             fluid.check(self.grid)
-        bodies = [body.state() for body in self.bodies]
-        return CoupledState(
-            fluid=fluid,
-            bodies=bodies,
-            body_forces=[np.zeros_like(b.positions) for b in bodies],
-            previous_velocities=[b.velocities.copy() for b in bodies],
-        )
+        return _initial_state(fluid, [body.state() for body in self.bodies])
 
     def object_offsets(self) -> np.ndarray:
         """Start of each body's nodes, then each obstacle's vertices, in the concatenated
         boundary points (`boundary_points`); one more entry for the end."""
-        counts = [body.point_count for body in self.bodies]
-        counts += [obstacle.point_count for obstacle in self.obstacles]
-        return np.cumsum([0, *counts]).astype(np.int64)
+        return _object_offsets(self.bodies, self.obstacles)
 
     def boundary_points(self, state: CoupledState
                         ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -357,20 +349,12 @@ class CoupledModel3D:
             fluid = FluidState3D.zeros(self.grid)
         else:
             fluid.check(self.grid)
-        bodies = [body.state() for body in self.bodies]
-        return CoupledState(
-            fluid=fluid,
-            bodies=bodies,
-            body_forces=[np.zeros_like(b.positions) for b in bodies],
-            previous_velocities=[b.velocities.copy() for b in bodies],
-        )
+        return _initial_state(fluid, [body.state() for body in self.bodies])
 
     def object_offsets(self) -> np.ndarray:
         """Start of each body's nodes, then each obstacle's vertices, in the concatenated
         boundary points (`boundary_points`); one more entry for the end."""
-        counts = [body.point_count for body in self.bodies]
-        counts += [obstacle.point_count for obstacle in self.obstacles]
-        return np.cumsum([0, *counts]).astype(np.int64)
+        return _object_offsets(self.bodies, self.obstacles)
 
     def boundary_points(self, state: CoupledState[FluidState3D, StepBoundary3D]
                         ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -395,3 +379,22 @@ class CoupledModel3D:
             np.ascontiguousarray(np.concatenate(triangles), dtype=np.int64),
             np.concatenate(owner),
         )
+
+
+def _initial_state(fluid: FluidT, bodies: list[BodyState]) -> CoupledState[FluidT, Any]:
+    """A state at t = 0 with these fluid fields and body states, no force yet."""
+    return CoupledState(
+        fluid=fluid,
+        bodies=bodies,
+        body_forces=[np.zeros_like(b.positions) for b in bodies],
+        previous_velocities=[b.velocities.copy() for b in bodies],
+    )
+
+
+def _object_offsets(bodies: tuple[Any, ...], obstacles: tuple[Any, ...]) -> np.ndarray:
+    """Where each body's nodes, then each obstacle's vertices, start in the concatenated
+    boundary points; one more entry for the end."""
+    counts = [body.point_count for body in bodies]
+    counts += [obstacle.point_count for obstacle in obstacles]
+    return np.cumsum([0, *counts]).astype(np.int64)
+
