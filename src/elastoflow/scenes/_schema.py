@@ -289,9 +289,14 @@ class BoundariesSpec(_Spec):
     @model_validator(mode="before")
     @classmethod
     def _strings_to_tables(cls, data: Any) -> Any:
-        if isinstance(data, dict):
-            return {k: ({"type": v} if isinstance(v, str) else v) for k, v in data.items()}
-        return data
+        return sides_as_tables(data)
+
+
+def sides_as_tables(data: Any) -> Any:
+    """A ``[boundaries]`` table with each bare string (``"outflow"``) made ``{type = ...}``."""
+    if isinstance(data, dict):
+        return {k: ({"type": v} if isinstance(v, str) else v) for k, v in data.items()}
+    return data
 
 
 class JetSpec(_Spec):

@@ -32,6 +32,7 @@ from elastoflow.scenes._schema import (
     TimeSpec,
     View,
     _Spec,
+    sides_as_tables,
 )
 
 Point3 = Annotated[tuple[float, float, float], Strict(False)]
@@ -158,9 +159,7 @@ class Boundaries3DSpec(_Spec):
     @model_validator(mode="before")
     @classmethod
     def _strings_to_tables(cls, data: object) -> object:
-        if isinstance(data, dict):
-            return {k: ({"type": v} if isinstance(v, str) else v) for k, v in data.items()}
-        return data
+        return sides_as_tables(data)
 
 
 class Jet3DSpec(_Spec):
