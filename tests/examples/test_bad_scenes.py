@@ -176,7 +176,7 @@ MUTATIONS_3D: list[tuple[str, Any, str | None]] = [
      "boundaries.back.velocity"),
     ("bodies.0.shape.divisions", [0, 2, 2], "bodies.0.shape.divisions.0"),
     ("bodies.0.shape.box", [0.6, 0.4, 0.4, 0.5, 0.8, 0.8], "bodies.0.shape.box"),
-    ("bodies.0.shape.box", [0.9, 0.4, 0.4, 1.3, 0.8, 0.8], "bodies.0.shape"),
+    ("bodies.0.shape.box", [0.9, 0.4, 0.4, 100.0, 0.8, 0.8], "bodies.0.shape"),
     ("bodies.0.fixed", {"box": [0.0, 0.0, 0.0, 0.01, 0.01, 0.01]}, "bodies.0.fixed.box"),
     ("obstacles.0.center", [50.0, 0.2, 0.0], "obstacles.0"),
     ("obstacles.0.shape", "circle", None),

@@ -171,18 +171,35 @@ def build_bodies_3d(scene: Scene3D) -> list[ElasticBody3D]:
     return bodies
 
 
-def memory_estimate_3d(scene: Scene3D) -> float:
-    """Memory a run of the 3D ``scene`` needs [bytes] (grid and bodies)."""
+def memory_parts_3d(scene: Scene3D) -> list[tuple[str, float]]:
+    """Memory of each part of a 3D run [bytes], by the key that sizes it: the grid, then
+    each body's mesh (about six tetrahedra per element-size cube of its bounding box)."""
     cells = math.prod(scene.domain.cells)
     h = scene.domain.cell_size
-    elements = 0.0
-    for body in scene.bodies:
+    nx, ny, nz = scene.domain.cells
+    key = (f"domain.nx = {scene.domain.nx}" if scene.domain.nx is not None
+           else f"domain.h = {h:g}")
+    parts = [(f"{key} ({nx} x {ny} x {nz} cells)", cells * BYTES_PER_CELL_3D)]
+    for index, body in enumerate(scene.bodies):
         bounds = shape_bounds(body.shape)
-        if bounds is not None:
+        if bounds is None:
+            continue
+        divisions = getattr(body.shape, "divisions", None)
+        if divisions is not None:
+            elements = 6.0 * math.prod(divisions)
+            name = f"bodies.{index}.shape.divisions = {list(divisions)}"
+        else:
             size = getattr(body.shape, "element_size", None) or h
             volume = math.prod(bounds[k + 3] - bounds[k] for k in range(3))
-            elements += 6.0 * volume / size ** 3
-    return BYTES_RUNTIME_3D + cells * BYTES_PER_CELL_3D + elements * BYTES_PER_TETRAHEDRON
+            elements = 6.0 * volume / size ** 3
+            name = f"bodies.{index}.shape.element_size = {size:g}"
+        parts.append((f"{name} (~{elements:.3g} tetrahedra)", elements * BYTES_PER_TETRAHEDRON))
+    return parts
+
+
+def memory_estimate_3d(scene: Scene3D) -> float:
+    """Memory a run of the 3D ``scene`` needs [bytes] (grid and bodies)."""
+    return BYTES_RUNTIME_3D + sum(share for _, share in memory_parts_3d(scene))
 
 
 def _check_built(scene: Scene3D, grid: Grid3D, bodies: list[ElasticBody3D]) -> list[str]:
@@ -230,11 +247,11 @@ def build_simulation_3d(scene: Scene3D, *, steps: int | None = None,
     available = _checks.available_memory()
     need = memory_estimate_3d(scene)
     if available is not None and need > available:
-        nx, ny, nz = scene.domain.cells
-        raise SceneError([f"domain ({nx} x {ny} x {nz} cells): the run would need about "
-                          f"{need / 2**30:.3g} GB of memory, more than the "
-                          f"{available / 2**30:.3g} GB available; use fewer cells"],
-                         scene.source)
+        # Named by the part that takes most of it.
+        key, _ = max(memory_parts_3d(scene), key=lambda part: part[1])
+        raise SceneError([f"{key}: the run would need about {need / 2**30:.3g} GB of memory, "
+                          f"more than the {available / 2**30:.3g} GB available; use fewer "
+                          "cells or elements"], scene.source)
     dt = time_step(scene)
     grid = build_grid_3d(scene)
     bodies = build_bodies_3d(scene)

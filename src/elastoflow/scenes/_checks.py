@@ -319,10 +319,9 @@ def memory_estimate(scene: Scene | Scene3D) -> tuple[float, list[tuple[str, floa
     written, bytes)`` for the grid, each body's mesh and each obstacle's outline (3D: the
     grid and the bodies together)."""
     if isinstance(scene, Scene3D):
-        from elastoflow.scenes._build3d import memory_estimate_3d
+        from elastoflow.scenes._build3d import memory_estimate_3d, memory_parts_3d
 
-        total = memory_estimate_3d(scene)
-        return total, [("domain", total)]
+        return memory_estimate_3d(scene), memory_parts_3d(scene)
     nx, ny = scene.domain.cells
     grid_key = (f"domain.nx = {scene.domain.nx}" if scene.domain.nx is not None
                 else f"domain.h = {scene.domain.h:g}")
