@@ -183,11 +183,14 @@ class Simulation:
             "force_model": (force_model, "traction"),
             "added_mass": (added_mass, 0.0),
             "boundary": (boundary, "cut_cell"),
-            "level_set": (level_set, None),
         }
         for name, (value, allowed) in refused.items():
-            if value is not allowed and value != allowed:
+            same = (isinstance(value, str) and value == allowed if isinstance(allowed, str)
+                    else isinstance(value, int | float) and value == allowed)
+            if not same:
                 raise ValueError(f"{name} = {value!r}: a 3D run has only {allowed!r} so far")
+        if level_set is not None:
+            raise ValueError("level_set: a 3D run has no free surface so far")
         if isinstance(coupling, ExplicitCoupling3D):
             scheme = coupling
         elif coupling == "explicit":

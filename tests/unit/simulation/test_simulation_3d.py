@@ -146,6 +146,7 @@ def test_2d_only_options_are_refused_in_3d_in_one_line() -> None:
         "force_model": dict(force_model="momentum_exchange"),
         "boundary": dict(boundary="staircase"),
         "added_mass": dict(added_mass=1.0),
+        "level_set": dict(level_set=np.zeros((12, 8, 8))),
     }
     for name, option in cases.items():
         with pytest.raises(ValueError, match=name):
