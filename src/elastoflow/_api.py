@@ -32,21 +32,33 @@ def load(scene: Any) -> Any:
     return build_simulation(chosen)
 
 
-def frame(simulation: Any, view: str = "speed", **options: Any) -> np.ndarray:
+def frame(simulation: Any, view: str = "speed", *, style: str = "slice",
+          **options: Any) -> np.ndarray:
     """The simulation's current frame as an RGB array (H, W, 3) uint8, as the videos show it.
 
     Args:
         simulation: A `Simulation`.
         view: "speed", "vorticity", "pressure" or "dye".
+        style: A 3D simulation's look: "slice" draws it through a plane by
+            `elastoflow.render.render_slice_3d` (``axis`` "x", "y" or "z", default "z";
+            ``position`` [m], default the middle), its bodies' and obstacles' sections
+            filled; "3d" in perspective by `elastoflow.render.render_scene_3d` (the same
+            ``axis`` and ``position``; ``size``, ``azimuth``, ``elevation``), the bodies'
+            and obstacles' surfaces shaded, as a 3D run's video shows it. Ignored in 2D.
         **options: Passed to `elastoflow.render.render_frame` (value_range, scale, colorbar);
-            a free surface's level set is passed unless given. A 3D simulation is drawn
-            through a plane by `elastoflow.render.render_slice_3d` (``axis`` "x", "y" or "z",
-            default "z"; ``position`` [m], default the middle), its bodies' and obstacles'
-            sections filled.
+            a free surface's level set is passed unless given.
     """
-    from elastoflow.render import render_frame, render_slice_3d
+    from elastoflow.render import render_frame, render_scene_3d, render_slice_3d
 
     if getattr(simulation, "dimension", 2) == 3:
+        if style == "3d":
+            obstacles = [(obstacle.points_at(simulation.time), obstacle.triangles)
+                         for obstacle in simulation.obstacles]
+            return render_scene_3d(simulation.grid, simulation.state.fluid, view=view,
+                                   surfaces=simulation.body_geometry(), obstacles=obstacles,
+                                   time=simulation.time, **options)
+        if style != "slice":
+            raise ValueError(f"style = {style!r}: must be 'slice' or '3d'")
         solids = [(state.positions, body.mesh.tetrahedra)
                   for body, state in zip(simulation.bodies, simulation.state.bodies)]
         solids += [solid for obstacle in simulation.obstacles

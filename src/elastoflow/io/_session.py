@@ -194,20 +194,36 @@ class OutputSession:
                             level_set=level_set)
 
     def _frame_3d(self, view: str, out: Any) -> Any:
-        """A 3D run's picture: the video's slice, bodies and obstacles cut by it."""
-        from elastoflow.render import default_value_range, render_slice_3d, slice_values
+        """A 3D run's picture, as ``outputs.video.style`` says: the scene in perspective with
+        the video's slice (``"3d"``), or the slice alone with the bodies and obstacles cut by
+        it (``"slice"``)."""
+        from elastoflow.render import (
+            default_value_range,
+            layer_values,
+            render_scene_3d,
+            render_slice_3d,
+        )
 
         sim, video = self.simulation, self.outputs.video
         axis = video.axis if video is not None else "z"
         position = video.at if video is not None else None
+        style = video.style if video is not None else "3d"
         grid = sim.grid
         k = "xyz".index(axis)
         low_edge = grid.origin[k]
         if position is None:
             position = low_edge + 0.5 * grid.shape_cells[k] * grid.h
         index = min(int((position - low_edge) / grid.h), grid.shape_cells[k] - 1)
-        values = slice_values(grid, sim.state.fluid, k, index, view)
+        values = layer_values(grid, sim.state.fluid, k, index, view)
         low, high = default_value_range(values, view)
+        value_range = self._range.update(low, high)
+        if style == "3d":
+            obstacles = [(obstacle.points_at(sim.time), obstacle.triangles)
+                         for obstacle in sim.obstacles]
+            return render_scene_3d(grid, sim.state.fluid, axis=axis, position=position,
+                                   view=view, surfaces=sim.body_geometry(),
+                                   obstacles=obstacles, time=sim.time, values=values,
+                                   value_range=value_range, out=out)
         solids = [(state.positions, body.mesh.tetrahedra)
                   for body, state in zip(sim.bodies, sim.state.bodies)]
         for obstacle in sim.obstacles:
@@ -216,7 +232,7 @@ class OutputSession:
                 solids.append(solid)
         return render_slice_3d(grid, sim.state.fluid, axis=axis, position=position, view=view,
                                bodies=solids, time=sim.time, values=values,
-                               value_range=self._range.update(low, high), out=out)
+                               value_range=value_range, out=out)
 
     def after_step(self, simulation: Any, report: Any) -> None:
         """The per-step callback: writes whatever is due at this step."""

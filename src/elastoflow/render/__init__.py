@@ -1,7 +1,8 @@
 """Frames and videos: the fluid field in colour with bodies and obstacles drawn on top.
 
 Rendering reads the simulation's arrays and never changes them. A 3D state is drawn through a
-plane (`render_slice_3d`), with the bodies' cross-sections. Fields are coloured through a
+plane (`render_slice_3d`), with the bodies' cross-sections, or in perspective with the
+bodies' surfaces and the slice (`render_scene_3d`, what a 3D run's video shows). Fields are coloured through a
 lookup table and bodies rasterised by small Numba kernels, so a frame costs milliseconds.
 """
 
@@ -18,6 +19,7 @@ from elastoflow.render._frame import (
     triangle_edges,
     view_values,
 )
+from elastoflow.render._scene3d import Camera3D, render_scene_3d, scene_camera
 from elastoflow.render._slice3d import (
     AXES,
     VIEWS_3D,
@@ -34,6 +36,7 @@ from elastoflow.render._video import SegmentedVideo, VideoWriter, join_videos
 __all__ = [
     "AXES",
     "BODY_EDGE_COLOR",
+    "Camera3D",
     "BODY_FILL_COLOR",
     "OBSTACLE_FILL_COLOR",
     "VIEWS",
@@ -48,7 +51,9 @@ __all__ = [
     "layer_values",
     "liquid_values",
     "render_frame",
+    "render_scene_3d",
     "render_slice_3d",
+    "scene_camera",
     "slice_values",
     "speed_at_cells",
     "surface_section",

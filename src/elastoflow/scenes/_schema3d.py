@@ -302,9 +302,14 @@ class Coupling3DSpec(_Spec):
 
 
 class Video3DSpec(_Spec):
-    """A video of a slice through the fluid, with the bodies' and obstacles' sections."""
+    """A video of a 3D run: by default the bodies' and obstacles' surfaces in perspective
+    with a slice through the fluid coloured by ``view`` (`elastoflow.render.render_scene_3d`);
+    ``style = "slice"`` draws the slice alone, flat, with the bodies' and obstacles'
+    sections (`elastoflow.render.render_slice_3d`)."""
 
     view: View = "speed"
+    style: Literal["3d", "slice"] = "3d"
+    """"3d": the scene in perspective; "slice": the slice seen face on."""
     fps: Annotated[int, Field(gt=0, le=1000)] = 30
     every: PositiveInt = 1
     axis: Axis = "z"
