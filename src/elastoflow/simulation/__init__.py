@@ -5,6 +5,7 @@ behind the same `Simulation`."""
 
 from elastoflow.simulation._checks import CflLimit, FiniteFields, StepCheck, cfl_number
 from elastoflow.simulation._free_surface import FreeSurfaceScheme
+from elastoflow.simulation._free_surface_bodies import FreeSurfaceMonolithicCoupling
 from elastoflow.simulation._report import SimulationBlowUp, StepReport
 from elastoflow.simulation._schemes import (
     COUPLING_SCHEMES,
@@ -34,6 +35,7 @@ __all__ = [
     "ExplicitCoupling",
     "ExplicitCoupling3D",
     "FiniteFields",
+    "FreeSurfaceMonolithicCoupling",
     "FreeSurfaceScheme",
     "MonolithicCoupling",
     "Simulation",
