@@ -91,14 +91,19 @@ def _validate(tmp_path: Path, text: str) -> tuple[int, list[str]]:
 def test_liquid_scene_errors_are_one_line_each(tmp_path) -> None:
     code, lines = _validate(tmp_path, _LIQUID)
     assert code == 0, lines
-    code, lines = _validate(tmp_path, _LIQUID + """
+    floating = _LIQUID + """
 [[bodies]]
 shape = { type = "rectangle", box = [0.5, 0.1, 0.6, 0.2], divisions = [2, 2] }
 material = { density = 500.0, young_modulus = 1e5, poisson_ratio = 0.3 }
-""")
+"""
+    code, lines = _validate(tmp_path, floating)
+    assert code == 0, lines
+    code, lines = _validate(tmp_path, floating + '[coupling]\nscheme = "explicit"\n')
     assert code == 2 and len(lines) == 1, lines
-    assert "scene.toml: bodies: 1 given with [liquid]" in lines[0]
-    assert "not supported yet" in lines[0]
+    assert 'scene.toml: coupling.scheme = "explicit": bodies and obstacles in a liquid' in lines[0]
+    code, lines = _validate(tmp_path, floating.replace("density = 500.0", "density = -5.0"))
+    assert code == 2 and len(lines) == 1, lines
+    assert "bodies.0.material.density" in lines[0]
     code, lines = _validate(tmp_path, _LIQUID.replace("[[0.0, 0.0, 0.25, 0.25]]",
                                                       "[[0.0, 0.0, 1.5, 0.25]]"))
     assert code == 2 and len(lines) == 1, lines
@@ -115,3 +120,28 @@ material = { density = 500.0, young_modulus = 1e5, poisson_ratio = 0.3 }
                                                       'viscosity = "whole_grid"'))
     assert code == 2 and len(lines) == 1, lines
     assert "liquid = " in lines[0] and "give boxes" in lines[0]
+
+
+def test_floating_runs_from_its_name_with_video_probes_and_a_bit_exact_resume(tmp_path) -> None:
+    """The library scene `floating` (three elastic bodies dropped into water): a few steps
+    with video and probes, bodies falling in the air (no fluid force yet); a resume repeats
+    the same probes."""
+    from elastoflow.io import read_probes
+
+    out = tmp_path / "floating"
+    result, text = _invoke("run", "floating", "--steps", "4", "--out", out, "--every", "2",
+                           "--checkpoint-every", "2")
+    assert result.exit_code == 0, text
+    assert (out / "video.mp4").stat().st_size > 0
+    columns, rows = read_probes(out / "probes.csv")
+    assert len(rows) == 4 and any("body1" in c for c in columns), columns
+    force_y = [row[i] for row in rows for i, c in enumerate(columns)
+               if c.startswith("body1_force_y")]
+    assert force_y and all(f == 0.0 for f in force_y)  # still in the air
+    again = tmp_path / "again"
+    assert _invoke("run", "floating", "--steps", "2", "--out", again, "--checkpoint-every",
+                   "2", "--no-video", "--quiet")[0].exit_code == 0
+    result, text = _invoke("run", "floating", "--steps", "4", "--out", again, "--resume",
+                           "--no-video", "--quiet")
+    assert result.exit_code == 0, text
+    assert read_probes(again / "probes.csv")[1] == rows

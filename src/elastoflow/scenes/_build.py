@@ -84,10 +84,16 @@ def _liquid_top(scene: Scene) -> float:
 
 
 def _free_fall_speed(scene: Scene) -> float:
-    """``sqrt(2 |g| H)`` [m/s], H from the liquid's highest point to the domain's bottom: the
-    speed of water falling that far (a dam break's surge runs at about this)."""
+    """``sqrt(2 |g| H)`` [m/s], H from the highest point of the liquid, or of a body dropped
+    into it, to the domain's bottom: the speed of water falling that far (a dam break's surge
+    runs at about this)."""
     g = math.hypot(*scene.fluid.gravity)
-    return math.sqrt(2.0 * g * max(_liquid_top(scene) - scene.domain.bounds[1], 0.0))
+    top = _liquid_top(scene)
+    for body in scene.bodies:
+        bounds = body.shape.bounds()
+        if bounds is not None:
+            top = max(top, min(bounds[3], scene.domain.bounds[3]))
+    return math.sqrt(2.0 * g * max(top - scene.domain.bounds[1], 0.0))
 
 
 def time_step(scene: Scene | Scene3D) -> float:
@@ -241,9 +247,11 @@ def liquid_level_set(scene: Scene, grid: Grid2D) -> np.ndarray:
 
 
 def build_free_surface(scene: Scene, fluid_solver: Any) -> Any:
-    """The `elastoflow.simulation.FreeSurfaceScheme` of the scene's ``[liquid]``."""
+    """The `elastoflow.simulation.FreeSurfaceScheme` of the scene's ``[liquid]``; with bodies
+    or obstacles, `elastoflow.simulation.FreeSurfaceMonolithicCoupling` with the scene's
+    choice of the bodies' implicit step."""
     from elastoflow import fluid
-    from elastoflow.simulation import FreeSurfaceScheme
+    from elastoflow.simulation import FreeSurfaceMonolithicCoupling, FreeSurfaceScheme
 
     liquid = scene.liquid
     assert liquid is not None
@@ -258,6 +266,8 @@ def build_free_surface(scene: Scene, fluid_solver: Any) -> Any:
         extrapolation_layers=liquid.extrapolation_layers,
         maccormack_fallback=liquid.maccormack_fallback,
     )
+    if scene.bodies or scene.obstacles:
+        return FreeSurfaceMonolithicCoupling(solver, integrator=_monolithic(scene.coupling).fem)
     return FreeSurfaceScheme(solver)
 
 
@@ -601,8 +611,9 @@ def build_simulation(scene: Scene | Scene3D, *, steps: int | None = None,
         level_set = liquid_level_set(scene, grid)
         try:
             return Simulation(grid, fluid_solver, state=state, cfl_limit=scene.time.cfl_limit,
-                              dt=dt, coupling=build_free_surface(scene, fluid_solver),
-                              level_set=level_set)
+                              bodies=bodies, obstacles=obstacles, dt=dt,
+                              coupling=build_free_surface(scene, fluid_solver),
+                              boundary=scene.coupling.boundary, level_set=level_set)
         except (ValueError, ArithmeticError) as error:
             raise SceneError([f"liquid: {error}"], scene.source) from None
     try:

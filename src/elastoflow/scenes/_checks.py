@@ -153,19 +153,27 @@ def check_rods(scene: Scene) -> list[str]:
 
 
 def check_liquid(scene: Scene) -> list[str]:
-    """A scene with a free surface (``[liquid]``): the fluid alone, walls on every side, a
-    whole-pressure projection, and the water's boxes inside the domain. Bodies in the water
-    are not supported yet (issue 15: the coupling is being reworked)."""
+    """A scene with a free surface (``[liquid]``): walls on every side, a whole-pressure
+    projection, the water's boxes inside the domain; elastic bodies and obstacles only with
+    the monolithic coupling (`elastoflow.simulation.FreeSurfaceMonolithicCoupling`: floating
+    bodies are lighter than the water they displace), no rods and no jets yet."""
     liquid = scene.liquid
     if liquid is None:
         return []
     problems = []
-    for key, items in (("bodies", scene.bodies), ("obstacles", scene.obstacles),
-                       ("jets", scene.jets)):
-        if items:
+    if scene.jets:
+        problems.append(
+            f"jets: {len(scene.jets)} given with [liquid]; a free surface with jets is not "
+            "supported yet; remove the jets or the [liquid] table")
+    if (scene.bodies or scene.obstacles) and scene.coupling.scheme != "monolithic":
+        problems.append(
+            f'coupling.scheme = "{scene.coupling.scheme}": bodies and obstacles in a '
+            'liquid with a free surface need the strong coupling; must be "monolithic"')
+    for index, body in enumerate(scene.bodies):
+        if isinstance(body, RodBodySpec):
             problems.append(
-                f"{key}: {len(items)} given with [liquid]; a free surface with {key} is not "
-                f"supported yet (only the liquid alone); remove the {key} or the [liquid] table")
+                f"bodies.{index}: a rod in a liquid with a free surface is not supported yet "
+                "(elastic bodies with an area only); remove it or the [liquid] table")
     b = scene.boundaries
     for name, side in (("left", b.left), ("right", b.right), ("bottom", b.bottom),
                        ("top", b.top)):

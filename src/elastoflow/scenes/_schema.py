@@ -196,8 +196,9 @@ class LiquidSpec(_Spec):
     """A liquid with a free surface (issue 15): the fluid fills the regions given here and
     the rest of the domain is air, a void at pressure 0 (`elastoflow.fluid.FreeSurfaceSolver`;
     docs/method_notes.md item 12). The liquid is the union of ``boxes`` and of the layer
-    below ``height``. Every side must be a wall; bodies, obstacles and jets are not supported
-    with a free surface yet.
+    below ``height``. Every side must be a wall; elastic bodies and obstacles need
+    ``coupling.scheme = "monolithic"`` (`elastoflow.simulation.FreeSurfaceMonolithicCoupling`);
+    rods and jets are not supported with a free surface yet.
     """
 
     boxes: Annotated[list[Annotated[Box, AfterValidator(_check_box)]], Strict(False)] = Field(

@@ -45,17 +45,31 @@ def test_water_that_covers_no_cell_is_refused() -> None:
         build_simulation(scene)
 
 
-def test_bodies_in_the_water_are_refused_in_one_line() -> None:
+def test_bodies_in_the_water_need_the_monolithic_coupling_and_an_area() -> None:
+    """Elastic bodies with [liquid] build `FreeSurfaceMonolithicCoupling`; the explicit
+    coupling and rods are refused in one line each."""
+    from elastoflow.simulation import FreeSurfaceMonolithicCoupling
+
     data = _scene(boxes=[(0.0, 0.0, 0.25, 0.4)])
     data["bodies"] = [{"shape": {"type": "rectangle", "box": (0.5, 0.1, 0.6, 0.2),
                                  "divisions": (2, 2)},
                        "material": {"density": 500.0, "young_modulus": 1e5,
                                     "poisson_ratio": 0.3}}]
+    sim = build_simulation(parse_scene(data, source="float.toml"))
+    assert isinstance(sim.scheme, FreeSurfaceMonolithicCoupling)
     with pytest.raises(SceneError) as error:
-        parse_scene(data, source="float.toml")
+        parse_scene({**data, "coupling": {"scheme": "explicit"}}, source="float.toml")
     assert error.value.problems == [
-        "bodies: 1 given with [liquid]; a free surface with bodies is not supported yet "
-        "(only the liquid alone); remove the bodies or the [liquid] table"]
+        'coupling.scheme = "explicit": bodies and obstacles in a liquid with a free surface '
+        'need the strong coupling; must be "monolithic"']
+    rod = {"shape": {"type": "rod", "points": [(0.7, 0.0), (0.7, 0.2)], "segments": 4},
+           "material": {"density": 1000.0, "young_modulus": 1e6, "thickness": 0.01},
+           "clamped": ["start"]}
+    with pytest.raises(SceneError) as error:
+        parse_scene({**data, "bodies": data["bodies"] + [rod]}, source="float.toml")
+    assert error.value.problems == [
+        "bodies.1: a rod in a liquid with a free surface is not supported yet (elastic bodies "
+        "with an area only); remove it or the [liquid] table"]
 
 
 def test_the_frame_draws_liquid_air_and_surface() -> None:
