@@ -10,6 +10,8 @@ import imageio.v2 as imageio
 import numpy as np
 from typer.testing import CliRunner
 
+import elastoflow
+
 from elastoflow.cli import app
 from elastoflow.render._scene3d import BACKGROUND_COLOR, SCENE_SIZE
 
@@ -49,6 +51,10 @@ def test_a_3d_run_video_shows_the_scene_in_perspective_and_resumes(tmp_path: Pat
     corner = frames[-1][SCENE_SIZE[1] - 40, 8].astype(int)
     assert np.abs(corner - BACKGROUND_COLOR).max() < 12
     assert "style = \"3d\"" in (out / "scene.toml").read_text()
+    # The first frame is the picture the Python API draws of the same initial state.
+    picture = elastoflow.frame(elastoflow.load(scene), "speed", style="3d")
+    assert frames[0].shape == picture.shape
+    assert np.abs(frames[0].astype(int) - picture).mean() < 3.0
 
     result = runner.invoke(app, ["run", str(scene), "--out", str(out), "--quiet", "--resume",
                                  "--steps", "3"])

@@ -16,11 +16,14 @@ The camera looks at the domain from in front of the slice (from +z for a z-slice
 x-slice, above for a y-slice; y up), turned ``azimuth`` and raised ``elevation``, and is
 zoomed so that the whole box fills the picture: whatever lies in the domain is in view.
 
-Why a rasteriser of our own (three Numba kernels, `elastoflow.render._kernels3d`) and not
-VTK/PyVista or matplotlib: VTK's pip wheels render offscreen only through a system libEGL
-or libOSMesa (not on a bare CI machine), and mplot3d takes ~0.5 s a frame with a body of a
-few thousand triangles and sorts whole polygons (a body cut by the slice comes out wrong);
-this takes milliseconds, is exact per pixel, and is the same to the bit on every machine.
+Why a rasteriser of our own (Numba kernels, `elastoflow.render._kernels3d`) and not
+VTK/PyVista or matplotlib: VTK's pip wheel renders only through a system libEGL or libGL
+(its libvtkglad opens libEGL.so.1 / libGL.so.1 at run time and bundles neither; VTK's
+OSMesa build is on its own wheel index, not PyPI), which a bare CI machine with only pip
+packages lacks; mplot3d is headless everywhere but took ~1.3 s a frame with a body of 4800
+triangles and sorts whole polygons by depth (a body cut by the slice comes out wrong). This
+takes milliseconds, is exact per pixel, and gives the same picture to the bit on every
+machine.
 """
 
 from __future__ import annotations
@@ -29,6 +32,7 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import lru_cache
+from types import SimpleNamespace
 from typing import Any
 
 import numpy as np
@@ -45,9 +49,12 @@ from elastoflow.render._frame import (
     default_value_range,
 )
 from elastoflow.render._kernels3d import (
-    draw_plane_field,
+    draw_plane_cells,
     draw_segments_perspective,
     fill_triangles_perspective,
+    lit_triangle_colors,
+    plane_cells,
+    project_points,
 )
 from elastoflow.render._slice3d import AXES, layer_values
 
@@ -102,13 +109,11 @@ class Camera3D:
     def project(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Points [m] (n, 3) to pixels (n, 2) (x right, y down) and their inverse distance
         1/z [1/m] along ``forward`` (n,), non-positive at or behind the eye."""
-        relative = np.asarray(points, dtype=np.float64).reshape(-1, 3) - self.eye
-        z = relative @ self.forward
-        with np.errstate(divide="ignore", invalid="ignore"):
-            inverse = np.where(z > 0.0, 1.0 / np.where(z > 0.0, z, 1.0), -1.0)
-        pixels = np.empty((relative.shape[0], 2))
-        pixels[:, 0] = self.centre[0] + self.focal * (relative @ self.right) * inverse
-        pixels[:, 1] = self.centre[1] - self.focal * (relative @ self.up) * inverse
+        points = np.ascontiguousarray(points, dtype=np.float64).reshape(-1, 3)
+        pixels = np.empty((points.shape[0], 2))
+        inverse = np.empty(points.shape[0])
+        project_points(points, self.eye, self.forward, self.right, self.up, self.focal,
+                       self.centre[0], self.centre[1], pixels, inverse)
         return pixels, inverse
 
 
@@ -166,12 +171,59 @@ def shade_triangles(camera: Camera3D, points: np.ndarray, triangles: np.ndarray,
     `AMBIENT` (edge-on or turned away) to 1 (facing a light above the viewer's right
     shoulder); both sides lit alike, so an open or inward surface shows too."""
     light = _unit(-camera.forward + 0.6 * camera.up + 0.3 * camera.right)
-    corners = points[triangles]
-    normals = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
-    length = np.linalg.norm(normals, axis=1)
-    facing = np.abs(normals @ light) / np.where(length > 0.0, length, 1.0)
-    intensity = AMBIENT + (1.0 - AMBIENT) * facing
-    return np.round(intensity[:, None] * color).astype(np.uint8)
+    colors = np.empty((triangles.shape[0], 3), dtype=np.uint8)
+    lit_triangle_colors(np.asarray(points, dtype=np.float64),
+                        np.asarray(triangles, dtype=np.int64), light,
+                        np.asarray(color, dtype=np.float64), AMBIENT, colors)
+    return colors
+
+
+@dataclass(frozen=True)
+class _Layout:
+    """What stays the same from frame to frame of one run's video: the camera, the cell each
+    pixel sees on the slice (flat index, -1 for none, (H, W)) and the slice's 1/z there,
+    and the box's, axes' and slice rim's lines (starts, ends, their 1/z, colour)."""
+
+    camera: Camera3D
+    plane_cells: np.ndarray
+    plane_depth: np.ndarray
+    lines: tuple[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray], ...]
+
+
+@lru_cache(maxsize=8)
+def _layout(box: tuple[tuple[int, ...], float, tuple[float, ...]], axis: str, position: float,
+            width: int, height: int, azimuth: float | None,
+            elevation: float | None) -> _Layout:
+    """The `_Layout` of a grid (its ``(shape_cells, h, origin)``), slice and camera."""
+    shape_cells, h, origin = box
+    grid = SimpleNamespace(shape_cells=shape_cells, h=h, origin=origin)
+    camera = scene_camera(grid, axis, (width, height), azimuth=azimuth, elevation=elevation)
+    k = AXES[axis]
+    others = [a for a in range(3) if a != k]
+    low_box, high_box = _box(grid)
+    cells = np.empty((height, width), dtype=np.int64)
+    plane_depth = np.empty((height, width))
+    plane_cells(camera.eye, camera.forward, camera.right, camera.up,
+                np.array([camera.focal, *camera.centre]), k, position,
+                np.array([low_box[others[0]], low_box[others[1]]]), h,
+                np.array([shape_cells[others[0]], shape_cells[others[1]]], dtype=np.int64),
+                cells, plane_depth)
+    corners, corner_depth = camera.project(_corners(low_box, high_box))
+    edges = np.array([(c, c | bit) for bit in (4, 2, 1) for c in range(8) if not c & bit])
+    lines = [(corners[edges[:, 0]], corners[edges[:, 1]], corner_depth[edges[:, 0]],
+              corner_depth[edges[:, 1]], BOX_COLOR)]
+    for a, bit in enumerate((4, 2, 1)):
+        lines.append((corners[:1], corners[bit:bit + 1], corner_depth[:1],
+                      corner_depth[bit:bit + 1], AXIS_COLORS[a]))
+    rim = np.array([low_box, low_box, high_box, high_box])
+    rim[1, others[1]], rim[3, others[1]] = high_box[others[1]], low_box[others[1]]
+    rim[:, k] = position
+    rim_pixels, rim_depth = camera.project(rim)
+    lines.append((rim_pixels, np.roll(rim_pixels, -1, axis=0), rim_depth,
+                  np.roll(rim_depth, -1), PLANE_EDGE_COLOR))
+    for array in (cells, plane_depth):
+        array.flags.writeable = False
+    return _Layout(camera, cells, plane_depth, tuple(lines))
 
 
 @lru_cache(maxsize=4)
@@ -277,7 +329,11 @@ def render_scene_3d(
         image = out
     else:
         image = np.empty(shape, dtype=np.uint8)
-    camera = scene_camera(grid, axis, (width, height), azimuth=azimuth, elevation=elevation)
+    layout = _layout((tuple(int(n) for n in grid.shape_cells), float(grid.h),
+                      tuple(float(o) for o in grid.origin)), axis, position, width, height,
+                     None if azimuth is None else float(azimuth),
+                     None if elevation is None else float(elevation))
+    camera = layout.camera
     scene = image[:, :width]
     scene[...] = _background(height, width)
     depth = np.zeros((height, width))
@@ -292,37 +348,12 @@ def render_scene_3d(
             fill_triangles_perspective(scene, depth, pixels, inverse, triangles,
                                        shade_triangles(camera, points, triangles, color))
 
-    others = [a for a in range(3) if a != k]
-    plane = np.array([low_box, low_box, high_box, high_box])
-    plane[1, others[1]], plane[3, others[1]] = high_box[others[1]], low_box[others[1]]
-    plane[:, k] = position
-    plane_pixels, plane_inverse = camera.project(plane)
-    visible = plane_inverse > 0.0
-    if visible.any():
-        seen = plane_pixels[visible]
-        bounds = np.array([max(math.floor(seen[:, 1].min()), 0),
-                           min(math.ceil(seen[:, 1].max()), height - 1),
-                           max(math.floor(seen[:, 0].min()), 0),
-                           min(math.ceil(seen[:, 0].max()), width - 1)], dtype=np.int64)
-        if not visible.all():
-            bounds = np.array([0, height - 1, 0, width - 1], dtype=np.int64)
-        draw_plane_field(scene, depth, camera.eye, camera.forward, camera.right, camera.up,
-                         np.array([camera.focal, *camera.centre]), k, position,
-                         np.array([low_box[others[0]], low_box[others[1]]]), float(grid.h),
-                         np.ascontiguousarray(values, dtype=np.float64), low, high,
-                         colormap_lut(colormap), bounds)
-
-    corners, corner_inverse = camera.project(_corners(low_box, high_box))
-    edges = np.array([(c, c | bit) for bit in (4, 2, 1) for c in range(8) if not c & bit])
-    draw_segments_perspective(scene, depth, corners[edges[:, 0]], corners[edges[:, 1]],
-                              corner_inverse[edges[:, 0]], corner_inverse[edges[:, 1]],
-                              BOX_COLOR)
-    for a, bit in enumerate((4, 2, 1)):
-        draw_segments_perspective(scene, depth, corners[:1], corners[bit:bit + 1],
-                                  corner_inverse[:1], corner_inverse[bit:bit + 1],
-                                  AXIS_COLORS[a])
-    draw_segments_perspective(scene, depth, plane_pixels, np.roll(plane_pixels, -1, axis=0),
-                              plane_inverse, np.roll(plane_inverse, -1), PLANE_EDGE_COLOR)
+    draw_plane_cells(scene, depth, layout.plane_cells, layout.plane_depth,
+                     np.ascontiguousarray(values, dtype=np.float64).ravel(), low, high,
+                     colormap_lut(colormap))
+    for starts, ends, inverse_starts, inverse_ends, color in layout.lines:
+        draw_segments_perspective(scene, depth, starts, ends, inverse_starts, inverse_ends,
+                                  color)
 
     text_size = _text_size(height)
     label = f"{axis} = {position:.3g} m"
