@@ -86,6 +86,7 @@ class OutputSession:
         self.last_checkpoint: Path | None = None
         self._video: Any = None
         self._frame_image: Any = None
+        self._orientation: tuple[float, float] | None = None
         self._range = RangeTracker()
         saved_range = self.run.pop("video_range", None)
         if resumed and saved_range is not None:
@@ -202,6 +203,7 @@ class OutputSession:
             layer_values,
             render_scene_3d,
             render_slice_3d,
+            scene_orientation,
         )
 
         sim, video = self.simulation, self.outputs.video
@@ -220,10 +222,16 @@ class OutputSession:
         if style == "3d":
             obstacles = [(obstacle.points_at(sim.time), obstacle.triangles)
                          for obstacle in sim.obstacles]
+            surfaces = sim.body_geometry()
+            if self._orientation is None:
+                # Chosen once: the camera stays put when a body crosses the slice.
+                self._orientation = scene_orientation(axis, position,
+                                                      (*surfaces, *obstacles))
+            azimuth, elevation = self._orientation
             return render_scene_3d(grid, sim.state.fluid, axis=axis, position=position,
-                                   view=view, surfaces=sim.body_geometry(),
-                                   obstacles=obstacles, time=sim.time, values=values,
-                                   value_range=value_range, out=out)
+                                   view=view, surfaces=surfaces, obstacles=obstacles,
+                                   time=sim.time, values=values, value_range=value_range,
+                                   azimuth=azimuth, elevation=elevation, out=out)
         solids = [(state.positions, body.mesh.tetrahedra)
                   for body, state in zip(sim.bodies, sim.state.bodies)]
         for obstacle in sim.obstacles:

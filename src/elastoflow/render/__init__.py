@@ -19,7 +19,12 @@ from elastoflow.render._frame import (
     triangle_edges,
     view_values,
 )
-from elastoflow.render._scene3d import Camera3D, render_scene_3d, scene_camera
+from elastoflow.render._scene3d import (
+    Camera3D,
+    render_scene_3d,
+    scene_camera,
+    scene_orientation,
+)
 from elastoflow.render._slice3d import (
     AXES,
     VIEWS_3D,
@@ -54,6 +59,7 @@ __all__ = [
     "render_scene_3d",
     "render_slice_3d",
     "scene_camera",
+    "scene_orientation",
     "slice_values",
     "speed_at_cells",
     "surface_section",

@@ -13,8 +13,9 @@ in perspective, the domain's box and a field's slice, with colour bar and time s
      +----------------------+     |
 
 The camera looks at the domain from in front of the slice (from +z for a z-slice, +x for an
-x-slice, above for a y-slice; y up), turned ``azimuth`` and raised ``elevation``, and is
-zoomed so that the whole box fills the picture: whatever lies in the domain is in view.
+x-slice, above for a y-slice; y up; from the other side when the bodies lie behind the
+slice), turned ``azimuth`` and raised ``elevation``, and is zoomed so that the whole box
+fills the picture: whatever lies in the domain is in view.
 
 Why a rasteriser of our own (Numba kernels, `elastoflow.render._kernels3d`) and not
 VTK/PyVista or matplotlib: VTK's pip wheel renders only through a system libEGL or libGL
@@ -165,6 +166,31 @@ def scene_camera(grid: Any, axis: str = "z", size: tuple[int, int] = SCENE_SIZE,
                     (width, height))
 
 
+def scene_orientation(axis: str, position: float,
+                      surfaces: Sequence[tuple[np.ndarray, np.ndarray]] = ()
+                      ) -> tuple[float, float]:
+    """The camera's (azimuth, elevation) [degrees] for a slice across ``axis`` at
+    ``position`` [m]: `DEFAULT_ORIENTATION`, or its mirror image through the plane when the
+    ``surfaces``' points ``(points (n, 3), triangles)`` lie behind it on average (their mean
+    coordinate along ``axis`` below ``position``): the opaque slice must not hide the
+    bodies. A run keeps the first frame's answer (`elastoflow.io.OutputSession`), so the
+    view does not flip when a body crosses the plane."""
+    if axis not in AXES:
+        raise ValueError(f"axis = {axis!r}: must be one of x, y, z")
+    azimuth, elevation = DEFAULT_ORIENTATION[axis]
+    k = AXES[axis]
+    along = [np.asarray(points, dtype=np.float64).reshape(-1, 3)[:, k]
+             for points, triangles in surfaces if len(triangles)]
+    if along and float(np.concatenate(along).mean()) < position:
+        if axis == "y":
+            elevation = -elevation
+        elif axis == "z":
+            azimuth = 180.0 - azimuth
+        else:
+            azimuth = -azimuth
+    return azimuth, elevation
+
+
 def shade_triangles(camera: Camera3D, points: np.ndarray, triangles: np.ndarray,
                     color: np.ndarray) -> np.ndarray:
     """Each triangle's colour (T, 3) uint8: ``color`` (3,) times the light on it, from
@@ -290,7 +316,8 @@ def render_scene_3d(
         value_range: The colour range (low, high); default from this slice's values.
         colorbar: Add the colour bar panel on the right.
         size: The 3D picture's (width, height) [pixels], without the panel.
-        azimuth, elevation: The camera's turn and height [degrees] (`scene_camera`).
+        azimuth, elevation: The camera's turn and height [degrees] (`scene_camera`);
+            default `scene_orientation`'s: in front of the slice on the bodies' side.
         values: The slice's cell values (`layer_values` of the layer the plane cuts), if the
             caller has them.
         out: Image to draw into and return when its shape is the result's (see
@@ -329,10 +356,13 @@ def render_scene_3d(
         image = out
     else:
         image = np.empty(shape, dtype=np.uint8)
+    if azimuth is None or elevation is None:
+        chosen = scene_orientation(axis, position, (*surfaces, *obstacles))
+        azimuth = chosen[0] if azimuth is None else azimuth
+        elevation = chosen[1] if elevation is None else elevation
     layout = _layout((tuple(int(n) for n in grid.shape_cells), float(grid.h),
                       tuple(float(o) for o in grid.origin)), axis, position, width, height,
-                     None if azimuth is None else float(azimuth),
-                     None if elevation is None else float(elevation))
+                     float(azimuth), float(elevation))
     camera = layout.camera
     scene = image[:, :width]
     scene[...] = _background(height, width)

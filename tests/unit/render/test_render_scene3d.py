@@ -9,7 +9,7 @@ import pytest
 
 from elastoflow.fluid import FluidState3D
 from elastoflow.grid import Grid3D
-from elastoflow.render import colormap_lut, render_scene_3d, scene_camera
+from elastoflow.render import colormap_lut, render_scene_3d, scene_camera, scene_orientation
 from elastoflow.render._scene3d import (
     BACKGROUND_COLOR,
     BODY_SURFACE_COLOR,
@@ -110,15 +110,32 @@ def test_the_body_is_drawn_shaded_where_it_projects_in_front_of_the_slice() -> N
     # Only pixels within the cube's projection change.
     assert rows.min() >= pixels[:, 1].min() - 1 and rows.max() <= pixels[:, 1].max() + 1
     assert cols.min() >= pixels[:, 0].min() - 1 and cols.max() <= pixels[:, 0].max() + 1
-    # A cube behind the plane is hidden by it; an obstacle takes the obstacle's colours.
+    # A cube behind the plane is hidden by it (the camera held in front); an obstacle takes the obstacle's colours.
     hidden = render_scene_3d(GRID, state, size=SIZE, colorbar=False, value_range=(0.0, 1.0),
-                             surfaces=[_cube((0.6, 0.4, 0.1), 0.2)])
+                             surfaces=[_cube((0.6, 0.4, 0.1), 0.2)], azimuth=30.0,
+                             elevation=20.0)
     np.testing.assert_array_equal(hidden[_pixel(camera, (0.7, 0.5, 0.5))],
                                   plain[_pixel(camera, (0.7, 0.5, 0.5))])
     obstacle = render_scene_3d(GRID, state, size=SIZE, colorbar=False,
                                value_range=(0.0, 1.0), obstacles=[cube])
     grey = {tuple(c) for c in shade_triangles(camera, *cube, OBSTACLE_SURFACE_COLOR)}
     assert tuple(obstacle[_pixel(camera, (0.7, 0.5, 0.8))]) in grey
+
+
+def test_bodies_behind_the_slice_are_seen_from_the_other_side() -> None:
+    state = _shear_state()
+    behind = _cube((0.6, 0.4, 0.1), 0.2)
+    assert scene_orientation("z", 0.5, [behind]) == (150.0, 20.0)
+    assert scene_orientation("z", 0.5, [_cube((0.6, 0.4, 0.6), 0.2)]) == (30.0, 20.0)
+    assert scene_orientation("y", 0.9, [behind]) == (30.0, -50.0)
+    assert scene_orientation("x", 1.4, [behind]) == (-65.0, 20.0)
+    image = render_scene_3d(GRID, state, size=SIZE, colorbar=False, value_range=(0.0, 1.0),
+                            surfaces=[behind])
+    camera = scene_camera(GRID, "z", SIZE, azimuth=150.0, elevation=20.0)
+    assert camera.eye[2] < 0.0
+    colors = {tuple(c) for c in shade_triangles(camera, *behind, BODY_SURFACE_COLOR)}
+    # The cube's face towards -z, now in front of the slice.
+    assert tuple(image[_pixel(camera, (0.7, 0.5, 0.1))]) in colors
 
 
 def test_the_same_input_gives_the_same_picture_also_drawn_into_an_old_one() -> None:
