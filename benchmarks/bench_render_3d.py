@@ -10,7 +10,8 @@ where it can open an offscreen window, PyVista/VTK (one Plotter reused, the slic
 scalars and the surface's points updated each frame, ``screenshot``). Reported: the median
 ms per frame and the first frame's (Numba compilation or window start).
 
-Usage: ``python -m benchmarks render_3d [--frames N] [--steps N] [--alternatives]``.
+Usage: ``python -m benchmarks render_3d [--frames N] [--steps N] [--size N] [--alternatives]``
+(``--size``: cells across the domain, default 64).
 """
 
 from __future__ import annotations
@@ -29,25 +30,46 @@ if __package__ in (None, ""):
 from benchmarks._common import markdown_table, write_results
 
 
-def _state(steps: int) -> Any:
-    import elastoflow
+def _state(steps: int, size: int) -> Any:
+    from elastoflow.scenes import build_simulation, get_scene
 
-    simulation = elastoflow.load("bar_in_jet_3d")
+    scene = get_scene("bar_in_jet_3d")
+    if size != 64:
+        scene = scene.model_copy(update={"domain": scene.domain.model_copy(
+            update={"nx": size})})
+    # A coarse grid's thin-bar warning would only be noise here.
+    simulation = build_simulation(scene, warnings=[])
     for _ in range(steps):
         simulation.step()
     return simulation
 
 
-def _sphere() -> tuple[np.ndarray, np.ndarray]:
-    from elastoflow.solid import mesh_sphere
-
-    mesh = mesh_sphere(0.15, 0.012, center=(0.5, 0.55, 0.55))
-    return mesh.points, mesh.boundary_triangles
+def _sphere(segments: int = 60, rings: int = 40) -> tuple[np.ndarray, np.ndarray]:
+    """A latitude-longitude sphere of radius 0.15 m at (0.5, 0.55, 0.55), outward triangles:
+    ``2 segments rings`` of them (4800), built in milliseconds (a tetrahedral ball of this
+    surface takes seconds)."""
+    polar = np.pi * np.arange(1, rings + 1) / (rings + 1)
+    around = 2.0 * np.pi * np.arange(segments) / segments
+    ring_points = np.stack([np.outer(np.sin(polar), np.cos(around)),
+                            np.repeat(np.cos(polar)[:, None], segments, axis=1),
+                            np.outer(np.sin(polar), np.sin(around))], axis=-1).reshape(-1, 3)
+    points = np.concatenate([[[0.0, 1.0, 0.0]], ring_points, [[0.0, -1.0, 0.0]]])
+    south = points.shape[0] - 1
+    k = np.arange(segments)
+    following = (k + 1) % segments
+    triangles = [np.stack([np.zeros(segments, dtype=np.int64), 1 + following, 1 + k], axis=1)]
+    for ring in range(rings - 1):
+        top, bottom = 1 + ring * segments, 1 + (ring + 1) * segments
+        triangles.append(np.stack([top + k, top + following, bottom + k], axis=1))
+        triangles.append(np.stack([top + following, bottom + following, bottom + k], axis=1))
+    last = 1 + (rings - 1) * segments
+    triangles.append(np.stack([last + k, last + following, np.full(segments, south)], axis=1))
+    return 0.15 * points + np.array([0.5, 0.55, 0.55]), np.concatenate(triangles)
 
 
 def _row(case: str, surface: tuple[np.ndarray, np.ndarray], shape: tuple[int, ...],
-         times: list[float]) -> dict[str, Any]:
-    return {"case": case, "grid": "64^3", "triangles": int(surface[1].shape[0]),
+         times: list[float], grid: str = "64^3") -> dict[str, Any]:
+    return {"case": case, "grid": grid, "triangles": int(surface[1].shape[0]),
             "pixels": f"{shape[1]}x{shape[0]}", "frames": len(times) - 1,
             "ms_per_frame": 1e3 * statistics.median(times[1:]),
             "first_frame_ms": 1e3 * times[0]}
@@ -66,7 +88,7 @@ def measure_ours(simulation: Any, surface: tuple[np.ndarray, np.ndarray], frames
                                 out=image)
         times.append(time.perf_counter() - start)
     assert image is not None
-    return _row(case, surface, image.shape, times)
+    return _row(case, surface, image.shape, times, f"{simulation.grid.nx}^3")
 
 
 def measure_matplotlib(values: np.ndarray, surface: tuple[np.ndarray, np.ndarray],
@@ -143,7 +165,8 @@ def main(argv: list[str] | None = None) -> list[dict[str, Any]]:
     args = list(sys.argv[1:] if argv is None else argv)
     frames = int(args[args.index("--frames") + 1]) if "--frames" in args else 20
     steps = int(args[args.index("--steps") + 1]) if "--steps" in args else 10
-    simulation = _state(steps)
+    size = int(args[args.index("--size") + 1]) if "--size" in args else 64
+    simulation = _state(steps, size)
     bar = simulation.body_geometry()[0]
     sphere = _sphere()
     rows = [measure_ours(simulation, bar, frames, "render_scene_3d, bar_in_jet_3d's bar"),

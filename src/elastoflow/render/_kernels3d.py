@@ -24,7 +24,8 @@ def fill_triangles_perspective(image: np.ndarray, depth: np.ndarray, pixels: np.
                                inverse_depth: np.ndarray, triangles: np.ndarray,
                                colors: np.ndarray) -> None:
     """Paint triangle ``t`` in ``colors[t]`` (T, 3) uint8 where it is nearer than what
-    ``depth`` (H, W) holds, and keep its 1/z there.
+    ``depth`` (H, W) holds (or as near: a surface on the slice shows), and keep its 1/z
+    there.
 
     ``pixels`` (n, 2) and ``inverse_depth`` (n,) are the vertices' projections; a triangle
     with a vertex at or behind the eye (1/z <= 0) is skipped.
@@ -58,7 +59,7 @@ def fill_triangles_perspective(image: np.ndarray, depth: np.ndarray, pixels: np.
                 w2 = 1.0 - w0 - w1
                 if w0 >= 0.0 and w1 >= 0.0 and w2 >= 0.0:
                     inverse = w0 * w0_ + w1 * w1_ + w2 * w2_
-                    if inverse > depth[row, col]:
+                    if inverse >= depth[row, col]:
                         depth[row, col] = inverse
                         for k in range(3):
                             image[row, col, k] = colors[t, k]
@@ -156,18 +157,26 @@ def plane_cells(eye: np.ndarray, forward: np.ndarray, right: np.ndarray, up: np.
 @njit(cache=True)
 def draw_plane_cells(image: np.ndarray, depth: np.ndarray, cells: np.ndarray,
                      inverse_depth: np.ndarray, values: np.ndarray, low: float, high: float,
-                     lut: np.ndarray) -> None:
-    """Colour each pixel that sees a plane cell (`plane_cells`) by the cell's value in
-    ``values`` (flat, the cells' order) through ``lut`` (256, 3) between ``low`` and
-    ``high`` (clipped, NaN the first entry, as `color_field`), where the plane is nearer
-    than ``depth``, and keep its 1/z there."""
+                     lut: np.ndarray, background: np.ndarray) -> None:
+    """Start a picture (H, W, 3) and its ``depth`` (H, W): each pixel that sees a plane cell
+    (`plane_cells`) takes the cell's value in ``values`` (flat, the cells' order) through
+    ``lut`` (256, 3) between ``low`` and ``high`` (clipped, NaN the first entry, as
+    `color_field`) and the plane's 1/z; every other pixel ``background`` (3,) and 0 (nothing).
+    The surfaces are drawn after it, where nearer.
+
+    Serial: a threaded loop waits for a thread that ffmpeg or another job has descheduled
+    (measured 4.3 ms threaded against 2.8 ms serial for 640x480 at load 8 on 2 cores).
+    """
     span = high - low if high > low else 1.0
     factor = 255.0 / span
     height, width = cells.shape
     for row in range(height):
         for col in range(width):
             cell = cells[row, col]
-            if cell < 0 or inverse_depth[row, col] <= depth[row, col]:
+            if cell < 0:
+                depth[row, col] = 0.0
+                for c in range(3):
+                    image[row, col, c] = background[c]
                 continue
             x = (values[cell] - low) * factor
             if not x >= 0.0:
