@@ -416,8 +416,8 @@ def _floating() -> dict:
     splash, bob and settle towards their Archimedes drafts (the strong coupling with the free
     surface, `FreeSurfaceMonolithicCoupling`; the draft's validation:
     docs/validation/free_surface.md). The liquid is a hundred times as viscous as water
-    (1e-4 m^2/s) so that the bobbing decays within the run (with 1e-5 the bodies still
-    bobbed by 1 to 2 cm at 4 s).
+    (1e-4 m^2/s) to damp the bobbing; still, at 4 s the bodies bob by about a centimetre
+    (as with 1e-5: the waves they send out come back from the tank's walls).
     """
     return {
         "domain": {"lx": 1.2, "ly": 0.6, "nx": 96},
