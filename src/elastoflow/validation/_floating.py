@@ -217,8 +217,10 @@ plate of the box's width (pi rho (W/2)^2 = 31.4 kg/m). Not in yet: contact with 
 A known fault: a box of density 0.3 released 5 cm under the surface (H/h = 10) rises through
 it and bobs, but keeps a film of water about one cell thick on its top (still there at
 1.4 s, where it should drain off in a few tenths of a second): the film hardly drains at
-this resolution, and the level set carried across the box, negative under the film, refills
-the cells just above the box's top while it rises (their back-traces end inside the box).
+this resolution. Letting the level-set advection read the values beside the box held
+constant across it (instead of the harmonic extension, which is negative under the film)
+changed nothing (64 against 73 liquid cells inside the box above the surface at 1.4 s), so
+the cells above the box are not refilled from inside it; why the film stays is not found.
 A box dropped in from above stays dry on top (the tests); the `floating` scene's disc, which
 plunges under before it comes back up, may carry such a film."""
 
