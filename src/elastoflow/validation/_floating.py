@@ -223,9 +223,8 @@ changed nothing (64 against 73 liquid cells inside the box above the surface at 
 the cells above the box are not refilled from inside it. At 1.4 s the film over the box's
 middle is two cells (1.5 cm) thick, active in the pressure solve and hydrostatic there (131 Pa
 at 1.3 cm depth) and spreads outwards at up to 0.04 m/s 5 cells from the middle: it drains,
-slowly. With nu = 1e-3 m^2/s (a thousand times water's) the viscous time of such a film,
-h_f^2 / nu, is 0.2 s, so part of the slowness may be physical; not checked with water's
-viscosity.
+slowly. Not the viscosity: with water's (1e-6 m^2/s instead of 1e-3) the film is the same
+(70 liquid cells inside the box above the surface at 1.4 s). Cause not found.
 A box dropped in from above stays dry on top (the tests); the `floating` scene's disc, which
 plunges under before it comes back up, may carry such a film."""
 
