@@ -9,12 +9,13 @@ in perspective, the domain's box and a field's slice, with colour bar and time s
      | |      ( body )      | | l |     video's view, the colour bar's map), opaque; the
      | |  slice  ~~~~~      | | o |     surfaces in front of it shaded by a light over the
      | +------------------- | + u |     viewer's shoulder, one colour per triangle; what lies
-     |/                     |/  r |     behind the plane is hidden (a depth buffer of 1/z)
-     +----------------------+     |
+     |/                     |/  r |     behind the plane is hidden (a depth buffer of 1/z);
+     +----------------------+     |     the time top left, the slice's place and the axes'
+   slice z = 0.5 m   axes x y z         colours bottom left
 
 The camera looks at the domain from in front of the slice (from +z for a z-slice, +x for an
-x-slice, above for a y-slice; y up; from the other side when the bodies lie behind the
-slice), turned ``azimuth`` and raised ``elevation``, and is zoomed so that the whole box
+x-slice, above for a y-slice; y up; from the other side when the bodies all lie behind
+the slice), turned ``azimuth`` and raised ``elevation``, and is zoomed so that the whole box
 fills the picture: whatever lies in the domain is in view.
 
 Why a rasteriser of our own (Numba kernels, `elastoflow.render._kernels3d`) and not
@@ -170,18 +171,19 @@ def scene_orientation(axis: str, position: float,
                       surfaces: Sequence[tuple[np.ndarray, np.ndarray]] = ()
                       ) -> tuple[float, float]:
     """The camera's (azimuth, elevation) [degrees] for a slice across ``axis`` at
-    ``position`` [m]: `DEFAULT_ORIENTATION`, or its mirror image through the plane when the
-    ``surfaces``' points ``(points (n, 3), triangles)`` lie behind it on average (their mean
-    coordinate along ``axis`` below ``position``): the opaque slice must not hide the
-    bodies. A run keeps the first frame's answer (`elastoflow.io.OutputSession`), so the
-    view does not flip when a body crosses the plane."""
+    ``position`` [m]: `DEFAULT_ORIENTATION`, or its mirror image through the plane when all
+    the ``surfaces``' points ``(points (n, 3), triangles)`` lie behind it (below
+    ``position`` along ``axis``): the opaque slice must not hide every body, and a body the
+    slice cuts shows its front half from either side. A run keeps the first frame's answer
+    (`elastoflow.io.OutputSession`), so the view does not flip when a body crosses the
+    plane."""
     if axis not in AXES:
         raise ValueError(f"axis = {axis!r}: must be one of x, y, z")
     azimuth, elevation = DEFAULT_ORIENTATION[axis]
     k = AXES[axis]
     along = [np.asarray(points, dtype=np.float64).reshape(-1, 3)[:, k]
              for points, triangles in surfaces if len(triangles)]
-    if along and float(np.concatenate(along).mean()) < position:
+    if along and float(np.concatenate(along).max()) < position:
         if axis == "y":
             elevation = -elevation
         elif axis == "z":
@@ -253,10 +255,15 @@ def _layout(box: tuple[tuple[int, ...], float, tuple[float, ...]], axis: str, po
 
 
 @lru_cache(maxsize=64)
-def _light_text(text: str, size: int) -> tuple[int, int, np.ndarray]:
-    """``text`` white on black (a `_text_patch` inverted), to lay on the dark background."""
+def _light_text(text: str, size: int, tint: tuple[int, int, int] | None = None
+                ) -> tuple[int, int, np.ndarray]:
+    """``text`` white (or ``tint``) on black (a `_text_patch` inverted), to lay on the dark
+    background."""
     dx, dy, patch = _text_patch(text, size)
     light = 255 - patch
+    if tint is not None:
+        light = (light.astype(np.uint16) * np.array(tint, dtype=np.uint16) // 255).astype(
+            np.uint8)
     light.flags.writeable = False
     return dx, dy, light
 
@@ -374,10 +381,14 @@ def render_scene_3d(
         draw_segments_perspective(scene, depth, starts, ends, inverse_starts, inverse_ends,
                                   color)
 
+    # Bottom left: where the slice is, then the axes' names in the colours of their edges.
     text_size = _text_size(height)
-    label = f"{axis} = {position:.3g} m"
-    dx, dy, patch = _light_text(label, text_size)
-    _paste_lighter(scene, patch, 4 + dx, height - 4 - text_size + dy)
+    x = 4
+    for text, tint in ((f"slice {axis} = {position:.3g} m   axes", None),
+                       ("x", AXIS_COLORS[0]), ("y", AXIS_COLORS[1]), ("z", AXIS_COLORS[2])):
+        dx, dy, patch = _light_text(text, text_size, None if tint is None else tuple(tint))
+        _paste_lighter(scene, patch, x + dx, height - 4 - text_size + dy)
+        x += dx + patch.shape[1] + text_size // 3
     if colorbar:
         image[:, width:] = _static_panel(height, shape[1] - width, height, colormap,
                                          _LABELS[view])

@@ -127,6 +127,8 @@ def test_bodies_behind_the_slice_are_seen_from_the_other_side() -> None:
     behind = _cube((0.6, 0.4, 0.1), 0.2)
     assert scene_orientation("z", 0.5, [behind]) == (150.0, 20.0)
     assert scene_orientation("z", 0.5, [_cube((0.6, 0.4, 0.6), 0.2)]) == (30.0, 20.0)
+    # A body the slice cuts shows from the default side, however little more lies behind.
+    assert scene_orientation("z", 0.5, [_cube((0.6, 0.4, 0.39), 0.2)]) == (30.0, 20.0)
     assert scene_orientation("y", 0.9, [behind]) == (30.0, -50.0)
     assert scene_orientation("x", 1.4, [behind]) == (-65.0, 20.0)
     image = render_scene_3d(GRID, state, size=SIZE, colorbar=False, value_range=(0.0, 1.0),
