@@ -72,3 +72,19 @@ def test_style_slice_keeps_the_flat_slice(tmp_path: Path) -> None:
     # A z-slice of 12 x 8 cells, 43 pixels each, as render_slice_3d draws it.
     assert frame.shape[0] == 8 * 43
     assert "style = \"slice\"" in (out / "scene.toml").read_text()
+
+
+def test_the_camera_can_be_turned_in_the_scene_file(tmp_path: Path) -> None:
+    scene = _scene(tmp_path, '{ view = "vorticity", fps = 10, azimuth = -40.0, '
+                             'elevation = -15.0 }')
+    out = tmp_path / "out"
+    result = runner.invoke(app, ["run", str(scene), "--out", str(out), "--quiet", "--steps",
+                                 "1", "--checkpoint-every", "0"])
+    assert result.exit_code == 0, result.output
+    frame = _frames(out / "video.mp4")[0]
+    simulation = elastoflow.load(scene)
+    turned = elastoflow.frame(simulation, "vorticity", style="3d", azimuth=-40.0,
+                              elevation=-15.0)
+    default = elastoflow.frame(simulation, "vorticity", style="3d")
+    assert np.abs(frame.astype(int) - turned).mean() < 3.0
+    assert np.abs(frame.astype(int) - default).mean() > 10.0

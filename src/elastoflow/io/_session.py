@@ -225,8 +225,12 @@ class OutputSession:
             surfaces = sim.body_geometry()
             if self._orientation is None:
                 # Chosen once: the camera stays put when a body crosses the slice.
-                self._orientation = scene_orientation(axis, position,
-                                                      (*surfaces, *obstacles))
+                azimuth, elevation = scene_orientation(axis, position, (*surfaces, *obstacles))
+                if video is not None and video.azimuth is not None:
+                    azimuth = video.azimuth
+                if video is not None and video.elevation is not None:
+                    elevation = video.elevation
+                self._orientation = (azimuth, elevation)
             azimuth, elevation = self._orientation
             return render_scene_3d(grid, sim.state.fluid, axis=axis, position=position,
                                    view=view, surfaces=surfaces, obstacles=obstacles,

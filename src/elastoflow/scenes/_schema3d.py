@@ -310,6 +310,12 @@ class Video3DSpec(_Spec):
     view: View = "speed"
     style: Literal["3d", "slice"] = "3d"
     """"3d": the scene in perspective; "slice": the slice seen face on."""
+    azimuth: float | None = None
+    """``style = "3d"``: the camera's turn about y from +z towards +x [degrees] (default: in
+    front of the slice, `elastoflow.render.scene_orientation`)."""
+    elevation: Annotated[float, Field(ge=-85.0, le=85.0)] | None = None
+    """``style = "3d"``: the camera's height above the x-z plane [degrees] (default as
+    ``azimuth``)."""
     fps: Annotated[int, Field(gt=0, le=1000)] = 30
     every: PositiveInt = 1
     axis: Axis = "z"
