@@ -48,7 +48,8 @@ def interior_boundary_3d(bmap: BoundaryMap3D, out: InteriorBoundary3D | None = N
     §5.4), the faces' exact open fractions and the cut distances of every velocity point.
 
     ``out``: an earlier interior of the same grid that is no longer read; its cut-distance
-    arrays are refilled instead of allocated (their fill is most of the build's cost)."""
+    arrays are refilled instead of allocated, only inside its ``box`` when it has one.
+    The result's ``box`` is the map's `bodies_box_3d`."""
     solid_faces = []
     velocity_faces = []
     for component in range(3):
@@ -58,7 +59,7 @@ def interior_boundary_3d(bmap: BoundaryMap3D, out: InteriorBoundary3D | None = N
     open_x, open_y, open_z = face_open_fractions_3d(bmap)
     reuse = None if out is None else CutDistances3D(
         (out.cut_theta_x, out.cut_theta_y, out.cut_theta_z),
-        (out.cut_velocity_x, out.cut_velocity_y, out.cut_velocity_z))
+        (out.cut_velocity_x, out.cut_velocity_y, out.cut_velocity_z), out.box)
     cuts = cut_distances_3d(bmap, out=reuse)
     return InteriorBoundary3D(
         solid_cells=solid_cells_3d(bmap),
@@ -69,7 +70,7 @@ def interior_boundary_3d(bmap: BoundaryMap3D, out: InteriorBoundary3D | None = N
         open_fraction_x=open_x, open_fraction_y=open_y, open_fraction_z=open_z,
         cut_theta_x=cuts.theta[0], cut_theta_y=cuts.theta[1], cut_theta_z=cuts.theta[2],
         cut_velocity_x=cuts.velocity[0], cut_velocity_y=cuts.velocity[1],
-        cut_velocity_z=cuts.velocity[2],
+        cut_velocity_z=cuts.velocity[2], box=cuts.box,
     )
 
 

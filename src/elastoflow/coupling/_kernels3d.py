@@ -273,6 +273,24 @@ def section_areas(segments, offsets, origin_u, origin_v, h, out):
                           out.shape[1], out.shape[2], out[p])
 
 
+@njit(cache=True)
+def open_fractions_from_areas(solid, area, axis, out):
+    """``out[x, y, z] = clip(1 - solid[p, u, v] / area, 0, 1)``: the open fraction of each
+    face normal to ``axis``, from the solid area of its square (`section_areas`, indexed
+    (plane, u, v) with u, v the axes after ``axis`` in cyclic order), in (x, y, z) order."""
+    m, n, l = out.shape
+    for i in range(m):
+        for j in range(n):
+            for k in range(l):
+                if axis == 0:
+                    s = solid[i, j, k]
+                elif axis == 1:
+                    s = solid[j, k, i]
+                else:
+                    s = solid[k, i, j]
+                out[i, j, k] = min(max(1.0 - s / area, 0.0), 1.0)
+
+
 # Smallest cut distance [fraction of h] reported: a crossing exactly at a point is at
 # distance 0, which the fluid's stencils (divided by theta) cannot take.
 THETA_FLOOR = 1e-9

@@ -215,16 +215,13 @@ def face_open_fractions_3d(bmap: BoundaryMap3D
         solid = np.zeros((planes, counts[u], counts[v]))
         _kernels3d.section_areas(segments, offsets, float(grid.origin[u]),
                                  float(grid.origin[v]), grid.h, solid)
-        open_fraction = np.clip(1.0 - solid / grid.h**2, 0.0, 1.0)
-        # (plane, u, v) -> (x, y, z) order.
-        fractions.append(np.ascontiguousarray(np.transpose(open_fraction, _to_xyz(axis))))
+        # (plane, u, v) -> (x, y, z) order, in one pass.
+        shape = [counts[0], counts[1], counts[2]]
+        shape[axis] = planes
+        open_fraction = np.empty(shape)
+        _kernels3d.open_fractions_from_areas(solid, grid.h**2, axis, open_fraction)
+        fractions.append(open_fraction)
     return fractions[0], fractions[1], fractions[2]
-
-
-def _to_xyz(axis: int) -> tuple[int, int, int]:
-    """The transpose taking an array indexed (axis, u, v) to (x, y, z)."""
-    order = (axis, (axis + 1) % 3, (axis + 2) % 3)
-    return (order.index(0), order.index(1), order.index(2))
 
 
 @dataclass(frozen=True)
@@ -238,10 +235,36 @@ class CutDistances3D:
             where none lies within one spacing; shapes (6, *shape of the points).
         velocity: The body velocity's own component (x for u points, ...) at that crossing
             [m/s], 0 where none; same shapes.
+        box: The map's `bodies_box_3d`: outside it every theta is ``inf`` and every
+            velocity 0 (None: not known).
     """
 
     theta: tuple[np.ndarray, np.ndarray, np.ndarray]
     velocity: tuple[np.ndarray, np.ndarray, np.ndarray]
+    box: tuple[int, int, int, int, int, int] | None = None
+
+
+# Margin [cells] around the bodies' bounding box: a cut distance is written at most one
+# spacing from a crossing, a solid point or a partly closed face lies within it.
+_BOX_MARGIN = 3
+
+
+def bodies_box_3d(bmap: BoundaryMap3D) -> tuple[int, int, int, int, int, int]:
+    """Index box ``(i0, j0, k0, i1, j1, k1)`` (ends exclusive, clipped to ``[0, n + 1]``)
+    outside which no point of any field (cells, u, v, w) is inside a body, next to a
+    crossing or on a partly closed face (beyond the rounding of the section areas): the
+    map's points' bounding box widened by `_BOX_MARGIN` cells; empty (all zero) without
+    points."""
+    grid = bmap.grid
+    counts = (grid.nx, grid.ny, grid.nz)
+    if bmap.points.shape[0] == 0:
+        return (0, 0, 0, 0, 0, 0)
+    low = (bmap.points.min(axis=0) - np.asarray(grid.origin)) / grid.h
+    high = (bmap.points.max(axis=0) - np.asarray(grid.origin)) / grid.h
+    start = [min(max(int(np.floor(low[a])) - _BOX_MARGIN, 0), counts[a] + 1) for a in range(3)]
+    stop = [min(max(int(np.floor(high[a])) + _BOX_MARGIN + 1, start[a]), counts[a] + 1)
+            for a in range(3)]
+    return (start[0], start[1], start[2], stop[0], stop[1], stop[2])
 
 
 def cut_distances_3d(bmap: BoundaryMap3D, out: CutDistances3D | None = None
@@ -249,8 +272,9 @@ def cut_distances_3d(bmap: BoundaryMap3D, out: CutDistances3D | None = None
     """`CutDistances3D` of every u, v and w point, from the crossings on the lines through
     the points (METHOD.md's cut distances, one line per direction). The arrays are filled
     with "none" and only the points next to a crossing are visited; ``out`` (the same grid's
-    earlier result, no longer needed) is filled instead of new arrays (the fill is most of
-    the cost on a large grid)."""
+    earlier result, no longer needed) is filled instead of new arrays: only inside its
+    ``box`` when it has one (`bodies_box_3d`: nothing was written outside it), so that the
+    cost follows the bodies, not the grid."""
     grid = bmap.grid
     counts = (grid.nx, grid.ny, grid.nz)
     thetas = []
@@ -261,8 +285,13 @@ def cut_distances_3d(bmap: BoundaryMap3D, out: CutDistances3D | None = None
         shape = tuple(counts[a] + (1 if a == component else 0) for a in range(3))
         if out is not None and out.theta[component].shape == (6, *shape):
             theta, velocity = out.theta[component], out.velocity[component]
-            theta.fill(np.inf)
-            velocity.fill(0.0)
+            if out.box is None:
+                theta.fill(np.inf)
+                velocity.fill(0.0)
+            else:
+                i0, j0, k0, i1, j1, k1 = out.box
+                theta[:, i0:i1, j0:j1, k0:k1] = np.inf
+                velocity[:, i0:i1, j0:j1, k0:k1] = 0.0
         else:
             theta = np.full((6, *shape), np.inf)
             velocity = np.zeros((6, *shape))
@@ -280,4 +309,5 @@ def cut_distances_3d(bmap: BoundaryMap3D, out: CutDistances3D | None = None
                 theta[2 * axis + 1], velocity[2 * axis], velocity[2 * axis + 1])
         thetas.append(theta)
         speeds.append(velocity)
-    return CutDistances3D((thetas[0], thetas[1], thetas[2]), (speeds[0], speeds[1], speeds[2]))
+    return CutDistances3D((thetas[0], thetas[1], thetas[2]), (speeds[0], speeds[1], speeds[2]),
+                          bodies_box_3d(bmap))

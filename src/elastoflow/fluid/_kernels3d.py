@@ -617,16 +617,26 @@ def _known_operator_rhs(f, c, axis, fixed_low, fixed_high, modes, values, i, j, 
 
 
 def _make_viscosity(loop):
-    def kernel(f, c, axis, sides, has_interior, body, assemble_operator, operator, rhs):
+    def kernel(f, c, axis, sides, has_interior, body, assemble_operator, operator, rhs,
+               region):
         fixed_low, fixed_high, tangential_modes, tangential_values = sides
         solid, theta, cut_velocity = body
         diagonal, weights_x, weights_y, weights_z = operator
+        i0, j0, k0, i1, j1, k1 = region[0], region[1], region[2], region[3], region[4], region[5]
         m, n, l = f.shape
         size = f.shape[axis]
         for i in loop(m):
             for j in range(n):
                 for k in range(l):
                     own = i if axis == 0 else (j if axis == 1 else k)
+                    if assemble_operator and not (i0 <= i < i1 and j0 <= j < j1
+                                                  and k0 <= k < k1) and (
+                            0 < i < m - 1 and 0 < j < n - 1 and 0 < k < l - 1
+                            and 1 < own < size - 2):
+                        # Outside the region the operator is already in place; away from
+                        # the sides the right-hand side is the value itself (no term adds).
+                        rhs[i, j, k] = f[i, j, k]
+                        continue
                     if not assemble_operator:
                         if (0 < i < m - 1 and 0 < j < n - 1 and 0 < k < l - 1
                                 and 1 < own < size - 2):
@@ -701,9 +711,13 @@ def _make_viscosity(loop):
 _viscosity_serial, _viscosity_parallel = serial_and_parallel(_make_viscosity)
 
 
+# `build_viscosity_system_3d`'s region when the whole operator is assembled.
+WHOLE_REGION = np.array([0, 0, 0, 2**62, 2**62, 2**62], dtype=np.int64)
+
+
 @njit(cache=True)
 def build_viscosity_system_3d(f, c, axis, sides, has_interior, body, assemble_operator,
-                              operator, rhs):
+                              operator, rhs, region):
     """Assemble ``(I - nu dt lap) f = f*`` for one velocity component as a 7-point operator.
 
     Args:
@@ -725,12 +739,17 @@ def build_viscosity_system_3d(f, c, axis, sides, has_interior, body, assemble_op
             (without bodies only; ``operator`` is not read).
         operator: ``(diagonal, weights_x, weights_y, weights_z)``: outputs.
         rhs: Output.
+        region: ``(i0, j0, k0, i1, j1, k1)`` int64 (ends exclusive): with
+            ``assemble_operator``, the operator is written only inside this box and next to
+            the sides (the right-hand side everywhere): the caller's ``operator`` already
+            holds the right values elsewhere (the same ``c``, sides and bodies there);
+            `WHOLE_REGION`: everywhere.
     """
     if f.size > PARALLEL_MINIMUM_3D:
         return _viscosity_parallel(f, c, axis, sides, has_interior, body, assemble_operator,
-                                   operator, rhs)
+                                   operator, rhs, region)
     return _viscosity_serial(f, c, axis, sides, has_interior, body, assemble_operator,
-                             operator, rhs)
+                             operator, rhs, region)
 
 
 # -- pressure ----------------------------------------------------------------------------------

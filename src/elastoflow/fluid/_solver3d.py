@@ -57,6 +57,18 @@ def _index_box(grid: Grid3D, region: tuple[float, ...], offsets: tuple[float, fl
     return (ranges[0], ranges[1], ranges[2])
 
 
+def _bodies_region(last: tuple[int, ...], box: tuple[int, ...]) -> NDArray[np.int64]:
+    """The index box (``(i0, j0, k0, i1, j1, k1)``, ends exclusive) covering two
+    `InteriorBoundary3D` boxes (empty ones left out) widened by one point: a point's
+    viscosity row reads its neighbours' solid flags and cut distances."""
+    boxes = [b for b in (last, box) if all(b[a + 3] > b[a] for a in range(3))]
+    if not boxes:
+        return np.zeros(6, dtype=np.int64)
+    start = [min(b[a] for b in boxes) - 1 for a in range(3)]
+    stop = [max(b[a + 3] for b in boxes) + 1 for a in range(3)]
+    return np.array([*start, *stop], dtype=np.int64)
+
+
 def _check_finite_positive(name: str, value: float) -> float:
     if not isinstance(value, (int, float)) or not math.isfinite(value) or value <= 0.0:
         raise ValueError(f"FluidSolver3D {name} = {value!r}: must be a finite number > 0")
@@ -240,6 +252,10 @@ class FluidSolver3D:
         self._pressure_operator: Operator7Point | None = None
         self._viscosity_operators: dict[tuple[int, float], Operator7Point] = {}
         self._viscosity_rhs = tuple(np.zeros(shape) for shape in shapes[:3])
+        # Per component, the last viscosity operator with bodies: (c, its arrays, the
+        # interior's box), rewritten around the bodies only while c stays.
+        self._viscosity_bodies: list[tuple[float, tuple[Array, Array, Array, Array],
+                                           tuple[int, ...] | None] | None] = [None] * 3
         # With bodies: the face velocities u_s, and the last weighted pressure operator with
         # the open fractions it was built from (kept while they do not change).
         self._solid_velocity: tuple[Array, Array, Array] = (
@@ -351,27 +367,39 @@ class FluidSolver3D:
         """``(I - nu dt lap)`` for component ``axis`` (0 u, 1 v, 2 w) and its right-hand
         side for the values ``field``; without bodies the operator depends on dt only and is
         kept. With bodies, points inside them are held and the cut distances give the
-        no-slip ghosts (METHOD.md §6)."""
+        no-slip ghosts (METHOD.md §6); the operator's arrays are then those of the last call
+        with bodies, rewritten only around the bodies (``interior.box``, this call's and the
+        last one's) when ``c`` is the same: the last operator returned changes with them."""
         c = self.viscosity * dt / self.grid.h**2
         fixed_low, fixed_high = self._fixed_ends(axis)
         sides = (fixed_low, fixed_high, self._tangential_modes, self._velocity_values[axis])
         rhs = self._viscosity_rhs[axis]
+        region = kernels.WHOLE_REGION
+        m, n, l = field.shape
         if interior is None:
             has_interior, body = False, self._no_body
             operator = self._viscosity_operators.get((axis, dt))
             if operator is not None:
                 kernels.build_viscosity_system_3d(field, c, axis, sides, False, body, False,
-                                                  self._no_operator, rhs)
+                                                  self._no_operator, rhs, region)
                 return operator, rhs
+            arrays = (np.empty((m, n, l)), np.empty((m - 1, n, l)), np.empty((m, n - 1, l)),
+                      np.empty((m, n, l - 1)))
         else:
             has_interior = True
             body = (interior.solid_faces(axis), interior.cut_theta(axis),
                     interior.cut_velocity(axis))
-        m, n, l = field.shape
-        arrays = (np.empty((m, n, l)), np.empty((m - 1, n, l)), np.empty((m, n - 1, l)),
-                  np.empty((m, n, l - 1)))
+            kept = self._viscosity_bodies[axis]
+            if (kept is not None and kept[0] == c and kept[2] is not None
+                    and interior.box is not None):
+                arrays = kept[1]
+                region = _bodies_region(kept[2], interior.box)
+            else:
+                arrays = (np.empty((m, n, l)), np.empty((m - 1, n, l)),
+                          np.empty((m, n - 1, l)), np.empty((m, n, l - 1)))
+            self._viscosity_bodies[axis] = (c, arrays, interior.box)
         kernels.build_viscosity_system_3d(field, c, axis, sides, has_interior, body, True,
-                                          arrays, rhs)
+                                          arrays, rhs, region)
         operator = Operator7Point(*arrays)
         if interior is not None:
             return operator, rhs
