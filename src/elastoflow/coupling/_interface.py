@@ -32,17 +32,21 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Protocol
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 from numba import njit
 from scipy import sparse
 
 from elastoflow.coupling._map import BoundaryMap
+from elastoflow.coupling._map3d import BoundaryMap3D
 from elastoflow.coupling._thin import ThinCuts
 from elastoflow.fluid import OPEN_MIN, InteriorBoundary
-from elastoflow.grid import Grid2D
+from elastoflow.grid import Grid2D, Grid3D
 from elastoflow.linalg import BandedInverse, LowRankTerm
+
+if TYPE_CHECKING:
+    from elastoflow.coupling._interface3d import InterfaceFlux3D
 
 
 @njit(cache=True)
@@ -655,11 +659,13 @@ class BodyResponse(Protocol):
 
 
 class PressureCoupledBodies:
-    """The bodies' side of the strongly coupled projection (`elastoflow.fluid.CoupledBodies`).
+    """The bodies' side of the strongly coupled projection (`elastoflow.fluid.CoupledBodies`),
+    in 2D and 3D alike.
 
     Args:
-        flux: ``W`` of this step's boundary map.
-        predicted: Velocities [m/s] of all boundary points, shape (P, 2): what the bodies
+        flux: ``W`` of this step's boundary map (`interface_flux`, or `interface_flux_3d` on
+            a 3D grid: the dimension follows its grid).
+        predicted: Velocities [m/s] of all boundary points, shape (P, d): what the bodies
             sweep over the step without the pressure, and the obstacles' prescribed velocity.
         responses: Per body, its answer to a force held over the step (the velocity that
             enters ``predicted``), e.g. `elastoflow.solid.StepResponse`.
@@ -667,33 +673,41 @@ class PressureCoupledBodies:
             are body b's nodes); points past the last body are obstacles (no response).
         density: Fluid density [kg/m^3].
         dt: Fluid step [s].
-        bmap: The boundary map (points and edges), needed with ``gravity``.
-        gravity: The fluid's gravity [m/s^2]. The hydrostatic part ``rho g.(x - x_b)`` of the
-            pressure (``x_b`` each body's centroid) is not left to ``W``, which applies each
-            cut cell's centre pressure to the whole covered part of its faces and so misses
-            the buoyancy of a straight edge lying inside a row of cells by up to half a cell
-            of height; its exact integral along the edges replaces it (a known force, applied
-            in the prediction: the coupled system is unchanged).
+        bmap: The boundary map (points and edges, or triangles in 3D), needed with
+            ``gravity``.
+        gravity: The fluid's gravity [m/s^2] (d components). The hydrostatic part
+            ``rho g.(x - x_b)`` of the pressure (``x_b`` each body's centroid) is not left to
+            ``W``, which applies each cut cell's centre pressure to the whole covered part of
+            its faces and so misses the buoyancy of a straight edge lying inside a row of
+            cells by up to half a cell of height (in 3D: 0.33 % of a sphere's buoyancy at 8
+            cells across); its exact integral over the body's surface (edges, triangles)
+            replaces it (a known force, applied in the prediction: the coupled system is
+            unchanged).
 
     After `respond`, ``velocities`` holds the boundary points' new velocities and
-    ``pressure_forces`` the nodal forces [N/m] of the pressure on them.
+    ``pressure_forces`` the nodal forces [N/m in 2D, N in 3D] of the pressure on them.
     """
 
-    def __init__(self, flux: InterfaceFlux, predicted: np.ndarray,
+    def __init__(self, flux: InterfaceFlux | InterfaceFlux3D, predicted: np.ndarray,
                  responses: Sequence[BodyResponse], offsets: Sequence[int], density: float,
-                 dt: float, bmap: BoundaryMap | None = None,
-                 gravity: tuple[float, float] = (0.0, 0.0)) -> None:
-        if (gravity[0] != 0.0 or gravity[1] != 0.0) and bmap is None:
+                 dt: float, bmap: BoundaryMap | BoundaryMap3D | None = None,
+                 gravity: tuple[float, ...] = (0.0, 0.0)) -> None:
+        self.dimension = 3 if isinstance(flux.grid, Grid3D) else 2
+        if any(g != 0.0 for g in gravity) and bmap is None:
             raise ValueError("PressureCoupledBodies: gravity needs the boundary map")
+        if len(gravity) != self.dimension:
+            raise ValueError(f"PressureCoupledBodies: gravity = {gravity!r} must have "
+                             f"{self.dimension} components")
         self.bmap = bmap
-        self.gravity = (float(gravity[0]), float(gravity[1]))
+        self.gravity = tuple(float(g) for g in gravity)
         self.flux = flux
         self.predicted = np.ascontiguousarray(predicted, dtype=np.float64)
         self.responses = responses
         self.offsets = offsets
         self.density = float(density)
         self.dt = float(dt)
-        self.face_length = flux.grid.h
+        # The force of a cell pressure on the covered part of a face: per unit depth in 2D.
+        self.face_area = flux.grid.h ** (self.dimension - 1)
         self.velocities = self.predicted.copy()
         self.pressure_forces = np.zeros_like(self.predicted)
         self._correction = np.zeros_like(self.predicted)
@@ -720,34 +734,32 @@ class PressureCoupledBodies:
         return change
 
     def _hydrostatic_correction(self, active: np.ndarray) -> np.ndarray:
-        """Exact minus ``W``'s nodal force of the hydrostatic pressure, per body (P, 2)."""
+        """Exact minus ``W``'s nodal force of the hydrostatic pressure, per body (P, d)."""
         correction = np.zeros_like(self.predicted)
-        if self.bmap is None or self.gravity == (0.0, 0.0) or len(self.offsets) < 2:
+        if self.bmap is None or not any(self.gravity) or len(self.offsets) < 2:
             return correction
         grid = self.flux.grid
-        x, y = grid.cell_centers()
-        points, edges = self.bmap.points, self.bmap.edges
+        centres = grid.cell_centers()
+        points = self.bmap.points
+        surface = (self.bmap.triangles if isinstance(self.bmap, BoundaryMap3D)
+                   else self.bmap.edges)
         cells = self._cells(active)
-        gx, gy = self.gravity
+        gravity = np.array(self.gravity)
         for index in range(len(self.offsets) - 1):
             lo, hi = self.offsets[index], self.offsets[index + 1]
-            mine = edges[(edges[:, 0] >= lo) & (edges[:, 0] < hi)]
+            mine = surface[(surface[:, 0] >= lo) & (surface[:, 0] < hi)]
             if not mine.shape[0]:
                 continue
             reference = points[lo:hi].mean(axis=0)
             # p = rho g.(x - x_b): rho g.x rises against gravity, i.e. with depth.
-            field = self.density * (gx * (x - reference[0]) + gy * (y - reference[1]))
-            nodal = np.zeros_like(points[lo:hi])
-            a, b = mine[:, 0] - lo, mine[:, 1] - lo
-            pa = self.density * ((points[mine[:, 0]] - reference) @ np.array([gx, gy]))
-            pb = self.density * ((points[mine[:, 1]] - reference) @ np.array([gx, gy]))
-            edge = points[mine[:, 1]] - points[mine[:, 0]]
-            # -p n ds with n ds = (dy, -dx) (out of the body, on the right of a->b); a linear
-            # p along the edge gives node a (p_a / 3 + p_b / 6) and node b the mirror.
-            normal = np.column_stack((edge[:, 1], -edge[:, 0]))
-            np.add.at(nodal, a, -normal * (pa / 3.0 + pb / 6.0)[:, None])
-            np.add.at(nodal, b, -normal * (pa / 6.0 + pb / 3.0)[:, None])
-            discrete = self.face_length * cells.transpose_times(field).reshape(-1, 2)
+            field = self.density * sum(g * (x - r) for g, x, r
+                                       in zip(self.gravity, centres, reference, strict=True))
+            corner_pressure = np.column_stack([
+                self.density * ((points[mine[:, corner]] - reference) @ gravity)
+                for corner in range(mine.shape[1])])
+            nodal = _linear_pressure_forces(points, mine, corner_pressure, lo, hi)
+            discrete = self.face_area * cells.transpose_times(field).reshape(
+                -1, self.dimension)
             correction[lo:hi] = nodal - discrete[lo:hi]
         return correction
 
@@ -760,23 +772,24 @@ class PressureCoupledBodies:
         flat[cells.ids] -= scale * cells.matrix.times(self.predicted)
 
     def coupling_term(self, active: np.ndarray) -> LowRankTerm:
-        """``rho h^2 / dt (DW) Phi (DW)^T`` with ``Phi`` the bodies' compliance on the
+        """``rho h^d / dt (DW) Phi (DW)^T`` with ``Phi`` the bodies' compliance on the
         degrees of freedom that ``W`` touches (block diagonal over bodies): a dense block for
         the bodies whose response is a dense inverse, and the banded factors of the others
         (never formed: applied by sweeps inside the solve)."""
         cells = self._cells(active)
+        d = self.dimension
         # B^T restricted to the bodies' touched degrees of freedom (obstacles' columns, past
         # the last body's points, have no response).
         touched, offsets, points, weights = _columns_below(
             cells.matrix.indptr, cells.matrix.indices, cells.matrix.data, cells.ids,
-            2 * self.offsets[-1])
+            d * self.offsets[-1])
         dense_slots = np.full(touched.shape[0], -1, np.int64)
         band_slots = np.full(touched.shape[0], -1, np.int64)
         dense_parts: list[tuple[np.ndarray, np.ndarray]] = []
         factors: list[tuple[np.ndarray, np.ndarray]] = []
         dense_size = band_size = 0
         for index, response in enumerate(self.responses):
-            lo, hi = 2 * self.offsets[index], 2 * self.offsets[index + 1]
+            lo, hi = d * self.offsets[index], d * self.offsets[index + 1]
             mine = np.flatnonzero((touched >= lo) & (touched < hi))
             if not mine.size:
                 continue
@@ -799,24 +812,54 @@ class PressureCoupledBodies:
             start += size
         return LowRankTerm(
             offsets=offsets, points=points, weights=weights, matrix=matrix,
-            scale=self.density * self.face_length**2 / self.dt, dense_slots=dense_slots,
+            scale=self.density * self.flux.grid.h ** d / self.dt, dense_slots=dense_slots,
             banded=_stacked_factors(factors, band_slots) if factors else None,
         )
 
-    def respond(self, pressure: np.ndarray, active: np.ndarray, closed_u: np.ndarray,
-                closed_v: np.ndarray) -> None:
+    def respond(self, pressure: np.ndarray, active: np.ndarray, *closed: np.ndarray) -> None:
+        """Apply ``pressure``'s force to the bodies; write the new body velocity into the
+        ``closed`` arrays, one per face axis (u, v[, w]), on ``W``'s faces."""
+        if len(closed) != self.dimension:
+            raise ValueError(f"respond: {len(closed)} face arrays given; expected "
+                             f"{self.dimension}")
         cells = self._cells(active)
-        forces = self.face_length * cells.transpose_times(pressure)
-        dynamic = forces.reshape(-1, 2)
+        forces = self.face_area * cells.transpose_times(pressure)
+        dynamic = forces.reshape(-1, self.dimension)
         self.velocities = self.predicted + self.velocity_change(dynamic)
         self.pressure_forces = dynamic + self._correction
         face_flux = self.flux.face_flux(self.velocities)
-        flux = self.flux
-        nx, ny = flux.grid.nx, flux.grid.ny
-        u_faces = (nx + 1) * ny
-        is_u = flux.axis == 0
-        closed_u.reshape(-1)[flux.faces[is_u]] = face_flux[is_u]
-        closed_v.reshape(-1)[flux.faces[~is_u] - u_faces] = face_flux[~is_u]
+        faces, axis = self.flux.faces, self.flux.axis
+        start = 0
+        for index, target in enumerate(closed):
+            mine = axis == index
+            target.reshape(-1)[faces[mine] - start] = face_flux[mine]
+            start += target.size
+
+
+def _linear_pressure_forces(points: np.ndarray, surface: np.ndarray, corner_pressure: np.ndarray,
+                            lo: int, hi: int) -> np.ndarray:
+    """Nodal forces ``-int p n dA`` of a pressure linear over each edge (2D, per unit depth)
+    or triangle (3D) of ``surface`` (outward; corners ``corner_pressure``), on the points
+    ``lo:hi``: the integral of each corner's hat function times ``p``."""
+    nodal = np.zeros_like(points[lo:hi])
+    if surface.shape[1] == 2:
+        a, b = surface[:, 0], surface[:, 1]
+        pa, pb = corner_pressure[:, 0], corner_pressure[:, 1]
+        edge = points[b] - points[a]
+        # n ds = (dy, -dx) (out of the body, on the right of a->b); a linear p along the edge
+        # gives node a (p_a / 3 + p_b / 6) and node b the mirror.
+        normal = np.column_stack((edge[:, 1], -edge[:, 0]))
+        np.add.at(nodal, a - lo, -normal * (pa / 3.0 + pb / 6.0)[:, None])
+        np.add.at(nodal, b - lo, -normal * (pa / 6.0 + pb / 3.0)[:, None])
+        return nodal
+    corners = points[surface]
+    # n dA = (b - a) x (c - a) / 2, outward; int phi_i p = area (2 p_i + p_j + p_k) / 12.
+    area_normal = 0.5 * np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+    total = corner_pressure.sum(axis=1)
+    for corner in range(3):
+        share = (total + corner_pressure[:, corner]) / 12.0
+        np.add.at(nodal, surface[:, corner] - lo, -area_normal * share[:, None])
+    return nodal
 
 
 def _stacked_factors(factors: list[tuple[np.ndarray, np.ndarray]],

@@ -51,10 +51,9 @@ class CoupledBodies(Protocol):
         """The bodies' term of the pressure operator (symmetric, positive semi-definite)."""
         ...
 
-    def respond(self, pressure: np.ndarray, active: np.ndarray, closed_u: np.ndarray,
-                closed_v: np.ndarray) -> None:
+    def respond(self, pressure: np.ndarray, active: np.ndarray, *closed: np.ndarray) -> None:
         """Apply ``pressure``'s force to the bodies; write the new body velocity into the
-        arrays of u / v faces that the fluid treats as closed."""
+        arrays of u / v (/ w in 3D) faces that the fluid treats as closed."""
         ...
 
 

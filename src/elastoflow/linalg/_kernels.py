@@ -1198,6 +1198,13 @@ def low_rank_apply_kernel(v, cells, term, out):
 
 
 @njit(cache=True)
+def low_rank_add_dot_kernel(v, out, other, cells, term, sign):
+    """``out += sign scale B M B^T v``; returns ``other . (scale B M B^T v)`` (flat arrays of
+    any grid: the 3D coupled solve's step, whose loop is in Python)."""
+    return _add_low_rank(v, out, other, cells, term, sign)
+
+
+@njit(cache=True)
 def pcg_low_rank_kernel(levels, b, x, r, p, q, z, threshold, max_iterations, sweeps,
                         term_cells, term, operator_total):
     """`pcg_kernel` for ``A + C``, ``C = scale B M B^T`` (``B^T`` in CSR over the padded points

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -62,17 +63,24 @@ _NO_BAND = np.zeros((0, 1))
 # `LowRankTerm.diagonal_with_count`): Turek-Hron's flag at 20 cells per diameter needs 38
 # against a band of 25.
 _WIDEST_BAND = 4
+# ... and while the selected inverse's work n b w stays below this: a 3D body's banded
+# factor is wide (the settling sphere: n = 2337, b = 431), where pairs of columns meeting
+# at a cell can lie n apart; the diagonal is then approximate (only the preconditioner
+# reads it) instead of costing seconds a step.
+_DIAGONAL_WORK_LIMIT = 2.0e8
 
 
 @dataclass(frozen=True)
 class LowRankTerm:
     """A symmetric positive semi-definite term ``C = scale B M B^T`` added to a 5-point
-    operator on ``(m, n)`` points: ``B`` sparse with few touched points, ``M`` block diagonal
-    with a small dense block and a `BandedInverse` (a body's compliance through its factor).
+    operator on ``(m, n)`` points (or a 7-point one on ``(m, n, l)``): ``B`` sparse with few
+    touched points, ``M`` block diagonal with a small dense block and a `BandedInverse` (a
+    body's compliance through its factor).
 
     Attributes:
         offsets: CSR row offsets of ``B^T`` (one row per column of ``B``), int64, (k+1,).
-        points: Flat point index ``i * n + j`` of each entry, int64.
+        points: Flat point index (C order: ``i * n + j``, ``(i * n + j) * l + k``) of each
+            entry, int64.
         weights: ``B``'s value of each entry.
         matrix: The dense block of ``M``, symmetric positive semi-definite: (k, k) over every
             column when ``dense_slots`` is None, else over the columns it names.
@@ -116,33 +124,34 @@ class LowRankTerm:
                 np.zeros(matrix.shape[0]), np.zeros(matrix.shape[0]),
                 np.zeros(columns.shape[0]))
 
-    def diagonal(self, shape: tuple[int, int]) -> NDArray[np.float64]:
+    def diagonal(self, shape: tuple[int, ...]) -> NDArray[np.float64]:
         """``diag(C)`` as an (m, n) array (see `diagonal_with_count` for when it is not
         exact)."""
         return self.diagonal_with_count(shape)[0]
 
-    def diagonal_with_count(self, shape: tuple[int, int]) -> tuple[NDArray[np.float64], int]:
+    def diagonal_with_count(self, shape: tuple[int, ...]) -> tuple[NDArray[np.float64], int]:
         """``diag(C)`` and the number of pairs of banded columns meeting at a point whose
         entry of the inverse was not computed (0: exact). The banded part's entries come from
         the inverse's band widened as far as such pairs reach, up to ``_WIDEST_BAND`` times
         the factor's band (cost ``n b w``); pairs further apart count as 0, which only the
         preconditioner reads (it needs an approximation of the diagonal, kept >= 0)."""
-        out = np.zeros(shape[0] * shape[1])
+        out = np.zeros(math.prod(shape))
         points = np.ascontiguousarray(self.points, dtype=np.int64)
         term = self.kernel_term()
         selected = _NO_BAND
         if self.banded is not None and self.banded.rows.shape[0]:
             rows = np.ascontiguousarray(self.banded.rows)
             gap = low_rank_band_gap(points, term, out.shape[0])
-            width = max(rows.shape[1] - 1, min(gap, _WIDEST_BAND * rows.shape[1],
-                                               rows.shape[0] - 1))
+            n, band = rows.shape[0], rows.shape[1]
+            affordable = int(_DIAGONAL_WORK_LIMIT // max(n * band, 1))
+            width = max(band - 1, min(gap, _WIDEST_BAND * band, n - 1, affordable))
             selected = np.empty((rows.shape[0], width + 1))
             banded_selected_inverse(rows, selected)
         outside = low_rank_diagonal_kernel(points, term, selected, out.shape[0], out)
         return out.reshape(shape), int(outside)
 
     def apply(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
-        """``C x`` for ``x`` of shape (m, n)."""
+        """``C x`` for ``x`` of the operator's shape ((m, n), or (m, n, l) in 3D)."""
         flat = np.ascontiguousarray(x, dtype=np.float64).reshape(-1)
         out = np.zeros(flat.shape[0])
         low_rank_apply_kernel(flat, np.ascontiguousarray(self.points, dtype=np.int64),

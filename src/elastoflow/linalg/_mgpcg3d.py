@@ -8,6 +8,7 @@ each); the work per grid point is all in the kernels.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -15,6 +16,7 @@ from numba import get_num_threads
 from numpy.typing import NDArray
 
 from elastoflow.linalg._kernels import (
+    low_rank_add_dot_kernel,
     remove_component_means_kernel,
     semidefinite_cholesky_kernel,
 )
@@ -45,6 +47,7 @@ from elastoflow.linalg._kernels3d import (
     step_kernel_3d,
     uniform_weight_kernel,
 )
+from elastoflow.linalg._mgpcg import LowRankTerm
 from elastoflow.linalg._operator import SolveReport
 from elastoflow.linalg._operator3d import Operator7Point
 from elastoflow.linalg._problem import _output, incompatibility
@@ -348,6 +351,51 @@ class PoissonSolverMGPCG3D:
         """
         shape = operator.shape
         _output(out, shape)  # type: ignore[arg-type]
+        rhs, x0 = self._checked(shape, rhs, x0)
+        hierarchy = self._hierarchy(shape)
+        null_space = hierarchy.prepare(operator)
+        return self._solve_prepared(hierarchy, null_space, rhs, x0, out,
+                                    lambda x, threshold: self._pcg(hierarchy, x, threshold))
+
+    def solve_coupled(
+        self,
+        operator: Operator7Point,
+        coupling: LowRankTerm,
+        rhs: NDArray[np.float64],
+        x0: NDArray[np.float64] | None = None,
+        out: NDArray[np.float64] | None = None,
+    ) -> tuple[NDArray[np.float64], SolveReport]:
+        """Solve ``(A + C) x = rhs`` with ``A`` 7-point and ``C`` a `LowRankTerm` (the 3D
+        twin of `PoissonSolverMGPCG.solve_coupled`: the strongly coupled pressure equation).
+
+        CG preconditioned by one V-cycle of ``A + diag(C)``. ``C`` must touch only active
+        points of ``A``; a singular component of ``A`` that ``C`` touches is made definite by
+        it, the others are made compatible as in `solve`. Same report and guarantees as
+        `solve`.
+        """
+        shape = operator.shape
+        _output(out, shape)  # type: ignore[arg-type]
+        rhs, x0 = self._checked(shape, rhs, x0)
+        extra = coupling.diagonal(shape)
+        preconditioned = Operator7Point(operator.diagonal + extra, operator.weights_x,
+                                        operator.weights_y, operator.weights_z)
+        hierarchy = self._hierarchy(shape)
+        null_space = hierarchy.prepare(preconditioned)
+        if not hierarchy.coarse:
+            # A diagonally dominant A + diag(C) would get Jacobi, which does not see C's
+            # coupling between cells any better: keep the V-cycle.
+            hierarchy._build()
+            hierarchy.coarse = True
+        points = np.ascontiguousarray(coupling.points, dtype=np.int64)
+        term = coupling.kernel_term()
+        return self._solve_prepared(
+            hierarchy, null_space, rhs, x0, out,
+            lambda x, threshold: self._pcg_coupled(hierarchy, operator, points, term, x,
+                                                   threshold))
+
+    @staticmethod
+    def _checked(shape: Shape3, rhs: NDArray[np.float64], x0: NDArray[np.float64] | None
+                 ) -> tuple[NDArray[np.float64], NDArray[np.float64] | None]:
         rhs = np.ascontiguousarray(rhs, dtype=np.float64)
         if rhs.shape != shape:
             raise ValueError(f"rhs: shape {rhs.shape} is not allowed; expected {shape}")
@@ -355,8 +403,17 @@ class PoissonSolverMGPCG3D:
             x0 = np.ascontiguousarray(x0, dtype=np.float64)
             if x0.shape != shape:
                 raise ValueError(f"x0: shape {x0.shape} is not allowed; expected {shape}")
-        hierarchy = self._hierarchy(shape)
-        null_space = hierarchy.prepare(operator)
+        return rhs, x0
+
+    def _solve_prepared(self, hierarchy: _Hierarchy3D, null_space: _NullSpace3D,
+                        rhs: NDArray[np.float64], x0: NDArray[np.float64] | None,
+                        out: NDArray[np.float64] | None,
+                        iterate: Callable[[NDArray[np.float64], float], tuple[int, float]]
+                        ) -> tuple[NDArray[np.float64], SolveReport]:
+        """Load the right-hand side and the warm start on the active points, make a singular
+        component's right-hand side compatible, run ``iterate`` (CG); the solution and the
+        report."""
+        shape = hierarchy.shape
         # The copies check finiteness (the probe): no pass of their own.
         squared_b, probe = masked_copy_kernel_3d(rhs, null_space.active, hierarchy.b)
         if not np.isfinite(probe):
@@ -379,7 +436,7 @@ class PoissonSolverMGPCG3D:
             x[...] = 0.0
             return x, SolveReport(0, 0.0, incompatible <= self.rtol, incompatible)
         threshold = (self.rtol * norm_b) ** 2
-        iterations, squared = self._pcg(hierarchy, x, threshold)
+        iterations, squared = iterate(x, threshold)
         null_space.remove_means(x)
         relative = float(np.sqrt(squared)) / norm_b
         return x, SolveReport(int(iterations), relative,
@@ -423,6 +480,47 @@ class PoissonSolverMGPCG3D:
                 direction_kernel_3d(z, p, rz_next / rz)
                 rz = rz_next
             squared = fine.residual(x, b, r)
+            if not (pq > 0.0):
+                break
+        return iterations, squared
+
+    def _pcg_coupled(self, hierarchy: _Hierarchy3D, operator: Operator7Point,
+                     points: NDArray[np.int64], term: tuple, x: NDArray[np.float64],
+                     threshold: float) -> tuple[int, float]:
+        """`_pcg` for ``A + C``: the levels hold ``A + diag(C)`` (the preconditioner); the
+        products and residuals take ``operator`` (A) and ``C`` (``points``, ``term`` as
+        `LowRankTerm.kernel_term` bundles it)."""
+        b, r, p, q, z = hierarchy.b, hierarchy.r, hierarchy.p, hierarchy.q, hierarchy.z
+        a = (operator.diagonal, operator.weights_x, operator.weights_y, operator.weights_z)
+        flat_x, flat_r, flat_p, flat_q = (v.reshape(-1) for v in (x, r, p, q))
+
+        def true_residual() -> float:
+            residual_kernel_3d(*a, x, b, r)
+            low_rank_add_dot_kernel(flat_x, flat_r, flat_x, points, term, -1.0)
+            # Summed afresh: an update of |r|^2 by differences cancels near the end.
+            return float(dot_kernel_3d(r, r))
+
+        iterations = 0
+        pq = 1.0
+        squared = true_residual()
+        while squared > threshold and iterations < self.max_iterations:
+            rz = hierarchy.precondition(r, z, self.smoothing_sweeps)
+            p[...] = z
+            recursive = squared
+            while recursive > threshold and iterations < self.max_iterations:
+                pq = float(apply_dot_kernel_3d(*a, p, q))
+                pq += float(low_rank_add_dot_kernel(flat_p, flat_q, flat_p, points, term, 1.0))
+                if not (pq > 0.0):
+                    break
+                alpha = rz / pq
+                recursive = step_kernel_3d(x, r, p, q, alpha)
+                iterations += 1
+                if recursive <= threshold:
+                    break
+                rz_next = hierarchy.precondition(r, z, self.smoothing_sweeps)
+                direction_kernel_3d(z, p, rz_next / rz)
+                rz = rz_next
+            squared = true_residual()
             if not (pq > 0.0):
                 break
         return iterations, squared

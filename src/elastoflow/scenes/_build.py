@@ -26,7 +26,7 @@ from elastoflow.scenes._schema import (
     Scene,
     WindmillShapeSpec,
 )
-from elastoflow.scenes._schema3d import Scene3D
+from elastoflow.scenes._schema3d import Coupling3DSpec, Scene3D
 
 if TYPE_CHECKING:
     from elastoflow.grid import Grid2D
@@ -638,8 +638,9 @@ def build_simulation(scene: Scene | Scene3D, *, steps: int | None = None,
         raise SceneError([f"time or coupling: {error}"], scene.source) from None
 
 
-def _monolithic(spec: CouplingSpec) -> MonolithicCoupling:
-    """The monolithic scheme with the scene's choice of the bodies' implicit step."""
+def _monolithic(spec: CouplingSpec | Coupling3DSpec) -> MonolithicCoupling:
+    """The monolithic scheme with the scene's choice of the bodies' implicit step (a 3D
+    `Simulation` hands its integrator to `MonolithicCoupling3D`)."""
     from elastoflow.simulation import MonolithicCoupling
     from elastoflow.solid import EnergyMomentumFem, MidpointFem
 

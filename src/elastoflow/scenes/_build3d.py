@@ -241,7 +241,7 @@ def build_simulation_3d(scene: Scene3D, *, steps: int | None = None,
     Raises:
         SceneError: One line per problem.
     """
-    from elastoflow.scenes._build import step_count, time_step
+    from elastoflow.scenes._build import _monolithic, step_count, time_step
     from elastoflow.simulation import Simulation
 
     available = _checks.available_memory()
@@ -293,6 +293,8 @@ def build_simulation_3d(scene: Scene3D, *, steps: int | None = None,
         return Simulation(grid, fluid_solver, state=state, bodies=bodies, obstacles=obstacles,
                           dt=dt, substeps=scene.time.substeps,
                           force_relaxation=scene.coupling.force_relaxation,
+                          coupling=(_monolithic(scene.coupling)
+                                    if scene.coupling.scheme == "monolithic" else "explicit"),
                           cfl_limit=scene.time.cfl_limit)
     except (ValueError, ArithmeticError) as error:
         raise SceneError([f"time or coupling: {error}"], scene.source) from None

@@ -4,8 +4,9 @@ The same file format and rules as the 2D scene (`elastoflow.scenes._schema`: unk
 refused, values strict and finite), with points ``[x, y, z]``, boxes ``[x0, y0, z0, x1, y1,
 z1]``, two more sides (``back`` at z = z0, ``front`` at z = z0 + lz), tetrahedral bodies
 (``box``, ``cylinder``, ``sphere`` or a mesh file) and closed-surface obstacles (``sphere``,
-``box``, ``cylinder``). What 3D does not have yet (the monolithic coupling, rods, a free
-surface, the dual-cell boundary) has no key here, so asking for it is an unknown-key error.
+``box``, ``cylinder``). What 3D does not have yet (rods, a free surface, the dual-cell
+boundary, the explicit scheme's other force models) has no key here, so asking for it is an
+unknown-key error.
 """
 
 from __future__ import annotations
@@ -293,12 +294,32 @@ class Body3DSpec(_Spec):
 
 
 class Coupling3DSpec(_Spec):
-    """How fluid and bodies advance together in 3D: the explicit scheme (the monolithic one
-    is 2D only so far)."""
+    """How fluid and bodies advance together in 3D.
 
-    scheme: Literal["explicit"] = "explicit"
+    ``scheme = "explicit"`` (default): the paper's partitioned step
+    (`elastoflow.simulation.ExplicitCoupling3D`), stable only for bodies heavier than the
+    fluid they displace; ``force_relaxation`` is its key. ``scheme = "monolithic"``: one
+    pressure solve sees the bodies' inertia, stable for any density ratio
+    (`elastoflow.simulation.MonolithicCoupling3D`), with the bodies' implicit step chosen by
+    ``integrator`` as in 2D.
+    """
+
+    scheme: Literal["explicit", "monolithic"] = "explicit"
     force_relaxation: Annotated[float, Field(gt=0.0, le=1.0)] = 1.0
-    """Under-relaxation of the force on the bodies (1: none)."""
+    """Explicit scheme: under-relaxation of the force on the bodies (1: none)."""
+    integrator: Literal["energy_momentum", "newmark", "midpoint"] = "energy_momentum"
+    """Monolithic scheme: the bodies' implicit step (as the 2D key)."""
+    numerical_damping: Annotated[float, Field(ge=0.0, le=1.0)] = 0.1
+    """Monolithic scheme, "energy_momentum": objective numerical damping in units of dt."""
+    newmark_gamma: Annotated[float, Field(ge=0.5, le=1.0)] = 0.55
+    """Monolithic scheme, "newmark": Newmark's gamma."""
+
+    @model_validator(mode="after")
+    def _scheme_keys(self) -> Coupling3DSpec:
+        if self.scheme == "monolithic" and self.force_relaxation != 1.0:
+            raise ValueError("force_relaxation stabilises the explicit scheme only; with "
+                             "scheme = \"monolithic\" leave it out")
+        return self
 
 
 class Video3DSpec(_Spec):

@@ -1,6 +1,6 @@
 """The coupled simulation: model (grid, fluid solver, bodies, obstacles), state (fluid fields,
 body states, time), the coupling schemes that step one state into the next, and the checks
-each new state must pass. In 3D: `CoupledModel3D`, `StepBoundary3D` and `ExplicitCoupling3D`,
+each new state must pass. In 3D: `CoupledModel3D`, `StepBoundary3D`, `ExplicitCoupling3D` and `MonolithicCoupling3D`,
 behind the same `Simulation`."""
 
 from elastoflow.simulation._checks import CflLimit, FiniteFields, StepCheck, cfl_number
@@ -14,7 +14,7 @@ from elastoflow.simulation._schemes import (
     ExplicitCoupling,
     MonolithicCoupling,
 )
-from elastoflow.simulation._schemes3d import ExplicitCoupling3D
+from elastoflow.simulation._schemes3d import ExplicitCoupling3D, MonolithicCoupling3D
 from elastoflow.simulation._simulation import Simulation
 from elastoflow.simulation._state import (
     CoupledModel,
@@ -38,6 +38,7 @@ __all__ = [
     "FreeSurfaceMonolithicCoupling",
     "FreeSurfaceScheme",
     "MonolithicCoupling",
+    "MonolithicCoupling3D",
     "Simulation",
     "SimulationBlowUp",
     "StepBoundary",

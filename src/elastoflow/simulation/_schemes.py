@@ -258,12 +258,7 @@ class MonolithicCoupling:
 
     def __init__(self, gamma: float | None = None,
                  integrator: MidpointFem | NewmarkFem | None = None) -> None:
-        if gamma is not None and integrator is not None:
-            raise ValueError("give gamma (Newmark's rule) or an integrator, not both")
-        if integrator is None:
-            integrator = (EnergyMomentumFem(DEFAULT_NUMERICAL_DAMPING) if gamma is None
-                          else NewmarkFem(gamma))
-        self.fem: MidpointFem | NewmarkFem = integrator
+        self.fem: MidpointFem | NewmarkFem = implicit_integrator(gamma, integrator)
         self.gamma = self.fem.gamma
         self._explicit = ExplicitCoupling()
 
@@ -371,6 +366,17 @@ class MonolithicCoupling:
 
         check_fluid_finite(out, next_step, state_in.time + dt)
         return _finish(model, state_in, state_out, dt, boundary, solve, substeps_taken, seconds)
+
+
+def implicit_integrator(gamma: float | None, integrator: MidpointFem | NewmarkFem | None
+                        ) -> MidpointFem | NewmarkFem:
+    """The monolithic schemes' body integrator: ``integrator``, Newmark's rule with ``gamma``,
+    or by default `EnergyMomentumFem` with ``DEFAULT_NUMERICAL_DAMPING``."""
+    if gamma is not None and integrator is not None:
+        raise ValueError("give gamma (Newmark's rule) or an integrator, not both")
+    if integrator is not None:
+        return integrator
+    return EnergyMomentumFem(DEFAULT_NUMERICAL_DAMPING) if gamma is None else NewmarkFem(gamma)
 
 
 def _step_boundary(model: CoupledModel, bmap: BoundaryMap,

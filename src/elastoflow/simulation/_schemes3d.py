@@ -1,10 +1,14 @@
-"""The coupling scheme of 3D runs: the paper's explicit step on a 3D grid.
+"""The coupling schemes of 3D runs: the paper's explicit step and the monolithic one.
 
 `ExplicitCoupling3D` is `ExplicitCoupling` with tetrahedral bodies and closed-surface
 obstacles: the 3D boundary map (`elastoflow.coupling.build_boundary_map_3d`) and
 classification (`interior_boundary_3d`) from the bodies' current state, the 3D fluid's phases
 in the order of `FluidSolver3D.step`, the traction on the surface triangles
 (`force_traction_3d`) and `ExplicitFem` substeps of each body under that force.
+
+`MonolithicCoupling3D` is `MonolithicCoupling` on the same parts: the pressure solve sees the
+bodies' inertia through the 3D interface flux (`interface_flux_3d`), so that bodies lighter
+than the fluid they displace are stable.
 """
 
 from __future__ import annotations
@@ -15,10 +19,12 @@ from typing import TYPE_CHECKING, Literal
 import numpy as np
 
 from elastoflow.fluid import FluidState3D
+from elastoflow.linalg import SolveReport
 from elastoflow.simulation._checks import cfl_number, check_fluid_finite
 from elastoflow.simulation._report import SimulationBlowUp, StepReport
 from elastoflow.simulation._state import CoupledModel3D, CoupledState, StepBoundary3D
-from elastoflow.solid import ExplicitFem
+from elastoflow.simulation._schemes import implicit_integrator
+from elastoflow.solid import ExplicitFem, MidpointFem, NewmarkFem
 
 if TYPE_CHECKING:
     from elastoflow.fluid import InteriorBoundary3D
@@ -35,7 +41,7 @@ class ExplicitCoupling3D:
     `ExplicitFem` substeps under that force, held constant (optionally under-relaxed).
 
     Unstable, as in 2D, when the fluid a body displaces outweighs it (added mass); such runs
-    stop with `SimulationBlowUp`. The monolithic scheme is 2D only so far.
+    stop with `SimulationBlowUp`: `MonolithicCoupling3D` is stable there.
 
     Args:
         substeps: FEM substeps per fluid step, or "auto" for the stability bound.
@@ -140,16 +146,170 @@ class ExplicitCoupling3D:
                 substeps_taken.append(int(report.substeps))
             seconds["solid"] = clock() - t0
 
-        state_out.step_index = next_step
-        state_out.time = now
-        state_out.boundary = boundary
-        return StepReport(
-            step=next_step,
-            time=now,
-            pressure_iterations=int(solve.iterations),
-            pressure_residual=float(solve.residual),
-            substeps=substeps_taken,
-            cfl=cfl_number(model.grid, out, dt),
-            crossing_count=0 if boundary is None else int(boundary.boundary_map.crossing_count),
-            seconds_by_phase=seconds,
+        return _finish(model, state_in, state_out, dt, boundary, solve, substeps_taken,
+                       seconds)
+
+
+class MonolithicCoupling3D:
+    """Strong coupling in 3D: `MonolithicCoupling`'s step (its docstring and
+    docs/method_notes.md) on tetrahedral bodies.
+
+    One step: the 3D map and classification from the bodies' current state and the interface
+    flux ``W`` (`interface_flux_3d`, exact for affine motion of each tetrahedron); the
+    viscous traction on the surface triangles from the current fields; the fluid's
+    advection, forces and viscosity; each body's implicit step under its elastic forces,
+    gravity and that traction (with the fluid's ``incremental_pressure``, the default in 3D,
+    also the last pressure's force through ``W``, as the fluid's viscosity step subtracts
+    the last pressure's gradient); then one pressure solve for fluid and bodies
+    (``(A + rho h^3 / dt DW Phi (DW)^T) p = rhs``, `PoissonSolverMGPCG3D.solve_coupled`)
+    whose answer moves both.
+
+    Args:
+        gamma: Use Newmark's rule with this gamma instead of the default integrator (as
+            `MonolithicCoupling`).
+        integrator: The bodies' implicit step; default `elastoflow.solid.EnergyMomentumFem`
+            with numerical damping ``DEFAULT_NUMERICAL_DAMPING``.
+    """
+
+    name = "monolithic"
+
+    def __init__(self, gamma: float | None = None,
+                 integrator: MidpointFem | NewmarkFem | None = None) -> None:
+        self.fem: MidpointFem | NewmarkFem = implicit_integrator(gamma, integrator)
+        self.gamma = self.fem.gamma
+        self._explicit = ExplicitCoupling3D()
+
+    def step(self, model: CoupledModel3D, state_in: State3D, state_out: State3D,
+             dt: float) -> StepReport:
+        """Write the state after ``dt`` [s] into ``state_out``; ``state_in`` is unchanged."""
+        from elastoflow.coupling import (
+            PressureCoupledBodies,
+            build_boundary_map_3d,
+            force_traction_3d,
+            interface_flux_3d,
+            interior_boundary_3d,
         )
+
+        if not model.bodies:
+            # Nothing to couple: obstacles have prescribed velocities.
+            return self._explicit.step(model, state_in, state_out, dt)
+        seconds: dict[str, float] = {}
+        clock = _time.perf_counter
+        fluid, grid = model.fluid, model.grid
+        next_step = state_in.step_index + 1
+        now = state_in.time + dt
+        where = f"step {next_step}, t = {now:.6g} s"
+        state_out.assign(state_in)
+        out = state_out.fluid
+
+        t0 = clock()
+        offsets = model.object_offsets()
+        body_count = len(model.bodies)
+        points, velocities, triangles, owner = model.boundary_points(state_in)
+        bmap = build_boundary_map_3d(grid, points, velocities, triangles, owner)
+        reuse = None if state_out.boundary is None else state_out.boundary.interior
+        interior = interior_boundary_3d(bmap, out=reuse)
+        boundary = StepBoundary3D(bmap, interior)
+        tetrahedra = np.concatenate([body.mesh.tetrahedra + offsets[index]
+                                     for index, body in enumerate(model.bodies)])
+        tetrahedron_offsets = np.cumsum([0] + [body.mesh.tetrahedra.shape[0]
+                                               for body in model.bodies])
+        flux = interface_flux_3d(grid, bmap, interior, tetrahedra, tetrahedron_offsets)
+        seconds["map"] = clock() - t0
+
+        t0 = clock()
+        held = np.zeros_like(points)
+        if fluid.viscosity > 0.0:
+            held += force_traction_3d(grid, bmap, out.velocity_x, out.velocity_y,
+                                      out.velocity_z, np.zeros(grid.shape_cells),
+                                      fluid.density, fluid.viscosity, interior)
+        if fluid.incremental_pressure:
+            held += flux.pressure_forces(out.pressure)
+        seconds["coupling_force"] = clock() - t0
+
+        try:
+            t0 = clock()
+            fluid.advect(out, dt, interior)
+            t1 = clock()
+            fluid.apply_forces(out, dt, state_in.time)
+            t2 = clock()
+            fluid.diffuse(out, dt, interior)
+            t3 = clock()
+        except ValueError:
+            check_fluid_finite(out, next_step, now)
+            raise
+        seconds.update({"advection": t1 - t0, "forces": t2 - t1, "viscosity": t3 - t2})
+
+        t0 = clock()
+        responses = [self.fem.response(body, body_state, dt)
+                     for body, body_state in zip(model.bodies, state_in.bodies, strict=True)]
+        for index, body in enumerate(model.bodies):
+            try:
+                self.fem.advance(body, state_in.bodies[index], state_out.bodies[index], dt,
+                                 held[offsets[index]:offsets[index + 1]], responses[index],
+                                 step=next_step)
+            except Exception as error:  # re-raised with where it happened
+                raise SimulationBlowUp(f"{where}, body {index}: {error}") from error
+        # The flux balance counts what the bodies sweep over the step, their mean velocity.
+        predicted = np.array(velocities)
+        for index in range(body_count):
+            lo, hi = offsets[index], offsets[index + 1]
+            predicted[lo:hi] = (state_out.bodies[index].positions
+                                - state_in.bodies[index].positions) / dt
+        for index, obstacle in enumerate(model.obstacles, start=body_count):
+            predicted[offsets[index]:offsets[index + 1]] = obstacle.velocities_at(now)
+        seconds["solid"] = clock() - t0
+
+        t0 = clock()
+        coupled = PressureCoupledBodies(flux, predicted, responses,
+                                        offsets[:body_count + 1].tolist(), fluid.density, dt,
+                                        bmap=bmap, gravity=fluid.gravity)
+        try:
+            solve = fluid.project(out, dt, interior, bodies=coupled)
+        except ValueError:
+            check_fluid_finite(out, next_step, now)
+            raise
+        seconds["pressure"] = clock() - t0
+
+        t0 = clock()
+        for index, body in enumerate(model.bodies):
+            lo, hi = offsets[index], offsets[index + 1]
+            body_out = state_out.bodies[index]
+            change = coupled.velocities[lo:hi] - predicted[lo:hi]
+            body_out.positions += dt * change
+            body_out.velocities += 2.0 * change
+            state_out.body_forces[index][...] = held[lo:hi] + coupled.pressure_forces[lo:hi]
+            determinants = body.deformation_determinants(body_out)
+            if not (np.isfinite(body_out.positions).all() and determinants.min() > 0.0):
+                element = int(np.argmin(np.nan_to_num(determinants, nan=-np.inf)))
+                raise SimulationBlowUp(
+                    f"{where}, body {index}: the pressure's answer inverted element {element} "
+                    f"(det F = {determinants[element]:.3g}); use a smaller dt")
+        seconds["solid"] += clock() - t0
+
+        check_fluid_finite(out, next_step, now)
+        return _finish(model, state_in, state_out, dt, boundary, solve,
+                       [1] * body_count, seconds)
+
+
+Scheme3D = ExplicitCoupling3D | MonolithicCoupling3D
+"""The coupling schemes a 3D `Simulation` takes."""
+
+
+def _finish(model: CoupledModel3D, state_in: State3D, state_out: State3D, dt: float,
+            boundary: StepBoundary3D | None, solve: SolveReport, substeps: list[int],
+            seconds: dict[str, float]) -> StepReport:
+    """Commit time, step index and this step's boundary data to ``state_out``; the report."""
+    state_out.step_index = state_in.step_index + 1
+    state_out.time = state_in.time + dt
+    state_out.boundary = boundary
+    return StepReport(
+        step=state_out.step_index,
+        time=state_out.time,
+        pressure_iterations=int(solve.iterations),
+        pressure_residual=float(solve.residual),
+        substeps=substeps,
+        cfl=cfl_number(model.grid, state_out.fluid, dt),
+        crossing_count=0 if boundary is None else int(boundary.boundary_map.crossing_count),
+        seconds_by_phase=seconds,
+    )

@@ -30,8 +30,9 @@ from elastoflow.simulation._schemes import (
     CouplingScheme,
     ExplicitCoupling,
     ForceModel,
+    MonolithicCoupling,
 )
-from elastoflow.simulation._schemes3d import ExplicitCoupling3D
+from elastoflow.simulation._schemes3d import ExplicitCoupling3D, MonolithicCoupling3D, Scheme3D
 from elastoflow.simulation._state import CoupledModel, CoupledModel3D, CoupledState
 from elastoflow.solid import BodyModel, ElasticBody3D
 
@@ -49,7 +50,7 @@ class Simulation:
     The dimension follows the grid: a `elastoflow.grid.Grid3D` with a
     `elastoflow.fluid.FluidSolver3D` makes a 3D run (a `CoupledModel3D`, tetrahedral
     `elastoflow.solid.ElasticBody3D` bodies, `elastoflow.coupling.Obstacle3D` obstacles and
-    the `ExplicitCoupling3D` scheme); the 2D-only options (the monolithic scheme, the
+    the `ExplicitCoupling3D` or `MonolithicCoupling3D` scheme); the 2D-only options (the
     momentum-exchange force, added mass, boundary treatments other than the cut cell, a free
     surface) are refused there.
 
@@ -72,7 +73,8 @@ class Simulation:
         coupling: "explicit" (the paper's partitioned step, `ExplicitCoupling`, built from the
             keys above) or "monolithic" (`MonolithicCoupling`: the pressure solve sees the
             bodies' inertia, stable for any density ratio without relaxation), or a scheme
-            object.
+            object. On a 3D grid: `ExplicitCoupling3D` / `MonolithicCoupling3D` (a 2D
+            `MonolithicCoupling` object gives its integrator to the latter).
         checks: What each new state must pass; default `FiniteFields` and `CflLimit`.
         boundary: How the fluid sees bodies and obstacles: "cut_cell" (default: open
             fractions and cut distances from the boundary map), "staircase" (cells by their
@@ -96,7 +98,7 @@ class Simulation:
         cfl_limit: float = 20.0,
         force_relaxation: float = 1.0,
         added_mass: float = 0.0,
-        coupling: str | CouplingScheme | ExplicitCoupling3D = "explicit",
+        coupling: str | CouplingScheme | Scheme3D = "explicit",
         checks: Sequence[StepCheck] | None = None,
         boundary: str | BoundaryTreatment = "cut_cell",
         level_set: np.ndarray | None = None,
@@ -110,7 +112,7 @@ class Simulation:
         self._next: CoupledState | None = None
         self.last_report: StepReport | None = None
         self.model: CoupledModel | CoupledModel3D
-        self.scheme: CouplingScheme | ExplicitCoupling3D
+        self.scheme: CouplingScheme | Scheme3D
         if isinstance(grid, Grid3D):
             self._set_up_3d(grid, fluid_solver, state, bodies, obstacles, substeps,
                             force_model, force_relaxation, added_mass, coupling, boundary,
@@ -119,8 +121,9 @@ class Simulation:
         if not isinstance(fluid_solver, FluidSolver):
             raise ValueError(f"fluid_solver = {type(fluid_solver).__name__}: a 2D grid needs "
                              "an elastoflow.fluid.FluidSolver")
-        if isinstance(coupling, ExplicitCoupling3D):
-            raise ValueError("coupling = ExplicitCoupling3D: a 2D grid needs a 2D scheme")
+        if isinstance(coupling, ExplicitCoupling3D | MonolithicCoupling3D):
+            raise ValueError(f"coupling = {type(coupling).__name__}: a 2D grid needs a 2D "
+                             "scheme")
         if not all(isinstance(obstacle, Obstacle) for obstacle in obstacles):
             raise ValueError("obstacles: a 2D run takes elastoflow.coupling.Obstacle")
         if any(isinstance(body, ElasticBody3D) for body in bodies):
@@ -191,13 +194,21 @@ class Simulation:
                 raise ValueError(f"{name} = {value!r}: a 3D run has only {allowed!r} so far")
         if level_set is not None:
             raise ValueError("level_set: a 3D run has no free surface so far")
-        if isinstance(coupling, ExplicitCoupling3D):
+        scheme: Scheme3D
+        if isinstance(coupling, ExplicitCoupling3D | MonolithicCoupling3D):
             scheme = coupling
-        elif coupling == "explicit":
+        elif isinstance(coupling, MonolithicCoupling):
+            scheme = MonolithicCoupling3D(integrator=coupling.fem)
+        elif isinstance(coupling, str) and coupling == "explicit":
             scheme = ExplicitCoupling3D(substeps, force_relaxation)
+        elif isinstance(coupling, str) and coupling == "monolithic":
+            scheme = MonolithicCoupling3D()
         else:
-            raise ValueError(f"coupling = {coupling!r}: a 3D run has only the explicit scheme "
-                             "so far ('explicit' or an ExplicitCoupling3D)")
+            raise ValueError(f"coupling = {coupling!r}: a 3D run takes 'explicit', "
+                             "'monolithic', an ExplicitCoupling3D or a MonolithicCoupling3D")
+        if scheme.name == "monolithic" and force_relaxation != 1.0:
+            raise ValueError(f"force_relaxation = {force_relaxation!r}: the monolithic "
+                             "scheme needs none (it must be 1)")
         model = CoupledModel3D(grid, fluid_solver,
                                tuple(b for b in bodies if isinstance(b, ElasticBody3D)),
                                tuple(o for o in obstacles if isinstance(o, Obstacle3D)))
@@ -324,7 +335,7 @@ class Simulation:
             self._next = self.state.copy()
         previous = self.state.boundary
         try:
-            if isinstance(self.scheme, ExplicitCoupling3D):
+            if isinstance(self.scheme, ExplicitCoupling3D | MonolithicCoupling3D):
                 assert isinstance(self.model, CoupledModel3D)
                 report = self.scheme.step(self.model, self.state, self._next, self.dt)
             else:

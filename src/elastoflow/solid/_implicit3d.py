@@ -37,6 +37,13 @@ from elastoflow.solid._response import _BLAS, StepResponse, _banded_cholesky
 # the banded factor (its compliance on 81 dofs: 1.7 ms dense, 18 ms banded); at 108 free
 # dofs both take 6-7 ms.
 _DENSE_LIMIT_3D = 192
+# Above it, the banded factor while its work n b^2 stays below this (2D: 2e8, for slender
+# bodies). A body's compliance on the surface dofs the pressure touches is then applied by
+# the factor's sweeps inside the coupled solve; SuperLU's answer has to be formed, one
+# solve per touched dof: the settling sphere at 6 cells per diameter (2337 dofs, half-band
+# 431 in RCM order, n b^2 = 4.3e8) spent 18 s a step there, while its banded factor takes
+# 0.2 s (SuperLU 0.1 s).
+_BANDED_WORK_LIMIT_3D = 1.0e9
 
 
 @dataclass
@@ -175,7 +182,7 @@ def step_response_3d(body: ElasticBody3D, positions: np.ndarray, dt: float,
     # are the same matrix.
     columns = sparse.csc_matrix((matrix.data, matrix.indices, matrix.indptr),
                                 shape=matrix.shape)
-    banded = _banded_cholesky(columns)
+    banded = _banded_cholesky(columns, _BANDED_WORK_LIMIT_3D)
     if banded is not None:
         return StepResponse3D(free, answer, None, None, banded[0], banded[1])
     lu = sparse_linalg.splu(columns, permc_spec="MMD_AT_PLUS_A",

@@ -477,14 +477,15 @@ def step_response(
     return StepResponse(free, answer, lu)
 
 
-def _banded_cholesky(matrix: sparse.csc_matrix) -> tuple[np.ndarray, np.ndarray] | None:
+def _banded_cholesky(matrix: sparse.csc_matrix, work_limit: float = _BANDED_WORK_LIMIT
+                     ) -> tuple[np.ndarray, np.ndarray] | None:
     """Cholesky factor of ``matrix`` in LAPACK's upper banded storage after a reverse
-    Cuthill-McKee reordering, and the order; None when the band is too wide to pay off or
-    the matrix is not positive definite to round-off."""
+    Cuthill-McKee reordering, and the order; None when the band is too wide to pay off
+    (``n b^2`` over ``work_limit``) or the matrix is not positive definite to round-off."""
     order = reverse_cuthill_mckee(matrix.tocsr(), symmetric_mode=True).astype(np.int64)
     permuted = matrix[order][:, order].tocoo()
     band = int(np.abs(permuted.row - permuted.col).max()) if permuted.nnz else 0
-    if matrix.shape[0] * band * band > _BANDED_WORK_LIMIT:
+    if matrix.shape[0] * band * band > work_limit:
         return None
     upper = permuted.row <= permuted.col
     storage = np.zeros((band + 1, matrix.shape[0]))

@@ -61,7 +61,8 @@ class SettlingRun:
 
 
 def run_settling(cells_per_diameter: float = 6.0, duration: float = 4.0, dt: float = 0.01,
-                 progress: Callable[[str], None] | None = None) -> SettlingRun:
+                 progress: Callable[[str], None] | None = None,
+                 scheme: str = "explicit") -> SettlingRun:
     """The library scene at ``cells_per_diameter`` to ``duration`` [s] with step ``dt``.
 
     The box (100 x 160 x 100 mm) must be a whole number of cells: h = 20 mm / k, i.e. 0.75 k
@@ -77,6 +78,7 @@ def run_settling(cells_per_diameter: float = 6.0, duration: float = 4.0, dt: flo
     data["bodies"][0]["shape"]["element_size"] = h
     data["time"] = {"dt": dt, "duration": duration}
     data["outputs"] = {}
+    data["coupling"] = {"scheme": scheme}
     from elastoflow.simulation import CoupledModel3D
 
     simulation = build_simulation(parse_scene(data, source="sphere_settling"))

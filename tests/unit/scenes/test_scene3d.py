@@ -75,8 +75,11 @@ def test_a_3d_scene_round_trips_through_toml() -> None:
 @pytest.mark.parametrize(("path", "value", "expected"), [
     ("domain.nz", 8, "domain.nz: unknown key (allowed keys: lx, ly, lz, nx, h, origin)"),
     ("obstacles.0.center", [0.5, 0.5], "obstacles.0.center = [0.5, 0.5]: too few items"),
-    ("coupling", {"scheme": "monolithic"}, "coupling.scheme = 'monolithic': must be "
-     "'explicit'"),
+    ("coupling", {"scheme": "partitioned"}, "coupling.scheme = 'partitioned': must be "
+     "'explicit' or 'monolithic'"),
+    ("coupling", {"scheme": "monolithic", "force_relaxation": 0.5}, "coupling = { scheme = "
+     "'monolithic', force_relaxation = 0.5 }: force_relaxation stabilises the explicit "
+     "scheme only"),
     ("boundaries.right", "no_slip", "boundaries.left: fluid flows in but no side lets it out"),
     ("obstacles.0.radius", 0.6, "obstacles.0 (sphere, bounds [-0.1, -0.1, -0.1, 1.1, 1.1, "
      "1.1]): must lie inside the domain [0, 0, 0, 1.5, 1, 1]"),

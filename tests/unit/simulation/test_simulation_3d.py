@@ -142,7 +142,7 @@ def test_obstacle_motion_and_shapes() -> None:
 def test_2d_only_options_are_refused_in_3d_in_one_line() -> None:
     solver = channel_solver()
     cases = {
-        "coupling": dict(coupling="monolithic"),
+        "coupling": dict(coupling="partitioned"),
         "force_model": dict(force_model="momentum_exchange"),
         "boundary": dict(boundary="staircase"),
         "added_mass": dict(added_mass=1.0),

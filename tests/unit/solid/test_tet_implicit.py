@@ -374,7 +374,7 @@ def test_every_factor_solves_the_step_matrix(factor, monkeypatch) -> None:
     if factor == "dense":
         monkeypatch.setattr(implicit3d, "_DENSE_LIMIT_3D", 10**6)
     elif factor == "superlu":
-        monkeypatch.setattr(implicit3d, "_banded_cholesky", lambda matrix: None)
+        monkeypatch.setattr(implicit3d, "_banded_cholesky", lambda matrix, work_limit: None)
     mesh = mesh_box((0.3, 0.1, 0.1), counts=(6, 3, 3))
     fixed = nodes_in_box_3d(mesh, (0.0, -1.0, -1.0, 0.0, 1.0, 1.0))
     body = ElasticBody3D(mesh, DAMPED, fixed_nodes=fixed)
