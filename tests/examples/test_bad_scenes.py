@@ -183,7 +183,7 @@ MUTATIONS_3D: list[tuple[str, Any, str | None]] = [
     ("jets.0.region", [0.5, 0.1, 0.5, 0.4, 0.2, 0.6], "jets.0.region"),
     ("jets.0.velocity", [math.inf, 0.0, 0.0], "jets.0.velocity.0"),
     ("outputs.video.axis", "w", None), ("outputs.video.at", 100.0, None),
-    ("coupling.scheme", "monolithic", None),
+    ("coupling.scheme", "partitioned", None),
 ]
 
 

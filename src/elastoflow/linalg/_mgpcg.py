@@ -64,9 +64,10 @@ _NO_BAND = np.zeros((0, 1))
 # against a band of 25.
 _WIDEST_BAND = 4
 # ... and while the selected inverse's work n b w stays below this: a 3D body's banded
-# factor is wide (the settling sphere: n = 2337, b = 431), where pairs of columns meeting
-# at a cell can lie n apart; the diagonal is then approximate (only the preconditioner
-# reads it) instead of costing seconds a step.
+# factor is wide (the settling sphere at 6 cells per diameter: n = 2337, b = 431), where
+# pairs of columns meeting at a cell can lie n apart; the diagonal is then approximate
+# (only the preconditioner reads it) instead of costing seconds a step (2.1 s there, for
+# the band alone).
 _DIAGONAL_WORK_LIMIT = 2.0e8
 
 
@@ -143,10 +144,17 @@ class LowRankTerm:
             rows = np.ascontiguousarray(self.banded.rows)
             gap = low_rank_band_gap(points, term, out.shape[0])
             n, band = rows.shape[0], rows.shape[1]
-            affordable = int(_DIAGONAL_WORK_LIMIT // max(n * band, 1))
-            width = max(band - 1, min(gap, _WIDEST_BAND * band, n - 1, affordable))
-            selected = np.empty((rows.shape[0], width + 1))
-            banded_selected_inverse(rows, selected)
+            if n * band * band > _DIAGONAL_WORK_LIMIT:
+                # Even the band's own entries cost too much: each column's own entry only,
+                # as 1 / (U^T U)_ii (a lower bound of the inverse's; the off-diagonal
+                # pairs count as outside).
+                columns = np.ascontiguousarray(self.banded.columns)
+                selected = (1.0 / np.einsum("ij,ij->i", columns, columns))[:, None]
+            else:
+                affordable = int(_DIAGONAL_WORK_LIMIT // max(n * band, 1))
+                width = max(band - 1, min(gap, _WIDEST_BAND * band, n - 1, affordable))
+                selected = np.empty((rows.shape[0], width + 1))
+                banded_selected_inverse(rows, selected)
         outside = low_rank_diagonal_kernel(points, term, selected, out.shape[0], out)
         return out.reshape(shape), int(outside)
 

@@ -7,8 +7,8 @@ sphere reaches ``u_max = 0.036 m/s`` in the box (ten Cate's measurement; the unb
 terminal velocity from the Abraham correlation is 0.038 m/s), then slows as it nears the
 floor.
 
-Run ``python -m elastoflow.validation._settling [cells per diameter ...]`` to rewrite the
-settling block of ``docs/validation/three_d.md`` and its plot.
+Run ``python -m elastoflow.validation._settling [cells per diameter ...] [--scheme explicit |
+monolithic]`` to rewrite the settling block of ``docs/validation/three_d.md`` and its plot.
 """
 
 from __future__ import annotations
@@ -41,6 +41,7 @@ class SettlingRun:
     seconds: float
     cells: tuple[int, int, int]
     tetrahedra: int
+    scheme: str
     failure: str | None = None
     """Why the run stopped early (a `SimulationBlowUp`'s message), None if it did not."""
 
@@ -62,8 +63,9 @@ class SettlingRun:
 
 def run_settling(cells_per_diameter: float = 6.0, duration: float = 4.0, dt: float = 0.01,
                  progress: Callable[[str], None] | None = None,
-                 scheme: str = "explicit") -> SettlingRun:
-    """The library scene at ``cells_per_diameter`` to ``duration`` [s] with step ``dt``.
+                 scheme: str | None = None) -> SettlingRun:
+    """The library scene at ``cells_per_diameter`` to ``duration`` [s] with step ``dt``, with
+    its own coupling scheme or ``scheme`` ("explicit", "monolithic").
 
     The box (100 x 160 x 100 mm) must be a whole number of cells: h = 20 mm / k, i.e. 0.75 k
     cells per diameter (4.5, 6, 7.5, 9, ...)."""
@@ -78,7 +80,8 @@ def run_settling(cells_per_diameter: float = 6.0, duration: float = 4.0, dt: flo
     data["bodies"][0]["shape"]["element_size"] = h
     data["time"] = {"dt": dt, "duration": duration}
     data["outputs"] = {}
-    data["coupling"] = {"scheme": scheme}
+    if scheme is not None:
+        data["coupling"] = {"scheme": scheme}
     from elastoflow.simulation import CoupledModel3D
 
     simulation = build_simulation(parse_scene(data, source="sphere_settling"))
@@ -111,7 +114,7 @@ def run_settling(cells_per_diameter: float = 6.0, duration: float = 4.0, dt: flo
                      f"{speeds[-1]:.4f} m/s, gap/D = {gaps[-1] / DIAMETER:.2f}")
     return SettlingRun(cells_per_diameter, np.array(times), np.array(speeds), np.array(gaps),
                        _time.perf_counter() - began, model.grid.shape_cells,
-                       body.mesh.tetrahedron_count, failure)
+                       body.mesh.tetrahedron_count, simulation.scheme.name, failure)
 
 
 def write_series(runs: list[SettlingRun], path: Path) -> None:
@@ -131,7 +134,7 @@ def plot_settling(runs: list[SettlingRun], path: Path) -> None:
 
     figure, (left, right) = plt.subplots(1, 2, figsize=(10, 4))
     for run in runs:
-        label = f"D/h = {run.cells_per_diameter:g}"
+        label = f"D/h = {run.cells_per_diameter:g}, {run.scheme}"
         left.plot(run.times, run.speeds, label=label)
         right.plot(run.times, run.gaps / DIAMETER, label=label)
     left.axhline(U_MAX_MEASURED, color="k", linestyle="--", label="ten Cate u_max (0.036)")
@@ -156,30 +159,33 @@ def settling_block(runs: list[SettlingRun], machine: str) -> str:
     lines = [BEGIN, "", "## A sphere settling in a box (ten Cate et al. 2002, E1)", "",
              "The library scene `sphere_settling`: a 15 mm elastic sphere (1120 kg/m^3, "
              "E = 100 kPa) released from rest 8 diameters above the floor of a closed "
-             "100 x 160 x 100 mm box of oil (970 kg/m^3, 0.373 Pa s; Re 1.5), the explicit "
-             "coupling with the traction force, dt = 0.01 s. The sphere's speed is its nodes' "
+             "100 x 160 x 100 mm box of oil (970 kg/m^3, 0.373 Pa s; Re 1.5), dt = 0.01 s, "
+             "with the coupling scheme of each row (the scene's own: explicit). The "
+             "sphere's speed is its nodes' "
              "mass-weighted mean velocity. Published: ten Cate measured u_max = 0.0360 m/s "
              "in the box (u_inf = 0.038 m/s unbounded, from the Abraham correlation).", "",
              "u_max here is the largest speed while the sphere is more than two diameters "
              "above the floor (the series: `three_d_settling.csv`).", "",
-             "| D/h | cells | tetrahedra | u_max [m/s] | vs 0.0360 | at t [s] | end: t [s], "
-             "gap/D | run time [s] |",
-             "|---|---|---|---|---|---|---|---|"]
+             "| D/h | scheme | cells | tetrahedra | u_max [m/s] | vs 0.0360 | at t [s] | "
+             "end: t [s], gap/D | run time [s] |",
+             "|---|---|---|---|---|---|---|---|---|"]
     for run in runs:
         nx, ny, nz = run.cells
         end = f"{run.times[-1]:.2f}, {run.gaps[-1] / DIAMETER:.2f}"
         if run.failure is not None:
             end += " (diverged)"
         lines.append(
-            f"| {run.cells_per_diameter:g} | {nx}x{ny}x{nz} | {run.tetrahedra} | "
+            f"| {run.cells_per_diameter:g} | {run.scheme} | {nx}x{ny}x{nz} | {run.tetrahedra} | "
             f"{run.u_max:.4f} | {100 * (run.u_max / U_MAX_MEASURED - 1):+.1f} % | "
             f"{run.time_of_u_max:.2f} | {end} | {run.seconds:.0f} |")
     failures = [run for run in runs if run.failure is not None]
     if failures:
         lines += [""] + [f"D/h = {run.cells_per_diameter:g} stopped: {run.failure}"
                          for run in failures]
+    schemes = sorted({run.scheme for run in runs})
+    flag = f" --scheme {schemes[0]}" if len(schemes) == 1 else ""
     lines += ["", f"Machine: {machine}. Command: `python -m elastoflow.validation._settling "
-              f"{' '.join(f'{r.cells_per_diameter:g}' for r in runs)}`.", "",
+              f"{' '.join(f'{r.cells_per_diameter:g}' for r in runs)}{flag}`.", "",
               "![settling](three_d_settling.png)", "", END]
     return "\n".join(lines)
 
@@ -204,11 +210,17 @@ def write_settling(runs: list[SettlingRun], folder: Path, machine: str) -> Path:
 def main(argv: list[str]) -> None:
     import platform
 
+    scheme = None
+    if "--scheme" in argv:
+        at = argv.index("--scheme")
+        scheme = argv[at + 1]
+        argv = argv[:at] + argv[at + 2:]
     resolutions = [float(a) for a in argv] or [6.0]
     machine = f"{platform.machine()}, {platform.processor() or 'cpu'}, 2 cores"
     runs = []
     for n in resolutions:
-        runs.append(run_settling(n, progress=lambda line: print(line, flush=True)))
+        runs.append(run_settling(n, progress=lambda line: print(line, flush=True),
+                                 scheme=scheme))
         # Written after each run: a long study keeps what it has finished.
         print(write_settling(runs, Path("docs/validation"), machine), flush=True)
 

@@ -114,3 +114,14 @@ def test_the_library_3d_scenes_build(name: str) -> None:
     assert isinstance(scene, Scene3D)
     simulation = build_simulation(scene)
     assert isinstance(simulation.model, CoupledModel3D)
+
+
+def test_the_elastic_block_as_dense_as_the_water_is_monolithic() -> None:
+    """It runs with the monolithic coupling and takes steps from its name."""
+    from elastoflow.simulation import MonolithicCoupling3D
+
+    simulation = build_simulation(get_scene("elastic_block_3d"))
+    assert isinstance(simulation.scheme, MonolithicCoupling3D)
+    simulation.run(2)
+    report = simulation.last_report
+    assert report is not None and report.pressure_residual <= 1e-6
