@@ -34,6 +34,7 @@ from elastoflow.simulation._schemes import (
     _finish,
     _intermediate_velocity,
     _step_boundary,
+    take_pressure_answer,
 )
 from elastoflow.simulation._state import CoupledModel, CoupledState
 from elastoflow.solid import MidpointFem, NewmarkFem
@@ -268,20 +269,8 @@ class FreeSurfaceMonolithicCoupling(FreeSurfaceScheme):
         seconds["pressure"] = clock() - t0
 
         t0 = clock()
-        for index, body in enumerate(model.bodies):
-            lo, hi = offsets[index], offsets[index + 1]
-            body_out = state_out.bodies[index]
-            change = coupled.velocities[lo:hi] - predicted[lo:hi]
-            body_out.positions += dt * change
-            body_out.velocities += 2.0 * change
-            state_out.body_forces[index][...] = viscous[lo:hi] + coupled.pressure_forces[lo:hi]
-            determinants = body.deformation_determinants(body_out)
-            if not (np.isfinite(body_out.positions).all() and determinants.min() > 0.0):
-                element = int(np.argmin(np.nan_to_num(determinants, nan=-np.inf)))
-                raise SimulationBlowUp(
-                    f"{where}, body {index}: the pressure's answer inverted element {element} "
-                    f"(det F = {determinants[element]:.3g}); use a smaller dt"
-                )
+        take_pressure_answer(model.bodies, state_out, offsets, predicted, coupled, viscous, dt,
+                             where)
         seconds["solid"] += clock() - t0
 
         t0 = clock()

@@ -21,6 +21,7 @@ from elastoflow.simulation._state import CoupledModel, CoupledState, StepBoundar
 from elastoflow.solid import (
     BodyModel,
     ElasticBody,
+    ElasticBody3D,
     EnergyMomentumFem,
     ExplicitFem,
     MidpointFem,
@@ -28,7 +29,9 @@ from elastoflow.solid import (
 )
 
 if TYPE_CHECKING:
-    from elastoflow.coupling import BoundaryMap
+    from collections.abc import Sequence
+
+    from elastoflow.coupling import BoundaryMap, PressureCoupledBodies
     from elastoflow.fluid import InteriorBoundary
     from elastoflow.linalg import SolveReport
 
@@ -348,20 +351,8 @@ class MonolithicCoupling:
         seconds["pressure"] = clock() - t0
 
         t0 = clock()
-        for index, body in enumerate(model.bodies):
-            lo, hi = offsets[index], offsets[index + 1]
-            body_out = state_out.bodies[index]
-            change = coupled.velocities[lo:hi] - predicted[lo:hi]
-            body_out.positions += dt * change
-            body_out.velocities += 2.0 * change
-            state_out.body_forces[index][...] = viscous[lo:hi] + coupled.pressure_forces[lo:hi]
-            determinants = body.deformation_determinants(body_out)
-            if not (np.isfinite(body_out.positions).all() and determinants.min() > 0.0):
-                element = int(np.argmin(np.nan_to_num(determinants, nan=-np.inf)))
-                raise SimulationBlowUp(
-                    f"{where}, body {index}: the pressure's answer inverted element {element} "
-                    f"(det F = {determinants[element]:.3g}); use a smaller dt"
-                )
+        take_pressure_answer(model.bodies, state_out, offsets, predicted, coupled, viscous, dt,
+                             where)
         seconds["solid"] += clock() - t0
 
         check_fluid_finite(out, next_step, state_in.time + dt)
@@ -377,6 +368,31 @@ def implicit_integrator(gamma: float | None, integrator: MidpointFem | NewmarkFe
     if integrator is not None:
         return integrator
     return EnergyMomentumFem(DEFAULT_NUMERICAL_DAMPING) if gamma is None else NewmarkFem(gamma)
+
+
+def take_pressure_answer(bodies: Sequence[BodyModel | ElasticBody3D], state_out: CoupledState,
+                         offsets: np.ndarray, predicted: np.ndarray,
+                         coupled: PressureCoupledBodies, held: np.ndarray, dt: float,
+                         where: str) -> None:
+    """Each body of a monolithic step takes the coupled solve's answer (2D and 3D): the mean
+    velocity change ``dv`` over the step moves it by ``dt dv`` and its end velocity by
+    ``2 dv`` (the implicit rules' answer to a held force); its recorded force is the held
+    part ``held`` plus the pressure's. Raises `SimulationBlowUp` naming the body and the
+    element the answer inverted."""
+    for index, body in enumerate(bodies):
+        lo, hi = offsets[index], offsets[index + 1]
+        body_out = state_out.bodies[index]
+        change = coupled.velocities[lo:hi] - predicted[lo:hi]
+        body_out.positions += dt * change
+        body_out.velocities += 2.0 * change
+        state_out.body_forces[index][...] = held[lo:hi] + coupled.pressure_forces[lo:hi]
+        determinants = body.deformation_determinants(body_out)
+        if not (np.isfinite(body_out.positions).all() and determinants.min() > 0.0):
+            element = int(np.argmin(np.nan_to_num(determinants, nan=-np.inf)))
+            raise SimulationBlowUp(
+                f"{where}, body {index}: the pressure's answer inverted element {element} "
+                f"(det F = {determinants[element]:.3g}); use a smaller dt"
+            )
 
 
 def _step_boundary(model: CoupledModel, bmap: BoundaryMap,

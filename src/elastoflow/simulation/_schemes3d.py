@@ -23,7 +23,7 @@ from elastoflow.linalg import SolveReport
 from elastoflow.simulation._checks import cfl_number, check_fluid_finite
 from elastoflow.simulation._report import SimulationBlowUp, StepReport
 from elastoflow.simulation._state import CoupledModel3D, CoupledState, StepBoundary3D
-from elastoflow.simulation._schemes import implicit_integrator
+from elastoflow.simulation._schemes import implicit_integrator, take_pressure_answer
 from elastoflow.solid import ExplicitFem, MidpointFem, NewmarkFem
 
 if TYPE_CHECKING:
@@ -272,19 +272,8 @@ class MonolithicCoupling3D:
         seconds["pressure"] = clock() - t0
 
         t0 = clock()
-        for index, body in enumerate(model.bodies):
-            lo, hi = offsets[index], offsets[index + 1]
-            body_out = state_out.bodies[index]
-            change = coupled.velocities[lo:hi] - predicted[lo:hi]
-            body_out.positions += dt * change
-            body_out.velocities += 2.0 * change
-            state_out.body_forces[index][...] = held[lo:hi] + coupled.pressure_forces[lo:hi]
-            determinants = body.deformation_determinants(body_out)
-            if not (np.isfinite(body_out.positions).all() and determinants.min() > 0.0):
-                element = int(np.argmin(np.nan_to_num(determinants, nan=-np.inf)))
-                raise SimulationBlowUp(
-                    f"{where}, body {index}: the pressure's answer inverted element {element} "
-                    f"(det F = {determinants[element]:.3g}); use a smaller dt")
+        take_pressure_answer(model.bodies, state_out, offsets, predicted, coupled, held, dt,
+                             where)
         seconds["solid"] += clock() - t0
 
         check_fluid_finite(out, next_step, now)

@@ -153,18 +153,9 @@ def block_section(runs: list[BlockRun], machine: str) -> str:
 
 def write_block(runs: list[BlockRun], folder: Path, machine: str) -> Path:
     plot_block(runs, folder / "three_d_elastic_block.png")
-    page = folder / "three_d.md"
-    text = page.read_text()
-    section = block_section(runs, machine)
-    if BEGIN in text and END in text:
-        head, rest = text.split(BEGIN, 1)
-        text = head + section + rest.split(END, 1)[1]
-    else:
-        marker = "\n## Notes"
-        text = (text.replace(marker, "\n" + section + "\n" + marker, 1) if marker in text
-                else text.rstrip("\n") + "\n\n" + section + "\n")
-    page.write_text(text)
-    return page
+    from elastoflow.validation._report import replace_block
+
+    return replace_block(folder / "three_d.md", block_section(runs, machine), BEGIN, END)
 
 
 def main(argv: list[str]) -> None:

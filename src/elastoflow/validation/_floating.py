@@ -287,16 +287,10 @@ def write_floating(floating: list[FloatingRun], sinking: list[FloatingRun], fold
     """The plot and the block of ``folder / free_surface.md`` (replaced between its markers,
     else appended)."""
     plot_floating(floating, sinking, folder / "floating.png")
-    page = folder / "free_surface.md"
-    text = page.read_text()
-    block = floating_block(floating, sinking, machine)
-    if BEGIN in text and END in text:
-        head, rest = text.split(BEGIN, 1)
-        text = head + block + rest.split(END, 1)[1]
-    else:
-        text = text.rstrip("\n") + "\n\n" + block + "\n"
-    page.write_text(text)
-    return page
+    from elastoflow.validation._report import replace_block
+
+    return replace_block(folder / "free_surface.md", floating_block(floating, sinking, machine),
+                         BEGIN, END, before=None)
 
 
 def main(argv: list[str]) -> None:

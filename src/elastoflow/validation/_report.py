@@ -151,3 +151,22 @@ def _plot(result: Result, path: Path) -> None:
     with atomic_path(path) as temporary:
         figure.savefig(temporary, dpi=110, format="png")
     plt.close(figure)
+
+
+def replace_block(page: Path, block: str, begin: str, end: str,
+                  before: str | None = "\n## Notes") -> Path:
+    """Put ``block`` (which starts with ``begin`` and ends with ``end``) into the Markdown
+    ``page``: in place of the text between those markers, else before the ``before`` heading,
+    else at the end; written atomically (a study's page is never left half written)."""
+    from elastoflow.io import write_text_atomic
+
+    text = page.read_text()
+    if begin in text and end in text:
+        head, rest = text.split(begin, 1)
+        text = head + block + rest.split(end, 1)[1]
+    elif before is not None and before in text:
+        text = text.replace(before, "\n" + block + "\n" + before, 1)
+    else:
+        text = text.rstrip("\n") + "\n\n" + block + "\n"
+    write_text_atomic(page, text)
+    return page

@@ -193,18 +193,9 @@ def settling_block(runs: list[SettlingRun], machine: str) -> str:
 def write_settling(runs: list[SettlingRun], folder: Path, machine: str) -> Path:
     plot_settling(runs, folder / "three_d_settling.png")
     write_series(runs, folder / "three_d_settling.csv")
-    page = folder / "three_d.md"
-    text = page.read_text()
-    block = settling_block(runs, machine)
-    if BEGIN in text and END in text:
-        head, rest = text.split(BEGIN, 1)
-        text = head + block + rest.split(END, 1)[1]
-    else:
-        marker = "\n## Notes"
-        text = (text.replace(marker, "\n" + block + "\n" + marker, 1) if marker in text
-                else text.rstrip("\n") + "\n\n" + block + "\n")
-    page.write_text(text)
-    return page
+    from elastoflow.validation._report import replace_block
+
+    return replace_block(folder / "three_d.md", settling_block(runs, machine), BEGIN, END)
 
 
 def main(argv: list[str]) -> None:
