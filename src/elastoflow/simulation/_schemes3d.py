@@ -24,7 +24,7 @@ from elastoflow.simulation._checks import cfl_number, check_fluid_finite
 from elastoflow.simulation._report import SimulationBlowUp, StepReport
 from elastoflow.simulation._state import CoupledModel3D, CoupledState, StepBoundary3D
 from elastoflow.simulation._schemes import implicit_integrator, take_pressure_answer
-from elastoflow.solid import ExplicitFem, MidpointFem, NewmarkFem
+from elastoflow.solid import ElasticBody3D, ExplicitFem, MidpointFem, NewmarkFem
 
 if TYPE_CHECKING:
     from elastoflow.fluid import InteriorBoundary3D
@@ -241,13 +241,18 @@ class MonolithicCoupling3D:
         seconds.update({"advection": t1 - t0, "forces": t2 - t1, "viscosity": t3 - t2})
 
         t0 = clock()
-        responses = [self.fem.response(body, body_state, dt)
-                     for body, body_state in zip(model.bodies, state_in.bodies, strict=True)]
+        dampings = [_viscous_damping(body, body_state.positions,
+                                     fluid.density * fluid.viscosity, grid.h)
+                    if fluid.viscosity > 0.0 else None
+                    for body, body_state in zip(model.bodies, state_in.bodies, strict=True)]
+        responses = [self.fem.response(body, body_state, dt, damping)
+                     for body, body_state, damping
+                     in zip(model.bodies, state_in.bodies, dampings, strict=True)]
         for index, body in enumerate(model.bodies):
             try:
                 self.fem.advance(body, state_in.bodies[index], state_out.bodies[index], dt,
                                  held[offsets[index]:offsets[index + 1]], responses[index],
-                                 step=next_step)
+                                 step=next_step, nodal_damping=dampings[index])
             except Exception as error:  # re-raised with where it happened
                 raise SimulationBlowUp(f"{where}, body {index}: {error}") from error
         # The flux balance counts what the bodies sweep over the step, their mean velocity.
@@ -279,6 +284,33 @@ class MonolithicCoupling3D:
         check_fluid_finite(out, next_step, now)
         return _finish(model, state_in, state_out, dt, boundary, solve,
                        [1] * body_count, seconds)
+
+
+# The wall velocity's weight in the traction's one-sided normal derivative, in 1 / h:
+# ``(-3 u_wall + 4 u(h) - u(2 h)) / (2 h)`` (`force_traction_3d`'s samples at 1 h and 2 h).
+_WALL_WEIGHT = 1.5
+
+
+def _viscous_damping(body: ElasticBody3D, positions: np.ndarray, dynamic_viscosity: float,
+                     h: float) -> np.ndarray:
+    """The viscous traction's dependence on the body's own velocity, as nodal blocks (n, 3,
+    3): ``mu 1.5 / h`` times each surface node's share of the area (a third of each of its
+    triangles') times the tangential projector ``I - n n^T`` (the normal part of the
+    traction's wall gradient is replaced by continuity in `force_traction_3d`). The traction
+    itself is held over the step (explicit); its change with the body's velocity over the
+    step, ``-C (v - v0)``, is taken implicitly by the body's rule. Explicit, it is a nodal
+    damping ``c dt / m ~ 9 mu dt / (rho_s h^2)`` on a surface node that made bodies in
+    viscous oil vibrate and diverge (docs/method_notes.md item 14)."""
+    triangles = body.boundary_triangles
+    corners = positions[triangles]
+    area_normal = 0.5 * np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+    area = np.linalg.norm(area_normal, axis=1)
+    normal = area_normal / np.maximum(area, np.finfo(float).tiny)[:, None]
+    blocks = (area / 3.0)[:, None, None] * (np.eye(3) - normal[:, :, None] * normal[:, None, :])
+    damping = np.zeros((positions.shape[0], 3, 3))
+    for corner in range(3):
+        np.add.at(damping, triangles[:, corner], blocks)
+    return np.asarray(dynamic_viscosity * _WALL_WEIGHT / h * damping)
 
 
 Scheme3D = ExplicitCoupling3D | MonolithicCoupling3D

@@ -268,17 +268,19 @@ class ElasticBody3D:
 
     def response_at(self, positions: np.ndarray, dt: float,
                     stiffness_step: float | None = None,
-                    scale: float | None = None) -> StepResponse:
+                    scale: float | None = None,
+                    nodal_damping: np.ndarray | None = None) -> StepResponse:
         """The linearised answer ``(M + dt D + s^2 K + dt alpha M) dv = scale f`` at
         ``positions`` (``s = stiffness_step``, default ``dt``; ``scale`` default ``dt``;
-        held nodes get 0; K with the compressive stress clamped):
+        held nodes get 0; K with the compressive stress clamped), with ``dt`` times the
+        ``nodal_damping`` blocks (n, 3, 3) added to ``D`` when given:
         `elastoflow.solid._implicit3d.step_response_3d`."""
         from elastoflow.solid._implicit3d import StepMatrixLayout3D, step_response_3d
 
         if self._matrix_layout is None:
             self._matrix_layout = StepMatrixLayout3D.build(self)
         return step_response_3d(self, positions, float(dt), stiffness_step, scale,
-                                self._matrix_layout)
+                                self._matrix_layout, nodal_damping)
 
     def step_response(self, state: BodyState, dt: float) -> StepResponse:
         """The body's linearised backward-Euler answer to a force held over ``dt`` [s]:

@@ -155,11 +155,27 @@ def step_matrix_3d(body: ElasticBody3D, positions: np.ndarray, dt: float,
     return sparse.csr_matrix((data, layout.indices, layout.indptr), shape=(size, size))
 
 
+def nodal_block_matrix(blocks: np.ndarray, free: np.ndarray) -> sparse.csr_matrix:
+    """The block-diagonal matrix of nodal 3x3 ``blocks`` (n, 3, 3) on the ``free`` degrees
+    of freedom (``3 node + component``), sparse CSR (f, f) in their order."""
+    n = blocks.shape[0]
+    position = np.full(3 * n, -1, np.int64)
+    position[free] = np.arange(free.shape[0])
+    node = np.repeat(np.arange(n), 9)
+    rows = position[3 * node + np.tile(np.repeat(np.arange(3), 3), n)]
+    cols = position[3 * node + np.tile(np.tile(np.arange(3), 3), n)]
+    keep = (rows >= 0) & (cols >= 0)
+    return sparse.csr_matrix((blocks.reshape(-1)[keep], (rows[keep], cols[keep])),
+                             shape=(free.shape[0], free.shape[0]))
+
+
 def step_response_3d(body: ElasticBody3D, positions: np.ndarray, dt: float,
                      stiffness_step: float | None = None, scale: float | None = None,
-                     layout: StepMatrixLayout3D | None = None) -> StepResponse3D:
-    """Assemble (`step_matrix_3d`) and factor ``A``; its answer is ``scale A^-1 f`` (default
-    ``dt``). Up to ``_DENSE_LIMIT_3D`` free degrees of freedom the inverse is formed (dense
+                     layout: StepMatrixLayout3D | None = None,
+                     nodal_damping: np.ndarray | None = None) -> StepResponse3D:
+    """Assemble (`step_matrix_3d`, plus ``dt`` times the symmetric positive semi-definite
+    ``nodal_damping`` blocks (n, 3, 3) when given) and factor ``A``; its answer is ``scale
+    A^-1 f`` (default ``dt``). Up to ``_DENSE_LIMIT_3D`` free degrees of freedom the inverse is formed (dense
     Cholesky); above, a banded Cholesky in reverse Cuthill-McKee order when the band is
     narrow enough (`_response._banded_cholesky`: slender bodies), SuperLU otherwise."""
     if layout is None:
@@ -169,6 +185,10 @@ def step_response_3d(body: ElasticBody3D, positions: np.ndarray, dt: float,
     if free.size == 0:
         return StepResponse3D(free, answer, None)
     matrix = step_matrix_3d(body, positions, dt, stiffness_step, layout)
+    if nodal_damping is not None:
+        # Symmetric blocks inside the pattern's nodal blocks: the sum keeps A symmetric.
+        matrix = (matrix + dt * nodal_block_matrix(nodal_damping, free)).tocsr()
+        matrix.sort_indices()
     if free.size <= _DENSE_LIMIT_3D:
         with _BLAS.limit(limits=1, user_api="blas"):
             try:

@@ -191,18 +191,21 @@ class NewmarkFem:
         self.max_iterations = int(max_iterations)
         self.factors = _FactorCache(reuse_strain)
 
-    def response(self, body: ImplicitBody, state: BodyState, dt: float) -> StepResponse:
+    def response(self, body: ImplicitBody, state: BodyState, dt: float,
+                 nodal_damping: np.ndarray | None = None) -> StepResponse:
         """The answer of `advance` to a force held over the step, at the state's positions:
-        mean velocity ``dt/2 A^-1 f`` with ``A = M + gamma dt (D + alpha M) + beta dt^2 K``
-        (end velocity twice that)."""
+        mean velocity ``dt/2 A^-1 f`` with ``A = M + gamma dt (D + C + alpha M) + beta dt^2 K``
+        (end velocity twice that; ``C`` the ``nodal_damping`` blocks, 3D bodies only)."""
         gamma = self.gamma
         return self.factors.response(
             body, state, dt, lambda positions: body.response_at(
-                positions, gamma * dt, np.sqrt(0.5 * gamma) * dt, 0.5 * dt))
+                positions, gamma * dt, np.sqrt(0.5 * gamma) * dt, 0.5 * dt,
+                **_damping_keyword(nodal_damping)), nodal_damping)
 
     def advance(
         self, body: ImplicitBody, state_in: BodyState, state_out: BodyState, dt: float,
         external_forces: np.ndarray, response: StepResponse, *, step: int | None = None,
+        nodal_damping: np.ndarray | None = None,
     ) -> SolidStepReport:
         """Advance ``state_in`` by ``dt`` [s] into ``state_out`` (may be ``state_in``).
 
@@ -215,6 +218,11 @@ class NewmarkFem:
                 (n, 3)).
             response: ``response(body, state_in, dt)``.
             step: Outer step index, only used to name the step in errors.
+            nodal_damping: Nodal 3x3 blocks ``C`` (n, 3, 3), symmetric positive
+                semi-definite (3D bodies): the force ``-C (v - v0)`` taken implicitly, the
+                linearisation of a force held over the step in the body's velocity (the
+                fluid's viscous traction: `MonolithicCoupling3D`). It vanishes when the
+                velocity does not change.
 
         Raises:
             SolidInversionError: An element inverted or a value became non-finite; both
@@ -235,10 +243,14 @@ class NewmarkFem:
         def residual_at(x: np.ndarray) -> np.ndarray:
             # With beta = gamma / 2 the end velocity is 2 (x1 - x0) / dt - v0 for any gamma.
             v = 2.0 * (x - x0) / dt - v0
-            return beta * dt * dt * (body.forces_at(x, v) + f_external) - mass * (x - drift)
+            forces = body.forces_at(x, v) + f_external
+            if nodal_damping is not None:
+                forces -= np.einsum("nab,nb->na", nodal_damping, v - v0)
+            return beta * dt * dt * forces - mass * (x - drift)
 
         def tangent_at(x: np.ndarray) -> StepResponse:
-            return body.response_at(x, gamma * dt, np.sqrt(beta) * dt, 0.5 * dt)
+            return body.response_at(x, gamma * dt, np.sqrt(beta) * dt, 0.5 * dt,
+                                    **_damping_keyword(nodal_damping))
 
         return _implicit_step(body, state_in, state_out, dt, residual_at, response, tangent_at,
                               self.tolerance, self.max_iterations, step)
@@ -280,16 +292,21 @@ class MidpointFem:
         self.max_iterations = int(max_iterations)
         self.factors = _FactorCache(reuse_strain)
 
-    def response(self, body: ImplicitBody, state: BodyState, dt: float) -> StepResponse:
+    def response(self, body: ImplicitBody, state: BodyState, dt: float,
+                 nodal_damping: np.ndarray | None = None) -> StepResponse:
         """The answer of `advance` to a force held over the step, at the state's positions:
-        mean velocity ``dt/2 A^-1 f`` (end velocity twice that)."""
+        mean velocity ``dt/2 A^-1 f`` (end velocity twice that); ``nodal_damping`` as in
+        `NewmarkFem.response`."""
         return self.factors.response(
-            body, state, dt, lambda positions: self._response_at(body, positions, dt))
+            body, state, dt,
+            lambda positions: self._response_at(body, positions, dt, nodal_damping),
+            nodal_damping)
 
-    def _response_at(self, body: ImplicitBody, positions: np.ndarray,
-                     dt: float) -> StepResponse:
+    def _response_at(self, body: ImplicitBody, positions: np.ndarray, dt: float,
+                     nodal_damping: np.ndarray | None = None) -> StepResponse:
         """`response`'s matrix at ``positions``, built and factored (no reuse)."""
-        return body.response_at(positions, 0.5 * dt, 0.5 * dt, 0.5 * dt)
+        return body.response_at(positions, 0.5 * dt, 0.5 * dt, 0.5 * dt,
+                                **_damping_keyword(nodal_damping))
 
     def _extra_forces(self, body: ImplicitBody, middle: np.ndarray, rate: np.ndarray,
                       dt: float) -> np.ndarray:
@@ -298,9 +315,10 @@ class MidpointFem:
     def advance(
         self, body: ImplicitBody, state_in: BodyState, state_out: BodyState, dt: float,
         external_forces: np.ndarray, response: StepResponse, *, step: int | None = None,
+        nodal_damping: np.ndarray | None = None,
     ) -> SolidStepReport:
         """Advance ``state_in`` by ``dt`` [s] into ``state_out`` (may be ``state_in``); as
-        `NewmarkFem.advance`."""
+        `NewmarkFem.advance` (``nodal_damping``'s force at the midpoint velocity)."""
         forces = _checked_forces(body, external_forces)
         mass = body.mass[:, None]
         x0 = state_in.positions
@@ -313,10 +331,12 @@ class MidpointFem:
             middle = 0.5 * (x0 + x)
             internal = body.forces_at(middle, (x - x0) / dt, rate_strain)
             internal += self._extra_forces(body, middle, (x - x0) / dt, dt)
+            if nodal_damping is not None:
+                internal -= np.einsum("nab,nb->na", nodal_damping, (x - x0) / dt - v0)
             return 0.5 * dt * dt * (internal + f_external) - mass * (x - x0 - dt * v0)
 
         def tangent_at(x: np.ndarray) -> StepResponse:
-            return self._response_at(body, 0.5 * (x0 + x), dt)
+            return self._response_at(body, 0.5 * (x0 + x), dt, nodal_damping)
 
         return _implicit_step(body, state_in, state_out, dt, residual_at, response, tangent_at,
                               self.tolerance, self.max_iterations, step)
@@ -358,16 +378,23 @@ class EnergyMomentumFem(MidpointFem):
             raise ValueError(f"damping = {damping!r}: must be a finite number >= 0")
         self.damping = float(damping)
 
-    def _response_at(self, body: ImplicitBody, positions: np.ndarray,
-                     dt: float) -> StepResponse:
+    def _response_at(self, body: ImplicitBody, positions: np.ndarray, dt: float,
+                     nodal_damping: np.ndarray | None = None) -> StepResponse:
         # The numerical Voigt damping c dt (lambda, mu) adds c dt^2 / 2 to the stiffness's
         # dt^2 / 4 in the step's matrix.
         stiffness = dt * np.sqrt(0.25 + 0.5 * self.damping)
-        return body.response_at(positions, 0.5 * dt, stiffness, 0.5 * dt)
+        return body.response_at(positions, 0.5 * dt, stiffness, 0.5 * dt,
+                                **_damping_keyword(nodal_damping))
 
     def _extra_forces(self, body: ImplicitBody, middle: np.ndarray, rate: np.ndarray,
                       dt: float) -> np.ndarray:
         return body.viscous_forces_at(middle, rate, self.damping * dt)
+
+
+def _damping_keyword(nodal_damping: np.ndarray | None) -> dict[str, np.ndarray]:
+    """``response_at``'s keyword for nodal damping blocks: none when there are none (2D
+    bodies and rods take none)."""
+    return {} if nodal_damping is None else {"nodal_damping": nodal_damping}
 
 
 def _checked_forces(body: ImplicitBody, external_forces: np.ndarray) -> np.ndarray:
@@ -398,9 +425,12 @@ class _FactorCache:
             weakref.WeakKeyDictionary())
 
     def response(self, body: ImplicitBody, state: BodyState, dt: float,
-                 build: Callable[[np.ndarray], StepResponse]) -> StepResponse:
-        """``build(state.positions)``, or the response held for ``body`` (see the class)."""
-        if self.reuse_strain > 0.0 and isinstance(body, ElasticBody3D):
+                 build: Callable[[np.ndarray], StepResponse],
+                 nodal_damping: np.ndarray | None = None) -> StepResponse:
+        """``build(state.positions)``, or the response held for ``body`` (see the class;
+        never with ``nodal_damping``, which changes with the body's surface)."""
+        if (self.reuse_strain > 0.0 and isinstance(body, ElasticBody3D)
+                and nodal_damping is None):
             held = self._held.get(body)
             if (held is not None and held[0] == dt
                     and _largest_strain_change(body, held[1], state.positions)

@@ -477,11 +477,14 @@ def step_response(
     return StepResponse(free, answer, lu)
 
 
-def _banded_cholesky(matrix: sparse.csc_matrix, work_limit: float = _BANDED_WORK_LIMIT
+def _banded_cholesky(matrix: sparse.csc_matrix, work_limit: float | None = None
                      ) -> tuple[np.ndarray, np.ndarray] | None:
     """Cholesky factor of ``matrix`` in LAPACK's upper banded storage after a reverse
     Cuthill-McKee reordering, and the order; None when the band is too wide to pay off
-    (``n b^2`` over ``work_limit``) or the matrix is not positive definite to round-off."""
+    (``n b^2`` over ``work_limit``, default `_BANDED_WORK_LIMIT`) or the matrix is not
+    positive definite to round-off."""
+    if work_limit is None:
+        work_limit = _BANDED_WORK_LIMIT
     order = reverse_cuthill_mckee(matrix.tocsr(), symmetric_mode=True).astype(np.int64)
     permuted = matrix[order][:, order].tocoo()
     band = int(np.abs(permuted.row - permuted.col).max()) if permuted.nnz else 0

@@ -193,3 +193,57 @@ def test_a_scene_file_chooses_the_monolithic_scheme() -> None:
     bad = {**SCENE, "coupling": {"scheme": "monolithic", "force_relaxation": 0.5}}
     with pytest.raises(SceneError, match="coupling"):
         build_simulation(parse_scene(bad, source="light.toml"))
+
+
+def test_the_viscous_damping_blocks_are_the_tractions_wall_weight_on_the_tangents() -> None:
+    """Sum of the blocks' traces: mu 1.5 / h times twice the surface area (each triangle's
+    ``I - n n^T`` has trace 2); each block is symmetric positive semi-definite with the
+    surface normal in its null space."""
+    from elastoflow.simulation._schemes3d import _viscous_damping
+
+    body = cube(1.0)
+    blocks = _viscous_damping(body, body.mesh.points, 2.0, 0.1)
+    corners = body.mesh.points[body.boundary_triangles]
+    area = 0.5 * np.linalg.norm(np.cross(corners[:, 1] - corners[:, 0],
+                                         corners[:, 2] - corners[:, 0]), axis=1).sum()
+    assert np.trace(blocks, axis1=1, axis2=2).sum() == pytest.approx(2.0 * 1.5 / 0.1 * 2 * area)
+    np.testing.assert_array_equal(blocks, np.transpose(blocks, (0, 2, 1)))
+    assert np.linalg.eigvalsh(blocks).min() > -1e-12
+    # A node in the middle of the cube's top face (normal +y): no damping along y.
+    top = np.flatnonzero(np.all(np.isclose(body.mesh.points, (0.5, 0.65, 0.5)), axis=1))
+    if top.size:
+        np.testing.assert_allclose(blocks[top[0]] @ np.array([0.0, 1.0, 0.0]), 0.0, atol=1e-12)
+
+
+@pytest.mark.parametrize("rule", ["midpoint", "energy_momentum", "newmark"])
+def test_nodal_damping_is_implicit_and_leaves_a_steady_motion_alone(rule: str) -> None:
+    """The rule's step with ``nodal_damping`` answers a small held force as its `response`
+    says (the damping in the matrix), and a body moving steadily keeps moving: the force
+    ``-C (v - v0)`` vanishes when the velocity does not change."""
+    from elastoflow.solid import EnergyMomentumFem, NewmarkFem
+
+    fem = {"midpoint": MidpointFem(), "energy_momentum": EnergyMomentumFem(0.1),
+           "newmark": NewmarkFem(0.6)}[rule]
+    body = ElasticBody3D(mesh_box((0.3, 0.3, 0.3), counts=(2, 2, 2)),
+                         MaterialStVK(1000.0, 1e6, 0.3))
+    damping = np.repeat(50.0 * np.eye(3)[None], body.point_count, axis=0)
+    dt = 0.01
+    state = body.state()
+    response = fem.response(body, state, dt, damping)
+    force = np.zeros((body.point_count, 3))
+    force[:, 0] = 1e-6
+    out = body.state()
+    fem.advance(body, state, out, dt, force, response, nodal_damping=damping)
+    mean_change = (out.positions - state.positions) / dt - state.velocities
+    expected = response.velocity_change(force)
+    # To the Newton tolerance (1e-10 of the body's size).
+    np.testing.assert_allclose(mean_change, expected, atol=1e-4 * np.abs(expected).max())
+    # The damping slows the answer: the same force without it moves the body further.
+    plain = fem.response(body, state, dt).velocity_change(force)
+    assert np.abs(plain).sum() > 1.2 * np.abs(mean_change).sum()
+    moving = body.state()
+    moving.velocities[:, 2] = 0.3
+    after = body.state()
+    fem.advance(body, moving, after, dt, np.zeros_like(force),
+                fem.response(body, moving, dt, damping), nodal_damping=damping)
+    np.testing.assert_allclose(after.velocities[:, 2], 0.3, rtol=1e-9)
