@@ -10,9 +10,7 @@ from elastoflow.validation._settling import U_MAX_MEASURED, run_settling
 
 
 def test_the_sphere_settles_at_the_published_speed_within_the_coarse_grid_error() -> None:
-    """4.5 cells per diameter to t = 0.3 s (30 steps), with the monolithic coupling (stable
-    to the floor at this resolution; at 6 the explicit viscous traction is not,
-    docs/validation/three_d.md).
+    """4.5 cells per diameter to t = 0.3 s (30 steps), with the scene's monolithic coupling.
 
     At this resolution the viscous traction (two thirds of the drag at Re 1.5) is
     under-resolved, so the sphere falls faster than measured in the end (docs/validation/
@@ -21,7 +19,7 @@ def test_the_sphere_settles_at_the_published_speed_within_the_coarse_grid_error(
     the end (the wake's history force decays slowly, as t^-1/2). Measured: 0.0315-0.0374 m/s
     over the last half.
     """
-    run = run_settling(4.5, duration=0.3, scheme="monolithic")
+    run = run_settling(4.5, duration=0.3)
     assert run.failure is None
     late = run.speeds[run.times > 0.15]
     assert 0.5 * U_MAX_MEASURED < late.mean() < 2.0 * U_MAX_MEASURED

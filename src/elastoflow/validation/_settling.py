@@ -1,6 +1,6 @@
 """A sphere settling in a box of oil: ten Cate et al. (2002), case E1, from the library scene.
 
-The scene ``sphere_settling`` (elastic sphere, explicit coupling, closed no-slip box) is run
+The scene ``sphere_settling`` (elastic sphere, monolithic coupling, closed no-slip box) is run
 at a given number of cells per diameter; the sphere's velocity is its nodes' mean velocity
 (mass-weighted: the lumped masses), its position the same mean of the nodes. Published: the
 sphere reaches ``u_max = 0.036 m/s`` in the box (ten Cate's measurement; the unbounded
@@ -160,7 +160,7 @@ def settling_block(runs: list[SettlingRun], machine: str) -> str:
              "The library scene `sphere_settling`: a 15 mm elastic sphere (1120 kg/m^3, "
              "E = 100 kPa) released from rest 8 diameters above the floor of a closed "
              "100 x 160 x 100 mm box of oil (970 kg/m^3, 0.373 Pa s; Re 1.5), dt = 0.01 s, "
-             "with the coupling scheme of each row (the scene's own: explicit). The "
+             "with the coupling scheme of each row (the scene's own: monolithic). The "
              "sphere's speed is its nodes' "
              "mass-weighted mean velocity. Published: ten Cate measured u_max = 0.0360 m/s "
              "in the box (u_inf = 0.038 m/s unbounded, from the Abraham correlation).", "",

@@ -116,11 +116,13 @@ def test_the_library_3d_scenes_build(name: str) -> None:
     assert isinstance(simulation.model, CoupledModel3D)
 
 
-def test_the_elastic_block_as_dense_as_the_water_is_monolithic() -> None:
-    """It runs with the monolithic coupling and takes steps from its name."""
+@pytest.mark.parametrize("name", ["elastic_block_3d", "sphere_settling"])
+def test_the_library_scenes_of_bodies_as_dense_as_the_fluid_are_monolithic(name: str) -> None:
+    """Both run with the monolithic coupling (a block as dense as the water; a sphere in
+    viscous oil) and take steps from their names."""
     from elastoflow.simulation import MonolithicCoupling3D
 
-    simulation = build_simulation(get_scene("elastic_block_3d"))
+    simulation = build_simulation(get_scene(name))
     assert isinstance(simulation.scheme, MonolithicCoupling3D)
     simulation.run(2)
     report = simulation.last_report
