@@ -27,7 +27,7 @@ if __package__ in (None, ""):
 
 from benchmarks._common import markdown_table, write_results
 
-CASES = ("bar_in_jet_3d", "sphere_drag", "flag_3d", "sphere_settling")
+CASES = ("bar_in_jet_3d", "sphere_drag", "flag_3d", "sphere_settling", "elastic_block_3d")
 PHASES = ("map", "advection", "forces", "viscosity", "pressure", "coupling_force", "solid")
 TARGET_STEPS_PER_SECOND = {"bar_in_jet_3d": 20.0}
 ROOT = Path(__file__).resolve().parent.parent
