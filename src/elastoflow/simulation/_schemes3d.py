@@ -14,6 +14,8 @@ than the fluid they displace are stable.
 from __future__ import annotations
 
 import time as _time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from typing import TYPE_CHECKING, Literal
 
 import numpy as np
@@ -27,9 +29,126 @@ from elastoflow.simulation._schemes import implicit_integrator, take_pressure_an
 from elastoflow.solid import ElasticBody3D, ExplicitFem, MidpointFem, NewmarkFem
 
 if TYPE_CHECKING:
-    from elastoflow.fluid import InteriorBoundary3D
+    from elastoflow.coupling import InterfaceFlux3D
+    from elastoflow.fluid import CoupledBodies, InteriorBoundary3D
+    from elastoflow.solid import StepResponse
 
 State3D = CoupledState[FluidState3D, StepBoundary3D]
+
+
+class _Step3D:
+    """The bookkeeping of one 3D step that both schemes share.
+
+    Opening it copies ``state_in`` into ``state_out``, whose fluid (`out`) the phases then
+    change in place; each phase it runs is timed into `seconds` (a phase that runs in parts
+    adds them up), and an error in it names the step. `finish` commits time, step index and
+    the step's boundary to ``state_out`` and gives the report.
+
+    Attributes:
+        seconds: Wall-clock seconds by phase name, the report's ``seconds_by_phase``.
+        out: ``state_out``'s fluid state, the one the phases change.
+        offsets: `CoupledModel3D.object_offsets`: each body's and obstacle's first surface
+            point, then their count.
+        next_step: The index ``state_out`` takes.
+        now: The time [s] ``state_out`` takes.
+        where: ``"step N, t = T s"``, for error messages.
+    """
+
+    def __init__(self, model: CoupledModel3D, state_in: State3D, state_out: State3D,
+                 dt: float) -> None:
+        self.model = model
+        self.state_in = state_in
+        self.state_out = state_out
+        self.dt = dt
+        self.seconds: dict[str, float] = {}
+        self.next_step = state_in.step_index + 1
+        self.now = state_in.time + dt
+        self.where = f"step {self.next_step}, t = {self.now:.6g} s"
+        state_out.assign(state_in)
+        self.out = state_out.fluid
+        self.offsets = model.object_offsets()
+
+    @contextmanager
+    def timed(self, phase: str) -> Iterator[None]:
+        """Add the wall-clock time of the ``with`` block to ``seconds[phase]``."""
+        start = _time.perf_counter()
+        yield
+        self.seconds[phase] = self.seconds.get(phase, 0.0) + _time.perf_counter() - start
+
+    @contextmanager
+    def _fluid_checked(self) -> Iterator[None]:
+        try:
+            yield
+        except ValueError:
+            # A non-finite velocity stops the linear solvers first: report it as a blow-up
+            # naming the step (re-raised unchanged when the fields are finite).
+            self.check_fluid()
+            raise
+
+    @contextmanager
+    def body_checked(self, index: int) -> Iterator[None]:
+        """Re-raise any error of the ``with`` block as `SimulationBlowUp` naming the step and
+        body ``index``."""
+        try:
+            yield
+        except Exception as error:  # re-raised with where it happened
+            raise SimulationBlowUp(f"{self.where}, body {index}: {error}") from error
+
+    def map_boundary(self) -> StepBoundary3D:
+        """The boundary map and classification of the bodies' and obstacles' surfaces at
+        ``state_in`` (phase "map")."""
+        from elastoflow.coupling import build_boundary_map_3d, interior_boundary_3d
+
+        with self.timed("map"):
+            points, velocities, triangles, owner = self.model.boundary_points(self.state_in)
+            bmap = build_boundary_map_3d(self.model.grid, points, velocities, triangles, owner)
+            # The spare state's boundary is two steps old and read by nobody: reuse its
+            # arrays (the current state's, which outputs and forces read, stays intact).
+            boundary = self.state_out.boundary
+            interior = interior_boundary_3d(bmap, out=None if boundary is None
+                                            else boundary.interior)
+        return StepBoundary3D(bmap, interior)
+
+    def fluid_phases(self, interior: InteriorBoundary3D | None) -> None:
+        """Advect, apply the forces and diffuse `out`: `FluidSolver3D.step`'s order up to the
+        projection (phases "advection", "forces", "viscosity")."""
+        fluid, dt = self.model.fluid, self.dt
+        with self._fluid_checked():
+            with self.timed("advection"):
+                fluid.advect(self.out, dt, interior)
+            with self.timed("forces"):
+                fluid.apply_forces(self.out, dt, self.state_in.time)
+            with self.timed("viscosity"):
+                fluid.diffuse(self.out, dt, interior)
+
+    def project(self, interior: InteriorBoundary3D | None,
+                bodies: CoupledBodies | None = None) -> SolveReport:
+        """Project `out` (with the coupled ``bodies`` in the solve; phase "pressure")."""
+        with self._fluid_checked(), self.timed("pressure"):
+            return self.model.fluid.project(self.out, self.dt, interior, bodies=bodies)
+
+    def check_fluid(self) -> None:
+        """Raise `SimulationBlowUp` naming the field where `out` is not finite."""
+        check_fluid_finite(self.out, self.next_step, self.now)
+
+    def finish(self, boundary: StepBoundary3D | None, solve: SolveReport,
+               substeps: list[int]) -> StepReport:
+        """Commit time, step index and this step's boundary to ``state_out``; the report."""
+        state_out = self.state_out
+        state_out.step_index = self.next_step
+        state_out.time = self.now
+        state_out.boundary = boundary
+        return StepReport(
+            step=state_out.step_index,
+            time=state_out.time,
+            pressure_iterations=int(solve.iterations),
+            pressure_residual=float(solve.residual),
+            substeps=substeps,
+            cfl=cfl_number(self.model.grid, state_out.fluid, self.dt),
+            crossing_count=0 if boundary is None
+            else int(boundary.boundary_map.crossing_count),
+            seconds_by_phase=self.seconds,
+        )
 
 
 class ExplicitCoupling3D:
@@ -69,65 +188,35 @@ class ExplicitCoupling3D:
     def step(self, model: CoupledModel3D, state_in: State3D, state_out: State3D,
              dt: float) -> StepReport:
         """Write the state after ``dt`` [s] into ``state_out``; ``state_in`` is unchanged."""
-        from elastoflow.coupling import (
-            build_boundary_map_3d,
-            force_traction_3d,
-            interior_boundary_3d,
-        )
-
-        seconds: dict[str, float] = {}
-        clock = _time.perf_counter
-        fluid = model.fluid
-        next_step = state_in.step_index + 1
-        now = state_in.time + dt
-        state_out.assign(state_in)
-        out = state_out.fluid
-
-        boundary = None
-        interior: InteriorBoundary3D | None = None
-        if model.has_boundaries:
-            t0 = clock()
-            points, velocities, triangles, owner = model.boundary_points(state_in)
-            bmap = build_boundary_map_3d(model.grid, points, velocities, triangles, owner)
-            # The spare state's boundary is two steps old and read by nobody: reuse its
-            # arrays (the current state's, which outputs and forces read, stays intact).
-            reuse = None if state_out.boundary is None else state_out.boundary.interior
-            interior = interior_boundary_3d(bmap, out=reuse)
-            boundary = StepBoundary3D(bmap, interior)
-            seconds["map"] = clock() - t0
-
-        try:
-            t0 = clock()
-            fluid.advect(out, dt, interior)
-            t1 = clock()
-            fluid.apply_forces(out, dt, state_in.time)
-            t2 = clock()
-            fluid.diffuse(out, dt, interior)
-            t3 = clock()
-            solve = fluid.project(out, dt, interior)
-            t4 = clock()
-        except ValueError:
-            # A non-finite velocity stops the linear solvers first: report it as a blow-up
-            # naming the step (re-raised unchanged when the fields are finite).
-            check_fluid_finite(out, next_step, now)
-            raise
-        seconds.update({"advection": t1 - t0, "forces": t2 - t1, "viscosity": t3 - t2,
-                        "pressure": t4 - t3})
+        run = _Step3D(model, state_in, state_out, dt)
+        boundary = run.map_boundary() if model.has_boundaries else None
+        interior = None if boundary is None else boundary.interior
+        run.fluid_phases(interior)
+        solve = run.project(interior)
         # The bodies must not take a force from a diverged fluid: name the fluid field.
-        check_fluid_finite(out, next_step, now)
-
-        substeps_taken: list[int] = []
+        run.check_fluid()
+        substeps: list[int] = []
         if model.bodies:
             assert boundary is not None
-            t0 = clock()
+            substeps = self._advance_bodies(run, boundary)
+        return run.finish(boundary, solve, substeps)
+
+    def _advance_bodies(self, run: _Step3D, boundary: StepBoundary3D) -> list[int]:
+        """The traction on the surface triangles (phase "coupling_force") and each body's
+        substeps under it (phase "solid"); the substeps each body took."""
+        from elastoflow.coupling import force_traction_3d
+
+        model, state_in, state_out, out = run.model, run.state_in, run.state_out, run.out
+        fluid = model.fluid
+        with run.timed("coupling_force"):
             nodal_force = force_traction_3d(
                 model.grid, boundary.boundary_map, out.velocity_x, out.velocity_y,
-                out.velocity_z, out.pressure, fluid.density, fluid.viscosity, interior,
-                gravity=fluid.gravity,
+                out.velocity_z, out.pressure, fluid.density, fluid.viscosity,
+                boundary.interior, gravity=fluid.gravity,
             )
-            seconds["coupling_force"] = clock() - t0
-            t0 = clock()
-            offsets = model.object_offsets()
+        substeps: list[int] = []
+        with run.timed("solid"):
+            offsets = run.offsets
             for index, body in enumerate(model.bodies):
                 body_in, body_out = state_in.bodies[index], state_out.bodies[index]
                 force = nodal_force[offsets[index]:offsets[index + 1]]
@@ -136,18 +225,11 @@ class ExplicitCoupling3D:
                     force = previous + self.force_relaxation * (force - previous)
                 state_out.body_forces[index][...] = force
                 state_out.previous_velocities[index][...] = body_in.velocities
-                try:
-                    report = self.fem.advance(body, body_in, body_out, dt, force,
-                                              step=next_step)
-                except Exception as error:  # re-raised with where it happened
-                    raise SimulationBlowUp(
-                        f"step {next_step}, t = {now:.6g} s, body {index}: {error}"
-                    ) from error
-                substeps_taken.append(int(report.substeps))
-            seconds["solid"] = clock() - t0
-
-        return _finish(model, state_in, state_out, dt, boundary, solve, substeps_taken,
-                       seconds)
+                with run.body_checked(index):
+                    report = self.fem.advance(body, body_in, body_out, run.dt, force,
+                                              step=run.next_step)
+                substeps.append(int(report.substeps))
+        return substeps
 
 
 class MonolithicCoupling3D:
@@ -182,65 +264,40 @@ class MonolithicCoupling3D:
     def step(self, model: CoupledModel3D, state_in: State3D, state_out: State3D,
              dt: float) -> StepReport:
         """Write the state after ``dt`` [s] into ``state_out``; ``state_in`` is unchanged."""
-        from elastoflow.coupling import (
-            PressureCoupledBodies,
-            build_boundary_map_3d,
-            force_traction_3d,
-            interface_flux_3d,
-            interior_boundary_3d,
-        )
+        from elastoflow.coupling import PressureCoupledBodies
 
         if not model.bodies:
             # Nothing to couple: obstacles have prescribed velocities.
             return self._explicit.step(model, state_in, state_out, dt)
-        seconds: dict[str, float] = {}
-        clock = _time.perf_counter
-        fluid, grid = model.fluid, model.grid
-        next_step = state_in.step_index + 1
-        now = state_in.time + dt
-        where = f"step {next_step}, t = {now:.6g} s"
-        state_out.assign(state_in)
-        out = state_out.fluid
+        run = _Step3D(model, state_in, state_out, dt)
+        boundary = run.map_boundary()
+        with run.timed("map"):
+            flux = _interface_flux(model, boundary, run.offsets)
+        with run.timed("coupling_force"):
+            held = _held_force(model, boundary, flux, run.out)
+        run.fluid_phases(boundary.interior)
+        with run.timed("solid"):
+            responses, predicted = self._predict(run, boundary, held)
+        with run.timed("pressure"):
+            coupled = PressureCoupledBodies(
+                flux, predicted, responses, run.offsets[:len(model.bodies) + 1].tolist(),
+                model.fluid.density, dt, bmap=boundary.boundary_map,
+                gravity=model.fluid.gravity)
+        solve = run.project(boundary.interior, coupled)
+        with run.timed("solid"):
+            take_pressure_answer(model.bodies, state_out, run.offsets, predicted, coupled, held,
+                                 dt, run.where)
+        run.check_fluid()
+        return run.finish(boundary, solve, [1] * len(model.bodies))
 
-        t0 = clock()
-        offsets = model.object_offsets()
-        body_count = len(model.bodies)
-        points, velocities, triangles, owner = model.boundary_points(state_in)
-        bmap = build_boundary_map_3d(grid, points, velocities, triangles, owner)
-        reuse = None if state_out.boundary is None else state_out.boundary.interior
-        interior = interior_boundary_3d(bmap, out=reuse)
-        boundary = StepBoundary3D(bmap, interior)
-        tetrahedra = np.concatenate([body.mesh.tetrahedra + offsets[index]
-                                     for index, body in enumerate(model.bodies)])
-        tetrahedron_offsets = np.cumsum([0] + [body.mesh.tetrahedra.shape[0]
-                                               for body in model.bodies])
-        flux = interface_flux_3d(grid, bmap, interior, tetrahedra, tetrahedron_offsets)
-        seconds["map"] = clock() - t0
-
-        t0 = clock()
-        held = np.zeros_like(points)
-        if fluid.viscosity > 0.0:
-            held += force_traction_3d(grid, bmap, out.velocity_x, out.velocity_y,
-                                      out.velocity_z, np.zeros(grid.shape_cells),
-                                      fluid.density, fluid.viscosity, interior)
-        if fluid.incremental_pressure:
-            held += flux.pressure_forces(out.pressure)
-        seconds["coupling_force"] = clock() - t0
-
-        try:
-            t0 = clock()
-            fluid.advect(out, dt, interior)
-            t1 = clock()
-            fluid.apply_forces(out, dt, state_in.time)
-            t2 = clock()
-            fluid.diffuse(out, dt, interior)
-            t3 = clock()
-        except ValueError:
-            check_fluid_finite(out, next_step, now)
-            raise
-        seconds.update({"advection": t1 - t0, "forces": t2 - t1, "viscosity": t3 - t2})
-
-        t0 = clock()
+    def _predict(self, run: _Step3D, boundary: StepBoundary3D, held: np.ndarray
+                 ) -> tuple[list[StepResponse], np.ndarray]:
+        """Each body's implicit step under ``held`` without the pressure (into
+        ``state_out``); its response to a nodal force, and every surface point's velocity
+        over the step for the flux balance (the bodies' mean velocity, the obstacles'
+        prescribed one)."""
+        model, state_in, state_out, dt = run.model, run.state_in, run.state_out, run.dt
+        fluid, grid, offsets = model.fluid, model.grid, run.offsets
         dampings = [_viscous_damping(body, body_state.positions,
                                      fluid.density * fluid.viscosity, grid.h)
                     if fluid.viscosity > 0.0 else None
@@ -249,41 +306,49 @@ class MonolithicCoupling3D:
                      for body, body_state, damping
                      in zip(model.bodies, state_in.bodies, dampings, strict=True)]
         for index, body in enumerate(model.bodies):
-            try:
+            with run.body_checked(index):
                 self.fem.advance(body, state_in.bodies[index], state_out.bodies[index], dt,
                                  held[offsets[index]:offsets[index + 1]], responses[index],
-                                 step=next_step, nodal_damping=dampings[index])
-            except Exception as error:  # re-raised with where it happened
-                raise SimulationBlowUp(f"{where}, body {index}: {error}") from error
-        # The flux balance counts what the bodies sweep over the step, their mean velocity.
-        predicted = np.array(velocities)
-        for index in range(body_count):
+                                 step=run.next_step, nodal_damping=dampings[index])
+        predicted = np.array(boundary.boundary_map.velocities)
+        for index in range(len(model.bodies)):
             lo, hi = offsets[index], offsets[index + 1]
             predicted[lo:hi] = (state_out.bodies[index].positions
                                 - state_in.bodies[index].positions) / dt
-        for index, obstacle in enumerate(model.obstacles, start=body_count):
-            predicted[offsets[index]:offsets[index + 1]] = obstacle.velocities_at(now)
-        seconds["solid"] = clock() - t0
+        for index, obstacle in enumerate(model.obstacles, start=len(model.bodies)):
+            predicted[offsets[index]:offsets[index + 1]] = obstacle.velocities_at(run.now)
+        return responses, predicted
 
-        t0 = clock()
-        coupled = PressureCoupledBodies(flux, predicted, responses,
-                                        offsets[:body_count + 1].tolist(), fluid.density, dt,
-                                        bmap=bmap, gravity=fluid.gravity)
-        try:
-            solve = fluid.project(out, dt, interior, bodies=coupled)
-        except ValueError:
-            check_fluid_finite(out, next_step, now)
-            raise
-        seconds["pressure"] = clock() - t0
 
-        t0 = clock()
-        take_pressure_answer(model.bodies, state_out, offsets, predicted, coupled, held, dt,
-                             where)
-        seconds["solid"] += clock() - t0
+def _interface_flux(model: CoupledModel3D, boundary: StepBoundary3D, offsets: np.ndarray
+                    ) -> InterfaceFlux3D:
+    """The bodies' interface flux ``W`` on this step's boundary (`interface_flux_3d`)."""
+    from elastoflow.coupling import interface_flux_3d
 
-        check_fluid_finite(out, next_step, now)
-        return _finish(model, state_in, state_out, dt, boundary, solve,
-                       [1] * body_count, seconds)
+    tetrahedra = np.concatenate([body.mesh.tetrahedra + offsets[index]
+                                 for index, body in enumerate(model.bodies)])
+    tetrahedron_offsets = np.cumsum([0] + [body.mesh.tetrahedra.shape[0]
+                                           for body in model.bodies])
+    return interface_flux_3d(model.grid, boundary.boundary_map, boundary.interior,
+                             tetrahedra, tetrahedron_offsets)
+
+
+def _held_force(model: CoupledModel3D, boundary: StepBoundary3D, flux: InterfaceFlux3D,
+                fluid_state: FluidState3D) -> np.ndarray:
+    """The fluid's force held over the step [N], (P, 3) on every surface point: the viscous
+    traction from the current fields and, with ``incremental_pressure``, the last pressure's
+    force through ``W``."""
+    from elastoflow.coupling import force_traction_3d
+
+    fluid, grid, bmap = model.fluid, model.grid, boundary.boundary_map
+    held = np.zeros_like(bmap.points)
+    if fluid.viscosity > 0.0:
+        held += force_traction_3d(grid, bmap, fluid_state.velocity_x, fluid_state.velocity_y,
+                                  fluid_state.velocity_z, np.zeros(grid.shape_cells),
+                                  fluid.density, fluid.viscosity, boundary.interior)
+    if fluid.incremental_pressure:
+        held += flux.pressure_forces(fluid_state.pressure)
+    return held
 
 
 # The wall velocity's weight in the traction's one-sided normal derivative, in 1 / h:
@@ -315,22 +380,3 @@ def _viscous_damping(body: ElasticBody3D, positions: np.ndarray, dynamic_viscosi
 
 Scheme3D = ExplicitCoupling3D | MonolithicCoupling3D
 """The coupling schemes a 3D `Simulation` takes."""
-
-
-def _finish(model: CoupledModel3D, state_in: State3D, state_out: State3D, dt: float,
-            boundary: StepBoundary3D | None, solve: SolveReport, substeps: list[int],
-            seconds: dict[str, float]) -> StepReport:
-    """Commit time, step index and this step's boundary data to ``state_out``; the report."""
-    state_out.step_index = state_in.step_index + 1
-    state_out.time = state_in.time + dt
-    state_out.boundary = boundary
-    return StepReport(
-        step=state_out.step_index,
-        time=state_out.time,
-        pressure_iterations=int(solve.iterations),
-        pressure_residual=float(solve.residual),
-        substeps=substeps,
-        cfl=cfl_number(model.grid, state_out.fluid, dt),
-        crossing_count=0 if boundary is None else int(boundary.boundary_map.crossing_count),
-        seconds_by_phase=seconds,
-    )
