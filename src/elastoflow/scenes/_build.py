@@ -31,6 +31,7 @@ from elastoflow.scenes._schema3d import Coupling3DSpec, Scene3D
 if TYPE_CHECKING:
     from elastoflow.grid import Grid2D
     from elastoflow.simulation import MonolithicCoupling, Simulation
+    from elastoflow.solid import WallContact
 
 
 def characteristic_speed(scene: Scene | Scene3D) -> float:
@@ -613,7 +614,8 @@ def build_simulation(scene: Scene | Scene3D, *, steps: int | None = None,
             return Simulation(grid, fluid_solver, state=state, cfl_limit=scene.time.cfl_limit,
                               bodies=bodies, obstacles=obstacles, dt=dt,
                               coupling=build_free_surface(scene, fluid_solver),
-                              boundary=scene.coupling.boundary, level_set=level_set)
+                              boundary=scene.coupling.boundary, level_set=level_set,
+                              contact=_wall_contact(scene.coupling))
         except (ValueError, ArithmeticError) as error:
             raise SceneError([f"liquid: {error}"], scene.source) from None
     try:
@@ -633,9 +635,17 @@ def build_simulation(scene: Scene | Scene3D, *, steps: int | None = None,
             coupling=(_monolithic(scene.coupling)
                       if scene.coupling.scheme == "monolithic" else "explicit"),
             boundary=scene.coupling.boundary,
+            contact=_wall_contact(scene.coupling),
         )
     except (ValueError, ArithmeticError) as error:
         raise SceneError([f"time or coupling: {error}"], scene.source) from None
+
+
+def _wall_contact(spec: CouplingSpec) -> WallContact | None:
+    """The bodies' contact with the walls from ``coupling.wall_contact`` / ``wall_friction``."""
+    from elastoflow.solid import WallContact
+
+    return WallContact(friction=spec.wall_friction) if spec.wall_contact else None
 
 
 def _monolithic(spec: CouplingSpec | Coupling3DSpec) -> MonolithicCoupling:

@@ -685,6 +685,13 @@ class CouplingSpec(_Spec):
     share of its dual cell: weights and forces continuous as bodies move, docs/method_notes.md
     item 9) or "staircase" (cells flagged by their centres, faces fully open or closed; the
     baseline of docs/validation/boundary_study.md)."""
+    wall_contact: bool = True
+    """Bodies touching the domain's wall sides stop there: nothing passes through a wall
+    (inflow and outflow sides have no contact). Resting nodes are held inside the bodies'
+    implicit step, nodes ending a step beyond a wall are put back onto it, inelastically
+    (`elastoflow.solid.WallContact`). false: bodies pass through the walls."""
+    wall_friction: Annotated[float, Field(ge=0.0, allow_inf_nan=False)] = 0.3
+    """Coulomb friction coefficient between bodies and walls (0: frictionless)."""
 
     @model_validator(mode="after")
     def _explicit_keys(self) -> CouplingSpec:
@@ -700,6 +707,9 @@ class CouplingSpec(_Spec):
                     "scheme = \"monolithic\" (the default) leave them out, or set "
                     "scheme = \"explicit\""
                 )
+        if not self.wall_contact and "wall_friction" in self.model_fields_set:
+            raise ValueError("wall_friction needs wall_contact = true (friction acts only "
+                             "where a body touches a wall)")
         return self
 
 

@@ -28,13 +28,16 @@ from elastoflow.fluid._free_surface_bodies import (
 from elastoflow.grid import Grid2D
 from elastoflow.simulation._checks import check_fluid_finite
 from elastoflow.simulation._free_surface import FreeSurfaceScheme
-from elastoflow.simulation._report import SimulationBlowUp, StepReport
+from elastoflow.simulation._report import StepReport
 from elastoflow.simulation._schemes import (
     MonolithicCoupling,
     _finish,
     _intermediate_velocity,
     _step_boundary,
+    implicit_predictor,
+    project_onto_walls,
     take_pressure_answer,
+    wall_holds,
 )
 from elastoflow.simulation._state import CoupledModel, CoupledState
 from elastoflow.solid import MidpointFem, NewmarkFem
@@ -147,8 +150,9 @@ class FreeSurfaceMonolithicCoupling(FreeSurfaceScheme):
        (`FreeSurfaceCoupledBodies`);
     6. the velocity is extrapolated from the liquid and the bodies' closed faces into the air.
 
-    Contact with the floor and walls is not in: a body denser than water sinks until the
-    fluid between it and the floor has no open faces left, which stops it only roughly.
+    Contact with the floor and walls is the model's (`CoupledModel.contact`): components of
+    nodes resting on a wall are held inside the implicit step and its answer to the pressure,
+    nodes that end a step beyond a wall are put back onto it (`elastoflow.solid._contact`).
 
     Args:
         solver: The free-surface solver (its transport, ``theta_min`` and extrapolation layers
@@ -227,19 +231,10 @@ class FreeSurfaceMonolithicCoupling(FreeSurfaceScheme):
                                                seconds)
 
         t0 = clock()
-        responses = [self.fem.response(body, body_state, dt)
-                     for body, body_state in zip(model.bodies, state_in.bodies)]
-        substeps_taken: list[int] = []
-        for index, body in enumerate(model.bodies):
-            try:
-                self.fem.advance(
-                    body, state_in.bodies[index], state_out.bodies[index], dt,
-                    viscous[offsets[index]:offsets[index + 1]], responses[index],
-                    step=next_step,
-                )
-            except Exception as error:  # re-raised with where it happened
-                raise SimulationBlowUp(f"{where}, body {index}: {error}") from error
-            substeps_taken.append(1)
+        holds = wall_holds(model, state_in, dt)
+        responses, substeps_taken = implicit_predictor(self.fem, model, state_in, state_out,
+                                                       dt, viscous, offsets, holds,
+                                                       next_step, where)
         predicted = np.array(velocities)
         for index in range(body_count):
             lo, hi = offsets[index], offsets[index + 1]
@@ -271,6 +266,7 @@ class FreeSurfaceMonolithicCoupling(FreeSurfaceScheme):
         t0 = clock()
         take_pressure_answer(model.bodies, state_out, offsets, predicted, coupled, viscous, dt,
                              where)
+        project_onto_walls(model, state_out, holds)
         seconds["solid"] += clock() - t0
 
         t0 = clock()

@@ -34,7 +34,7 @@ from elastoflow.simulation._schemes import (
 )
 from elastoflow.simulation._schemes3d import ExplicitCoupling3D, MonolithicCoupling3D, Scheme3D
 from elastoflow.simulation._state import CoupledModel, CoupledModel3D, CoupledState
-from elastoflow.solid import BodyModel, ElasticBody3D
+from elastoflow.solid import BodyModel, ElasticBody3D, WallContact
 
 
 class Simulation:
@@ -81,6 +81,9 @@ class Simulation:
             centres, faces open or closed), or a `elastoflow.coupling.BoundaryTreatment`.
         level_set: With ``coupling`` a `FreeSurfaceScheme`: the initial level set [m]
             (nx, ny), liquid where negative (required then, refused otherwise).
+        contact: The bodies' contact with the domain's wall sides
+            (`elastoflow.solid.WallContact`, default: on, friction 0.3), or None for none
+            (2D; 3D bodies have no wall contact yet).
     """
 
     def __init__(
@@ -102,6 +105,7 @@ class Simulation:
         checks: Sequence[StepCheck] | None = None,
         boundary: str | BoundaryTreatment = "cut_cell",
         level_set: np.ndarray | None = None,
+        contact: WallContact | None = WallContact(),
     ) -> None:
         if not (dt > 0.0 and np.isfinite(dt)):
             raise ValueError(f"dt = {dt!r}: must be a finite positive time step [s]")
@@ -148,7 +152,8 @@ class Simulation:
         treatment = boundary_treatment(boundary) if isinstance(boundary, str) else boundary
         model = CoupledModel(grid, fluid_solver,
                              tuple(body for body in bodies if not isinstance(body, ElasticBody3D)),
-                             tuple(o for o in obstacles if isinstance(o, Obstacle)), treatment)
+                             tuple(o for o in obstacles if isinstance(o, Obstacle)), treatment,
+                             contact)
         self.model = model
         self.scheme = scheme
         self.state: CoupledState = model.state(state)

@@ -36,9 +36,12 @@ from elastoflow.fluid import (
     FluidState3D,
     InteriorBoundary,
     InteriorBoundary3D,
+    WallFreeSlip,
+    WallMoving,
+    WallNoSlip,
 )
 from elastoflow.grid import Grid2D, Grid3D
-from elastoflow.solid import BodyModel, BodyState, ElasticBody3D
+from elastoflow.solid import BodyModel, BodyState, ElasticBody3D, WallBox, WallContact
 
 NOT_SAVED = {"checkpoint": False}
 """Field metadata of derived data a checkpoint leaves out (rebuilt by the next step)."""
@@ -268,6 +271,10 @@ class CoupledModel:
             and cut distances from the map, the default) or `BoundaryStaircase` (cells by
             their centres, faces open or closed; the baseline of docs/validation/
             boundary_study.md). Both schemes build each step's interior through it.
+        contact: The bodies' contact with the domain's walls (`elastoflow.solid.WallContact`:
+            nothing passes through a wall side; inflow and outflow sides have none), or None
+            for none. Every 2D scheme applies it after (implicit rules: also inside) the
+            bodies' advance.
     """
 
     grid: Grid2D
@@ -275,6 +282,18 @@ class CoupledModel:
     bodies: tuple[BodyModel, ...] = ()
     obstacles: tuple[Obstacle, ...] = ()
     boundary: BoundaryTreatment = BoundaryCutCell()
+    contact: WallContact | None = WallContact()
+
+    def wall_box(self) -> WallBox:
+        """The walls the bodies touch: the grid's box, the fluid's wall sides (`WallNoSlip`,
+        `WallFreeSlip`, `WallMoving`; not `Inflow`, `Outflow`)."""
+        grid = self.grid
+        lower = (float(grid.origin[0]), float(grid.origin[1]))
+        upper = (lower[0] + grid.lx, lower[1] + grid.ly)
+        sides = self.fluid.boundaries.sides()
+        walls = tuple(isinstance(side, WallNoSlip | WallFreeSlip | WallMoving)
+                      for side in sides)
+        return WallBox(lower, upper, (walls[0], walls[1], walls[2], walls[3]))
 
     @property
     def has_boundaries(self) -> bool:

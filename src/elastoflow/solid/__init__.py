@@ -27,6 +27,15 @@ bringing its forces and step matrix) steps one state into another::
 
 
 from elastoflow.solid._body3d import ElasticBody3D
+from elastoflow.solid._contact import (
+    HeldResponse,
+    WallBox,
+    WallContact,
+    WallHold,
+    hold_response,
+    project_onto_box,
+    wall_hold,
+)
 from elastoflow.solid._body import (
     DEFAULT_SAFETY,
     ElasticBody,
@@ -72,6 +81,7 @@ __all__ = [
     "ElasticBody",
     "ElasticBody3D",
     "ExplicitFem",
+    "HeldResponse",
     "MaterialRod",
     "MaterialStVK",
     "EnergyMomentumFem",
@@ -85,6 +95,10 @@ __all__ = [
     "StepResponse3D",
     "TetrahedralMesh",
     "TriangleMesh",
+    "WallBox",
+    "WallContact",
+    "WallHold",
+    "hold_response",
     "mesh_box",
     "mesh_cylinder",
     "mesh_from_polygon",
@@ -94,9 +108,11 @@ __all__ = [
     "nearest_node",
     "nodes_in_box",
     "nodes_in_box_3d",
+    "project_onto_box",
     "read_mesh",
     "read_tetrahedral_mesh",
     "stable_substep",
     "static_equilibrium",
     "tetrahedralize_surface",
+    "wall_hold",
 ]

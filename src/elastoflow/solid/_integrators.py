@@ -32,6 +32,7 @@ from elastoflow.solid._body import (
     SolidStepReport,
 )
 from elastoflow.solid._body3d import ElasticBody3D
+from elastoflow.solid._contact import HeldResponse, WallBox, hold_response, project_onto_box
 from elastoflow.solid._response import StepResponse
 from elastoflow.solid._rod import BodyModel
 from elastoflow.solid._state import BodyState
@@ -79,6 +80,8 @@ class ExplicitFem:
         *,
         step: int | None = None,
         added_mass: np.ndarray | None = None,
+        walls: WallBox | None = None,
+        friction: float = 0.0,
     ) -> SolidStepReport:
         """Advance ``state_in`` by ``dt`` [s] into ``state_out`` (may be ``state_in``).
 
@@ -93,6 +96,11 @@ class ExplicitFem:
             added_mass: Extra nodal inertia ``m_added`` [kg/m], shape (n,), >= 0, for this call
                 only (an added-mass estimate of the surrounding fluid, whose matching force
                 the caller puts in ``external_forces``); gravity still acts on ``m`` alone.
+            walls: Contact with these walls (2D bodies): after every substep the nodes
+                beyond a wall are put back onto it, inelastically, with Coulomb
+                ``friction`` (`elastoflow.solid.project_onto_box`). Substeps are then run
+                one kernel call each, while the body can reach a wall within the step.
+            friction: Coulomb coefficient of that contact.
 
         Raises:
             SolidInversionError: An element inverted or a value became non-finite; both
@@ -128,8 +136,23 @@ class ExplicitFem:
         status = np.zeros(3, dtype=np.int64)
         determinant = np.zeros(1)
         sub_dt = dt / substeps
-        body.explicit_substeps(positions, velocities, inverse_mass, forces, sub_dt, substeps,
-                               status, determinant)
+        reach = 0.0
+        if walls is not None:
+            # How far a node can go in the step under its own speed and the held forces.
+            acceleration = float(np.abs(forces * inverse_mass[:, None]).max(initial=0.0))
+            reach = dt * float(np.abs(velocities).max(initial=0.0)) + dt * dt * acceleration
+        # Internal (elastic) forces are not in ``reach``: a margin of 1 % of the box more.
+        if walls is None or not walls.near(positions, 2.0 * reach + 1e-2 * walls.size):
+            body.explicit_substeps(positions, velocities, inverse_mass, forces, sub_dt,
+                                   substeps, status, determinant)
+        else:
+            for substep in range(substeps):
+                body.explicit_substeps(positions, velocities, inverse_mass, forces, sub_dt, 1,
+                                       status, determinant)
+                if status[0]:
+                    status[1] += substep
+                    break
+                project_onto_box(walls, positions, velocities, body.fixed_mask, friction, 0.0)
         where = "" if step is None else f"step {step}, "
         stable = body.stable_substep()
         if status[0]:
@@ -204,8 +227,9 @@ class NewmarkFem:
 
     def advance(
         self, body: ImplicitBody, state_in: BodyState, state_out: BodyState, dt: float,
-        external_forces: np.ndarray, response: StepResponse, *, step: int | None = None,
-        nodal_damping: np.ndarray | None = None,
+        external_forces: np.ndarray, response: StepResponse | HeldResponse, *,
+        step: int | None = None,
+        nodal_damping: np.ndarray | None = None, hold: np.ndarray | None = None,
     ) -> SolidStepReport:
         """Advance ``state_in`` by ``dt`` [s] into ``state_out`` (may be ``state_in``).
 
@@ -223,6 +247,9 @@ class NewmarkFem:
                 linearisation of a force held over the step in the body's velocity (the
                 fluid's viscous traction: `MonolithicCoupling3D`). It vanishes when the
                 velocity does not change.
+            hold: (n, d) bool: node components held at their start position over the step
+                (a wall contact's hold, `elastoflow.solid.WallHold`); ``response`` must then
+                be the held one (`elastoflow.solid.hold_response`).
 
         Raises:
             SolidInversionError: An element inverted or a value became non-finite; both
@@ -237,6 +264,8 @@ class NewmarkFem:
         f_external = forces + mass * body.gravity
         a0 = (body.forces_at(x0, v0) + f_external) / mass
         a0[held] = 0.0
+        if hold is not None:
+            a0[hold] = 0.0
         beta = 0.5 * gamma
         drift = x0 + dt * v0 + (0.5 - beta) * dt * dt * a0
 
@@ -253,7 +282,7 @@ class NewmarkFem:
                                     **_damping_keyword(nodal_damping))
 
         return _implicit_step(body, state_in, state_out, dt, residual_at, response, tangent_at,
-                              self.tolerance, self.max_iterations, step)
+                              self.tolerance, self.max_iterations, step, hold)
 
 
 class MidpointFem:
@@ -314,11 +343,13 @@ class MidpointFem:
 
     def advance(
         self, body: ImplicitBody, state_in: BodyState, state_out: BodyState, dt: float,
-        external_forces: np.ndarray, response: StepResponse, *, step: int | None = None,
-        nodal_damping: np.ndarray | None = None,
+        external_forces: np.ndarray, response: StepResponse | HeldResponse, *,
+        step: int | None = None,
+        nodal_damping: np.ndarray | None = None, hold: np.ndarray | None = None,
     ) -> SolidStepReport:
         """Advance ``state_in`` by ``dt`` [s] into ``state_out`` (may be ``state_in``); as
-        `NewmarkFem.advance` (``nodal_damping``'s force at the midpoint velocity)."""
+        `NewmarkFem.advance` (``nodal_damping``'s force at the midpoint velocity; ``hold``
+        the components held over the step)."""
         forces = _checked_forces(body, external_forces)
         mass = body.mass[:, None]
         x0 = state_in.positions
@@ -339,7 +370,7 @@ class MidpointFem:
             return self._response_at(body, 0.5 * (x0 + x), dt, nodal_damping)
 
         return _implicit_step(body, state_in, state_out, dt, residual_at, response, tangent_at,
-                              self.tolerance, self.max_iterations, step)
+                              self.tolerance, self.max_iterations, step, hold)
 
 
 class EnergyMomentumFem(MidpointFem):
@@ -477,24 +508,37 @@ def _refresh_contraction(body: ImplicitBody) -> float:
 
 def _implicit_step(
     body: ImplicitBody, state_in: BodyState, state_out: BodyState, dt: float,
-    residual: Callable[[np.ndarray], np.ndarray], response: StepResponse,
-    tangent_at: Callable[[np.ndarray], StepResponse], tolerance: float, max_iterations: int,
-    step: int | None,
+    residual: Callable[[np.ndarray], np.ndarray], response: StepResponse | HeldResponse,
+    tangent_at: Callable[[np.ndarray], StepResponse | HeldResponse], tolerance: float, max_iterations: int,
+    step: int | None, hold: np.ndarray | None = None,
 ) -> SolidStepReport:
     """Newton on an implicit rule's residual in the end positions (end velocity ``2 (x1 - x0)
     / dt - v0``): the matrix of ``response`` (tangent at the start of the step) while it
     contracts, a fresh tangent at the iterate and a halving line search when it does not
     (fast rotations leave the start's tangent behind); also a fresh tangent after an update
     that leaves more than `_refresh_contraction` of the residual (3D bodies), unless it was
-    the last iteration allowed."""
+    the last iteration allowed. ``hold`` (n, d) bool: components kept at their start
+    position (a wall contact's), taken like fixed nodes; ``response`` must be held on them
+    too (`elastoflow.solid.hold_response`), and the fresh tangents are."""
     refresh_above = _refresh_contraction(body)
     held = body.fixed_mask
     x0 = state_in.positions
     v0 = state_in.velocities
+    if hold is not None and not hold.any():
+        hold = None
+    if hold is not None:
+        fresh_tangent = tangent_at
+
+        def tangent_at(x: np.ndarray) -> StepResponse | HeldResponse:
+            response = fresh_tangent(x)
+            assert isinstance(response, StepResponse)
+            return hold_response(response, hold)
 
     def residual_at(x: np.ndarray) -> tuple[np.ndarray, float]:
         r = residual(x)
         r[held] = 0.0
+        if hold is not None:
+            r[hold] = 0.0
         norm = float(np.linalg.norm(r))
         return r, norm if np.isfinite(norm) else np.inf
 
@@ -502,6 +546,8 @@ def _implicit_step(
     # acceleration extrapolated) would start stiff bodies far off.
     x1 = x0 + dt * v0
     x1[held] = x0[held]
+    if hold is not None:
+        x1[hold] = x0[hold]
     size = float(np.ptp(body.mesh.points, axis=0).max())
     factor = response
     fresh = False
@@ -535,6 +581,8 @@ def _implicit_step(
             fresh = True
     v1 = 2.0 * (x1 - x0) / dt - v0
     v1[held] = 0.0
+    if hold is not None:
+        v1[hold] = 0.0
     determinants = body.determinants_at(x1)
     where = "" if step is None else f"step {step}, "
     if not (np.all(np.isfinite(x1)) and np.all(np.isfinite(v1)) and determinants.min() > 0.0):

@@ -83,3 +83,29 @@ def test_incremental_pressure_with_a_coupled_body_is_refused_before_running() ->
     explicit = parse_scene({**_BASE, "fluid": {"incremental_pressure": True}, "bodies": [body],
                             "coupling": {"scheme": "explicit"}})
     build_simulation(explicit).step()
+
+
+def test_wall_contact_is_on_by_default_and_takes_its_friction() -> None:
+    from elastoflow.scenes import build_simulation
+    from elastoflow.solid import WallContact
+
+    simulation = build_simulation(parse_scene(_BASE))
+    assert simulation.model.contact == WallContact(friction=0.3)
+    simulation = build_simulation(parse_scene({**_BASE, "coupling": {"wall_friction": 0.0}}))
+    assert simulation.model.contact == WallContact(friction=0.0)
+    simulation = build_simulation(parse_scene({**_BASE, "coupling": {"wall_contact": False}}))
+    assert simulation.model.contact is None
+
+
+@pytest.mark.parametrize(("coupling", "expected"), [
+    ({"wall_friction": -0.5}, "coupling.wall_friction"),
+    ({"wall_friction": "high"}, "coupling.wall_friction"),
+    ({"wall_contact": "yes"}, "coupling.wall_contact"),
+    ({"wall_contact": False, "wall_friction": 0.5}, "wall_friction needs wall_contact"),
+])
+def test_bad_wall_contact_keys_are_refused_in_one_line(coupling: dict, expected: str) -> None:
+    with pytest.raises(SceneError) as error:
+        parse_scene({**_BASE, "coupling": coupling})
+    message = str(error.value)
+    assert expected in message
+    assert len(message.strip().splitlines()) == 1

@@ -1,0 +1,102 @@
+"""Wall contact in the coupled schemes: a box twice as dense as the water rests on the floor."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from elastoflow import fluid, solid
+from elastoflow.grid import Grid2D
+from elastoflow.simulation import FreeSurfaceMonolithicCoupling, Simulation
+
+H = 0.02
+
+
+def _box(bottom: float) -> solid.ElasticBody:
+    mesh = solid.mesh_rectangle(0.2, 0.1, element_size=H, origin=(0.2 + 0.3 * H, bottom))
+    return solid.ElasticBody(mesh, solid.MaterialStVK(2000.0, 1e6, 0.3), gravity=(0.0, -9.81))
+
+
+def _single_phase(bottom: float, contact=solid.WallContact(), coupling="monolithic"):
+    grid = Grid2D(nx=30, ny=15, h=H)
+    solver = fluid.FluidSolver(grid, density=1000.0, viscosity=1e-3,
+                               boundaries=fluid.DomainBoundaries.closed_box(),
+                               gravity=(0.0, -9.81))
+    body = _box(bottom)
+    dt = 0.25 * H / np.sqrt(9.81 * 0.1)
+    return Simulation(grid, solver, bodies=[body], dt=dt, coupling=coupling,
+                      contact=contact), body
+
+
+def _energy(body, state) -> float:
+    kinetic = 0.5 * float((body.mass[:, None] * state.velocities ** 2).sum())
+    return kinetic + float(body.elastic_energy(state)) + 9.81 * float(
+        body.mass @ state.positions[:, 1])
+
+
+def test_monolithic_box_on_the_floor_stays_at_rest_on_it():
+    simulation, body = _single_phase(0.0)
+    speeds = []
+    for _ in range(60):
+        simulation.step()
+        state = simulation.state.bodies[0]
+        assert state.positions[:, 1].min() >= 0.0
+        speeds.append(float(np.abs(state.velocities).max()))
+    assert state.positions[:, 1].min() == 0.0
+    # Settling of its elastic compression, no jitter: the speed dies out.
+    assert speeds[-1] < 1e-4 and speeds[-1] < 0.2 * max(speeds)
+
+
+def test_monolithic_box_without_contact_goes_below_the_floor():
+    simulation, _ = _single_phase(0.0, contact=None)
+    simulation.run(60)
+    assert simulation.state.bodies[0].positions[:, 1].min() < -1e-5
+
+
+def test_monolithic_box_dropped_near_the_floor_lands_and_rests():
+    simulation, body = _single_phase(0.2 * H)
+    for _ in range(120):
+        simulation.step()
+        assert simulation.state.bodies[0].positions[:, 1].min() >= 0.0
+    energies = []
+    for _ in range(40):
+        simulation.step()
+        state = simulation.state.bodies[0]
+        assert state.positions[:, 1].min() >= 0.0
+        energies.append(_energy(body, state))
+    assert state.positions[:, 1].min() < 0.05 * H
+    assert np.abs(state.velocities).max() < 0.02
+
+
+def test_explicit_box_on_the_floor_stays_on_it():
+    simulation, _ = _single_phase(0.0, coupling="explicit")
+    for _ in range(20):
+        simulation.step()
+        assert simulation.state.bodies[0].positions[:, 1].min() >= 0.0
+
+
+def test_free_surface_box_on_the_floor_rests_under_the_water():
+    grid = Grid2D(nx=30, ny=15, h=H)
+    walls = fluid.DomainBoundaries(left=fluid.WallFreeSlip(), right=fluid.WallFreeSlip(),
+                                   bottom=fluid.WallFreeSlip(), top=fluid.WallFreeSlip())
+    solver = fluid.FluidSolver(grid, density=1000.0, viscosity=1e-3, boundaries=walls,
+                               gravity=(0.0, -9.81), advection="semi_lagrangian")
+    body = _box(0.0)
+    dt = 0.25 * H / np.sqrt(9.81 * 0.1)
+    simulation = Simulation(grid, solver, bodies=[body], dt=dt,
+                            coupling=FreeSurfaceMonolithicCoupling(fluid.FreeSurfaceSolver(solver)),
+                            level_set=fluid.level_set_below(grid, 0.16))
+    speeds = []
+    for _ in range(60):
+        simulation.step()
+        state = simulation.state.bodies[0]
+        assert state.positions[:, 1].min() >= 0.0
+        speeds.append(float(np.abs(state.velocities).max()))
+    assert state.positions[:, 1].min() == 0.0
+    assert speeds[-1] < 1e-3
+
+
+@pytest.mark.parametrize("friction", [-1.0, float("nan")])
+def test_simulation_refuses_bad_friction(friction):
+    with pytest.raises(ValueError, match="friction"):
+        solid.WallContact(friction=friction)
