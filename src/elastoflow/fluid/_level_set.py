@@ -124,17 +124,31 @@ class RedistanceFastSweeping:
 
     rounds: int = 1
     bound_by_crossings: bool = True
+    _padded: dict[tuple[int, int], tuple[FloatArray, NDArray[np.bool_]]] = field(
+        default_factory=dict, init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         if not isinstance(self.rounds, int) or self.rounds < 1:
             raise ValueError(f"RedistanceFastSweeping.rounds = {self.rounds!r}: must be an int >= 1")
 
     def redistance(self, level_set: FloatArray, h: float, out: FloatArray,
-                   scratch: NDArray[np.bool_]) -> None:
+                   scratch: NDArray[np.bool_] | None = None) -> None:
         """Write the signed distance [m] to the zero level of ``level_set`` into ``out``
-        (shape (nx, ny), not ``level_set``); ``scratch``: bool, shape (nx, ny)."""
-        kernels.redistance_fast_sweeping(level_set, float(h), self.rounds, out, scratch,
+        (shape (nx, ny), not ``level_set``).
+
+        The sweeps work on padded copies kept per grid shape (so one instance must not
+        redistance from several threads at once). ``scratch`` (optional; bool, shape
+        (nx, ny)) receives the cells next to the surface, those that kept their crossing."""
+        shape = (int(level_set.shape[0]), int(level_set.shape[1]))
+        padded = self._padded.get(shape)
+        if padded is None:
+            size = (shape[0] + 2) * (shape[1] + 2)
+            padded = (np.empty(size), np.empty(size, dtype=np.bool_))
+            self._padded[shape] = padded
+        kernels.redistance_fast_sweeping(level_set, float(h), self.rounds, out, *padded,
                                          bool(self.bound_by_crossings))
+        if scratch is not None:
+            scratch[...] = padded[1].reshape(shape[0] + 2, shape[1] + 2)[1:-1, 1:-1]
 
 
 @dataclass(frozen=True)
@@ -176,6 +190,9 @@ class LevelSetWorkspace:
         shape = grid.shape_cells
         self.forward = np.zeros(shape)
         self.backward = np.zeros(shape)
+        # MacCormack's clamp range, from its first pass (`advect_cells_forward_range`).
+        self.low = np.zeros(shape)
+        self.high = np.zeros(shape)
         self.fixed = np.zeros(shape, dtype=np.bool_)
 
 
@@ -192,10 +209,11 @@ def transport_level_set(
     step = dt / grid.h
     forward, backward = workspace.forward, workspace.backward
     if transport.advection == "maccormack":
-        kernels.advect_cells_semi_lagrangian(level_set, velocity_x, velocity_y, step, forward)
-        kernels.advect_cells_semi_lagrangian(forward, velocity_x, velocity_y, -step, backward)
-        kernels.maccormack_correct(level_set, forward, backward, velocity_x, velocity_y, step,
-                                   backward)
+        # Two passes, each tracing back once (the clamp's range is found in the first).
+        kernels.advect_cells_forward_range(level_set, velocity_x, velocity_y, step, forward,
+                                           workspace.low, workspace.high)
+        kernels.maccormack_backward_correct(level_set, forward, workspace.low, workspace.high,
+                                            velocity_x, velocity_y, step, backward)
         result = backward
     else:
         kernels.advect_cells_semi_lagrangian(level_set, velocity_x, velocity_y, step, forward)
@@ -203,7 +221,7 @@ def transport_level_set(
     redistancing = transport.redistancing
     if redistancing is not None and step_index % transport.redistance_interval == 0:
         other = forward if result is backward else backward
-        redistancing.redistance(result, grid.h, other, workspace.fixed)
+        redistancing.redistance(result, grid.h, other)
         result = other
     level_set[...] = result
     if transport.volume_correction and target_area is not None:

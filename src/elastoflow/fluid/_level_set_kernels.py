@@ -433,6 +433,35 @@ def maccormack_correct(phi, forward, backward, u, v, step, out):
             out[i, j] = min(max(value, low), high)
 
 
+@njit(cache=True, parallel=True)
+def advect_cells_forward_range(phi, u, v, step, forward, low, high):
+    """MacCormack's first pass: ``forward = phi`` at the departure points (as
+    `advect_cells_semi_lagrangian`), and into ``low`` / ``high`` the range of the four
+    values of ``phi`` around each departure point, which `maccormack_backward_correct`
+    clamps to: one back-trace per point where `maccormack_correct` traced again."""
+    nx, ny = phi.shape
+    for i in prange(nx):
+        for j in range(ny):
+            xd, yd = _departure(u, v, float(i), float(j), step)
+            forward[i, j] = _sample_clamped(phi, xd, yd)
+            low[i, j], high[i, j] = _range_around(phi, xd, yd)
+
+
+@njit(cache=True, parallel=True)
+def maccormack_backward_correct(phi, forward, low, high, u, v, step, out):
+    """MacCormack's second and third passes in one: ``backward`` = ``forward`` carried back
+    over ``-step``, and ``out = forward + (phi - backward) / 2`` clamped to ``[low, high]``
+    (from `advect_cells_forward_range`); the same values as `advect_cells_semi_lagrangian`
+    then `maccormack_correct`. ``out`` must not be ``forward``; it may be ``low`` or ``high``."""
+    nx, ny = phi.shape
+    for i in prange(nx):
+        for j in range(ny):
+            xd, yd = _departure(u, v, float(i), float(j), -step)
+            backward = _sample_clamped(forward, xd, yd)
+            value = forward[i, j] + 0.5 * (phi[i, j] - backward)
+            out[i, j] = min(max(value, low[i, j]), high[i, j])
+
+
 # -- redistancing ----------------------------------------------------------------------------
 
 @njit(cache=True, inline="always")
@@ -469,36 +498,48 @@ def _gradient_norm(phi, i, j, h):
 
 
 @njit(cache=True, inline="always")
-def _eikonal_update(distance, i, j, h):
-    """The upwind solution of ``|grad d| = 1`` at (i, j) from its neighbours' distances."""
-    nx, ny = distance.shape
-    a = np.inf
-    if i > 0:
-        a = distance[i - 1, j]
-    if i + 1 < nx:
-        a = min(a, distance[i + 1, j])
-    b = np.inf
-    if j > 0:
-        b = distance[i, j - 1]
-    if j + 1 < ny:
-        b = min(b, distance[i, j + 1])
+def _eikonal_update(a, b, h):
+    """The upwind solution of ``|grad d| = 1`` at a cell whose smaller neighbour distances
+    are ``a`` along x and ``b`` along y (inf: none). Two infinite ones give NaN, which
+    never replaces a distance."""
     if abs(a - b) >= h:
         return min(a, b) + h
     return 0.5 * (a + b + math.sqrt(2.0 * h * h - (a - b) * (a - b)))
 
 
+@njit(cache=True, inline="always")
+def _sweep_cell(distance, fixed, h, k, stride):
+    """One Gauss-Seidel update of the padded point ``k`` (rows of ``stride``), unless fixed."""
+    if not fixed[k]:
+        candidate = _eikonal_update(min(distance[k - stride], distance[k + stride]),
+                                    min(distance[k - 1], distance[k + 1]), h)
+        if candidate < distance[k]:
+            distance[k] = candidate
+
+
 @njit(cache=True)
-def _sweep(distance, fixed, h, i_first, i_step, j_first, j_step):
-    nx, ny = distance.shape
-    for ii in range(nx):
-        i = i_first + i_step * ii
-        for jj in range(ny):
-            j = j_first + j_step * jj
-            if fixed[i, j]:
-                continue
-            candidate = _eikonal_update(distance, i, j, h)
-            if candidate < distance[i, j]:
-                distance[i, j] = candidate
+def _sweep(distance, fixed, h, nx, ny, i_first, i_step, j_first, j_step):
+    """One Gauss-Seidel sweep of the padded ``distance`` (rows ``i_first, i_first + i_step,
+    ...``, each in the order ``j_first, j_first + j_step, ...``; border inf and fixed).
+
+    Two rows at a time, the second one cell behind the first: cell (i + i_step, j) is
+    updated after (i, j) and (i + i_step, j - j_step), as in the row-by-row order, and
+    before (i + i_step, j + j_step), which (i, j + j_step) does not read; every cell sees
+    the same neighbour values as row by row (the same result, bitwise), while the two
+    rows' chains of dependent updates overlap in the processor."""
+    stride = ny + 2
+    for pair in range(0, nx, 2):
+        k = (i_first + i_step * pair + 1) * stride + 1 + j_first
+        if pair + 1 == nx:
+            for jj in range(ny):
+                _sweep_cell(distance, fixed, h, k + j_step * jj, stride)
+            continue
+        below = k + i_step * stride
+        _sweep_cell(distance, fixed, h, k, stride)
+        for jj in range(1, ny):
+            _sweep_cell(distance, fixed, h, k + j_step * jj, stride)
+            _sweep_cell(distance, fixed, h, below + j_step * (jj - 1), stride)
+        _sweep_cell(distance, fixed, h, below + j_step * (ny - 1), stride)
 
 
 @njit(cache=True, inline="always")
@@ -531,7 +572,7 @@ def _crossing_distance(phi, i, j, h):
 
 
 @njit(cache=True)
-def redistance_fast_sweeping(phi, h, rounds, out, fixed, bound_by_crossings=True):
+def redistance_fast_sweeping(phi, h, rounds, out, distance, fixed, bound_by_crossings=True):
     """Signed distance to the zero level of ``phi`` [m] by fast sweeping (Zhao 2005).
 
     Cells next to the interface (a 4-neighbour on the other side) keep their zero crossing:
@@ -555,35 +596,51 @@ def redistance_fast_sweeping(phi, h, rounds, out, fixed, bound_by_crossings=True
         h: Cell side [m].
         rounds: Rounds of four sweeps.
         out: Result [m], shape (nx, ny), not ``phi``.
-        fixed: bool scratch, shape (nx, ny).
+        distance: float64 scratch of the grid padded by one cell on each side, flat,
+            ``(nx + 2) (ny + 2)``: the sweeps read their neighbours without bounds tests
+            (the border holds inf; 3.5x faster sweeps than on the unpadded array, 256x128).
+        fixed: bool scratch of the same shape.
     """
     nx, ny = phi.shape
+    stride = ny + 2
+    for k in range(stride):
+        distance[k] = np.inf
+        fixed[k] = True
+        distance[(nx + 1) * stride + k] = np.inf
+        fixed[(nx + 1) * stride + k] = True
     for i in range(nx):
+        row = (i + 1) * stride
+        distance[row] = np.inf
+        fixed[row] = True
+        distance[row + ny + 1] = np.inf
+        fixed[row + ny + 1] = True
         for j in range(ny):
+            k = row + j + 1
             if _is_interface(phi, i, j):
                 norm = _gradient_norm(phi, i, j, h)
                 # A flat spot (|grad phi| ~ 0 at a crossing) cannot be rescaled: keep phi.
                 value = abs(phi[i, j] / norm if norm > 1e-12 / h else phi[i, j])
                 if bound_by_crossings and norm < 1.0:
                     value = min(value, _crossing_distance(phi, i, j, h))
-                out[i, j] = value
-                fixed[i, j] = True
+                distance[k] = value
+                fixed[k] = True
             else:
-                out[i, j] = np.inf
-                fixed[i, j] = False
+                distance[k] = np.inf
+                fixed[k] = False
     for _ in range(rounds):
-        _sweep(out, fixed, h, 0, 1, 0, 1)
-        _sweep(out, fixed, h, nx - 1, -1, 0, 1)
-        _sweep(out, fixed, h, nx - 1, -1, ny - 1, -1)
-        _sweep(out, fixed, h, 0, 1, ny - 1, -1)
+        _sweep(distance, fixed, h, nx, ny, 0, 1, 0, 1)
+        _sweep(distance, fixed, h, nx, ny, nx - 1, -1, 0, 1)
+        _sweep(distance, fixed, h, nx, ny, nx - 1, -1, ny - 1, -1)
+        _sweep(distance, fixed, h, nx, ny, 0, 1, ny - 1, -1)
     for i in range(nx):
+        row = (i + 1) * stride + 1
         for j in range(ny):
             # No surface reaches this cell (a grid all liquid or all air, or a region the
             # sweeps did not reach): keep phi rather than an infinite distance.
-            if out[i, j] == np.inf:
-                out[i, j] = abs(phi[i, j])
-            if phi[i, j] < 0.0:
-                out[i, j] = -out[i, j]
+            value = distance[row + j]
+            if value == np.inf:
+                value = abs(phi[i, j])
+            out[i, j] = -value if phi[i, j] < 0.0 else value
 
 
 # -- volume ----------------------------------------------------------------------------------
