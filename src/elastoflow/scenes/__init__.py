@@ -23,7 +23,14 @@ from elastoflow.scenes._build import (
 )
 from elastoflow.scenes._checks import available_memory, memory_estimate
 from elastoflow.scenes._errors import SceneError
-from elastoflow.scenes._library import get_scene, list_scenes
+from elastoflow.scenes._library import (
+    DAM_BREAK_OBSTACLE,
+    ELASTIC_GATE,
+    dam_break_obstacle_data,
+    elastic_gate_data,
+    get_scene,
+    list_scenes,
+)
 from elastoflow.scenes._schema import (
     BodySpec,
     BoundariesSpec,
@@ -67,6 +74,8 @@ from elastoflow.scenes._schema3d import (
 from elastoflow.scenes._toml import is_3d, load_scene, parse_scene, scene_to_toml
 
 __all__ = [
+    "DAM_BREAK_OBSTACLE",
+    "ELASTIC_GATE",
     "Body3DSpec",
     "BodySpec",
     "Boundaries3DSpec",
@@ -110,6 +119,8 @@ __all__ = [
     "build_grid",
     "build_simulation",
     "characteristic_speed",
+    "dam_break_obstacle_data",
+    "elastic_gate_data",
     "get_scene",
     "initial_velocity",
     "is_3d",
