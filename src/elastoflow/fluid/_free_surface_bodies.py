@@ -11,10 +11,11 @@ level set carried across the bodies.
           next to it push on it (air cells hold p = 0)
 
 The level set inside a body is not the liquid's: after each advection the cells whose centre
-lies inside a body take the level set's harmonic extension from the cells around
-(`carry_level_set_across_bodies`), so that the surface continues straight through a floating
-body, a body lifted out of the water leaves no liquid behind inside it, and one pushed under
-is wetted from below. The volume correction keeps the water outside the bodies
+lies inside a body take the values just outside their nearest face, extended inwards layer
+by layer (`carry_level_set_across_bodies`), so that a cell the body uncovers, or a back-trace
+that ends inside it, finds what lies on that side: a body lifted out of the water leaves no
+liquid behind inside it, one pushed under is wetted from below, and a gate with water on one
+side and air on the other leaves no film on its dry face. The volume correction keeps the water outside the bodies
 (`water_area`): the area of ``phi < 0`` weighted by each cell's fluid fraction.
 """
 
@@ -149,29 +150,24 @@ def extrapolate_velocity_from_valid(state: FluidState, layers: int,
                                         frontier, previous)
 
 
-# Harmonic extension across the bodies: sweeps stop when no value changes by more than this
-# share of the cell size, or after this many sweeps (a 20 x 10 cell box takes about 60).
-RELAX_TOLERANCE = 1e-6
-RELAX_MAX_SWEEPS = 2000
-
-
 def carry_level_set_across_bodies(level_set: FloatArray, interior: InteriorBoundary, h: float,
                                   workspace: FreeSurfaceBodiesWorkspace) -> int:
-    """Replace the level set [m] in the cells whose centre lies in a body by its harmonic
-    extension from the cells around, in place: a layer-by-layer linear extrapolation
-    (`extrapolate_level_set`) as the start, then relaxed (`relax_level_set`). Returns the
-    relaxation's sweeps.
+    """Replace the level set [m] in the cells whose centre lies in a body by its extension
+    from the cells around, in place, layer by layer inwards, each cell the mean of its
+    known neighbours (`extend_level_set`). Returns the cells no outside cell reached.
 
-    Why harmonic: the layer-by-layer extrapolation alone, averaging directions that disagree
-    where the surface outside is not straight, left values near zero with the wrong sign
-    inside a heaving box (liquid above air inside it); the harmonic extension has no
-    extrema of its own."""
+    Why from the nearest face: a cell the body uncovers as it moves takes this value, and a
+    back-trace that ends inside the body reads it, so it must be what lies just outside the
+    face the cell is nearest to. A harmonic extension (the earlier choice) blends the two
+    sides of a thin body: a gate holding water on one side and air on the other held values
+    near zero at its dry face, and as it swung back each cell it uncovered there turned to
+    water, a film along the dry face. A linear extrapolation, tried before that, put
+    wrong-signed values inside a heaving box where directions disagree; the constant one
+    has no values its neighbours do not have."""
     solid = interior.solid_cells
     if not solid.any():
         return 0
-    kernels.extrapolate_level_set(level_set, solid, workspace.known, workspace.fresh)
-    return int(kernels.relax_level_set(level_set, solid, RELAX_TOLERANCE * h,
-                                       RELAX_MAX_SWEEPS))
+    return int(kernels.extend_level_set(level_set, solid, workspace.known, workspace.fresh))
 
 
 def water_area(level_set: FloatArray, interior: InteriorBoundary | None, h: float,

@@ -118,13 +118,12 @@ def subtract_cut_free_surface_gradient(u, v, p, phi, open_x, open_y, closed_u, c
 
 
 @njit(cache=True)
-def extrapolate_level_set(phi, unknown, known, fresh):
+def extend_level_set(phi, unknown, known, fresh):
     """Replace ``phi`` on the ``unknown`` cells (bool, (nx, ny)) layer by layer from the known
-    ones: each cell of the next layer takes the mean, over its known neighbours, of the linear
-    extrapolation ``2 phi[a] - phi[b]`` along the line through the neighbour ``a`` and the
-    one beyond it ``b`` (the neighbour's value when ``b`` is not known). Exact for a linear
-    level set. ``known`` / ``fresh``: int8 scratch (nx, ny). Returns the cells left unknown
-    (none reached: no known cell in their component)."""
+    ones: each cell of the next layer takes the mean of its known neighbours' values (a
+    constant extension along the layers, so each part of a body holds the value just
+    outside its nearest face). ``known`` / ``fresh``: int8 scratch (nx, ny). Returns the
+    cells left unknown (none reached: no known cell in their component)."""
     nx, ny = phi.shape
     remaining = 0
     for i in range(nx):
@@ -142,14 +141,9 @@ def extrapolate_level_set(phi, unknown, known, fresh):
                 count = 0
                 for di, dj in ((-1, 0), (1, 0), (0, -1), (0, 1)):
                     ia, ja = i + di, j + dj
-                    if ia < 0 or ia >= nx or ja < 0 or ja >= ny or not known[ia, ja]:
-                        continue
-                    ib, jb = ia + di, ja + dj
-                    if 0 <= ib < nx and 0 <= jb < ny and known[ib, jb]:
-                        total += 2.0 * phi[ia, ja] - phi[ib, jb]
-                    else:
+                    if 0 <= ia < nx and 0 <= ja < ny and known[ia, ja]:
                         total += phi[ia, ja]
-                    count += 1
+                        count += 1
                 if count > 0:
                     phi[i, j] = total / count
                     fresh[i, j] = 1
@@ -191,43 +185,3 @@ def weighted_liquid_area(phi, weights, h):
                 total += weights[i, j] * fraction
                 ramp += weights[i, j]
     return total * h * h, ramp
-
-
-
-@njit(cache=True)
-def relax_level_set(phi, unknown, tolerance, max_sweeps):
-    """Make ``phi`` harmonic on the ``unknown`` cells (bool, (nx, ny)), the other cells held
-    (successive over-relaxation of the 5-point mean; domain sides: no flux), in place:
-    exact for a linear level set and, unlike a one-sided extrapolation, free of new extrema,
-    so that no sign change appears inside a body that its surroundings do not have.
-    Stops when the largest change of a sweep is below ``tolerance`` [m]; returns the sweeps
-    taken."""
-    nx, ny = phi.shape
-    omega = 1.8
-    for sweep in range(max_sweeps):
-        largest = 0.0
-        for i in range(nx):
-            for j in range(ny):
-                if not unknown[i, j]:
-                    continue
-                total = 0.0
-                count = 0
-                if i > 0:
-                    total += phi[i - 1, j]
-                    count += 1
-                if i + 1 < nx:
-                    total += phi[i + 1, j]
-                    count += 1
-                if j > 0:
-                    total += phi[i, j - 1]
-                    count += 1
-                if j + 1 < ny:
-                    total += phi[i, j + 1]
-                    count += 1
-                change = omega * (total / count - phi[i, j])
-                phi[i, j] += change
-                if abs(change) > largest:
-                    largest = abs(change)
-        if largest < tolerance:
-            return sweep + 1
-    return max_sweeps
