@@ -154,9 +154,13 @@ class GhostFluidProjection:
         """The pressure operator for ``level_set``, assembled into ``out`` (diagonal (nx, ny),
         weights_x (nx-1, ny), weights_y (nx, ny-1))."""
         diagonal, weights_x, weights_y = out
-        kernels.build_free_surface_operator(level_set, float(self.theta_min), diagonal,
-                                            weights_x, weights_y)
-        return Operator5Point(diagonal, weights_x, weights_y)
+        bad = kernels.build_free_surface_operator(level_set, float(self.theta_min), diagonal,
+                                                  weights_x, weights_y)
+        if bad:
+            raise ValueError(f"diagonal: values must be finite and >= 0; got {bad} non-finite "
+                             "(the level set holds NaN or inf)")
+        # Values finite and >= 0 by construction: no checking pass over them.
+        return Operator5Point.assembled(diagonal, weights_x, weights_y)
 
     def project(self, solver: FluidSolver, state: FluidState, level_set: FloatArray, dt: float,
                 workspace: FreeSurfaceWorkspace) -> SolveReport:

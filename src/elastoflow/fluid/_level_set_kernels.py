@@ -46,9 +46,11 @@ def build_free_surface_operator(phi, theta_min, diagonal, weights_x, weights_y):
     ``1 / theta`` on its diagonal (p = 0 at the interface, a fraction theta of the spacing
     away); air cells are inactive (all zero); domain sides are walls (no term). The operator is
     symmetric and diagonally dominant, positive definite on every liquid region that touches
-    air.
+    air. Returns the number of diagonal terms that are not finite (a level set holding NaN):
+    the weights are 0 or 1 and the rest finite and >= 0 by construction.
     """
     nx, ny = phi.shape
+    bad = 0
     for i in range(nx):
         for j in range(ny):
             diagonal[i, j] = 0.0
@@ -77,6 +79,9 @@ def build_free_surface_operator(phi, theta_min, diagonal, weights_x, weights_y):
             if j > 0 and phi[i, j - 1] >= 0.0:
                 d += 1.0 / interface_fraction(here, phi[i, j - 1], theta_min)
             diagonal[i, j] = d
+            if not math.isfinite(d):
+                bad += 1
+    return bad
 
 
 @njit(cache=True, inline="always")

@@ -10,11 +10,8 @@ from numpy.typing import NDArray
 
 from elastoflow.linalg._banded import banded_selected_inverse
 from elastoflow.linalg._kernels import (
-    COARSEN_PARALLEL_MINIMUM,
+    build_coarse_levels_kernel,
     chebyshev_kernel,
-    coarsen_parallel,
-    coarsen_serial,
-    dense_matrix_kernel,
     load_operator_kernel,
     low_rank_apply_kernel,
     low_rank_band_gap,
@@ -23,7 +20,6 @@ from elastoflow.linalg._kernels import (
     pad_values_kernel,
     pcg_kernel,
     pcg_low_rank_kernel,
-    semidefinite_cholesky_kernel,
     sum_of_squares_kernel,
     unpad_values_kernel,
 )
@@ -270,23 +266,9 @@ class _Hierarchy:
         if not self.coarse:
             return
         self._allocate_levels()
-        for level in range(1, levels):
-            m, n = int(self.rows[level]), int(self.cols[level])
-            coarsen = coarsen_parallel if m * n > COARSEN_PARALLEL_MINIMUM else coarsen_serial
-            coarsen(
-                self._level(self.diagonal, level - 1), self._level(self.weights_x, level - 1),
-                self._level(self.weights_y, level - 1), self._level(self.total, level - 1),
-                self._level(self.diagonal, level), self._level(self.weights_x, level),
-                self._level(self.weights_y, level), self._level(self.total, level),
-                self._level(self.inverse, level), int(self.cols[level - 1]), m, n,
-            )
-        last = levels - 1
-        dense_matrix_kernel(
-            self._level(self.diagonal, last), self._level(self.weights_x, last),
-            self._level(self.weights_y, last), int(self.rows[last]), int(self.cols[last]),
-            self.dense,
-        )
-        semidefinite_cholesky_kernel(self.dense, self.factor)
+        build_coarse_levels_kernel(self.rows, self.cols, self.offsets, self.diagonal,
+                                   self.weights_x, self.weights_y, self.total, self.inverse,
+                                   self.dense, self.factor)
 
 
 def _load(hierarchy: _Hierarchy, null_space: _NullSpace, rhs: NDArray[np.float64],

@@ -84,6 +84,30 @@ class Operator5Point:
         object.__setattr__(self, "weights_x", weights_x)
         object.__setattr__(self, "weights_y", weights_y)
 
+    @classmethod
+    def assembled(cls, diagonal: NDArray[np.float64], weights_x: NDArray[np.float64],
+                  weights_y: NDArray[np.float64]) -> Operator5Point:
+        """The operator of arrays that a compiled kernel has just filled, whose values are
+        finite and >= 0 by construction: only the shapes, dtype and layout are checked, not
+        the values (three passes over the grid; the free surface assembles a new operator
+        every step). The arrays are used as they are, not copied."""
+        m, n = diagonal.shape
+        for name, array, shape in (("diagonal", diagonal, (m, n)),
+                                   ("weights_x", weights_x, (m - 1, n)),
+                                   ("weights_y", weights_y, (m, n - 1))):
+            if (array.shape != shape or array.dtype != np.float64
+                    or not array.flags.c_contiguous):
+                raise ValueError(f"{name}: shape {array.shape} dtype {array.dtype} is not "
+                                 f"allowed; expected C-contiguous float64 of shape {shape}")
+        if m < 1 or n < 1:
+            raise ValueError(f"diagonal: shape {diagonal.shape} is not allowed; expected a "
+                             "non-empty (m, n) array")
+        operator = object.__new__(cls)
+        object.__setattr__(operator, "diagonal", diagonal)
+        object.__setattr__(operator, "weights_x", weights_x)
+        object.__setattr__(operator, "weights_y", weights_y)
+        return operator
+
     @property
     def shape(self) -> tuple[int, int]:
         """Shape ``(m, n)`` of the unknowns."""

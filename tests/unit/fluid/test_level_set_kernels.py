@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from elastoflow.fluid import RedistanceFastSweeping
+from elastoflow.fluid import GhostFluidProjection, RedistanceFastSweeping
 from elastoflow.fluid import _level_set_kernels as kernels
 
 
@@ -94,3 +94,17 @@ def test_fused_maccormack_equals_the_three_passes() -> None:
     assert np.array_equal(fused_forward, forward)
     assert np.array_equal(out, backward)
     assert np.all(low <= out) and np.all(out <= high)
+
+
+def test_the_ghost_fluid_operator_refuses_a_level_set_with_nan() -> None:
+    """The operator skips the value checks (finite and >= 0 by construction), so its kernel
+    counts the non-finite terms that a NaN in the level set makes."""
+    projection = GhostFluidProjection()
+    phi = np.full((6, 5), -0.5)
+    phi[3, 2] = np.nan
+    out = (np.zeros((6, 5)), np.zeros((5, 5)), np.zeros((6, 4)))
+    with pytest.raises(ValueError, match="non-finite"):
+        projection.operator(phi, out)
+    phi[3, 2] = 0.3
+    operator = projection.operator(phi, out)
+    assert operator.diagonal[2, 2] > 0.0 and operator.weights_x[2, 2] == 0.0
