@@ -208,19 +208,24 @@ is within 0.2 % of H of Archimedes' at both resolutions, and a box placed at Arc
 draft stays there (H/h = 10, 3 s: mean draft over the last 2 s 0.5001 H). Without the exact
 hydrostatic integral below the surface (`FreeSurfaceCoupledBodies`; the interface flux W
 alone applies a cut cell's centre pressure to the whole flat bottom) the same run settles at
-0.5106 H, 1.06 % of H too deep. The level set inside the box is the
-harmonic extension of the one around it: with a one-sided extrapolation alone the surface
-inside the heaving box got wrong-signed values and water was carried onto its top. The
-sinking box's start, 2.6-2.7 m/s^2, means an added mass of about 31 kg/m, that of a flat
-plate of the box's width (pi rho (W/2)^2 = 31.4 kg/m). Not in yet: contact with the floor.
+0.5106 H, 1.06 % of H too deep. The level set inside the box is the value
+just outside its nearest face, extended inwards (`carry_level_set_across_bodies`; a linear
+extrapolation put wrong-signed values inside the heaving box and carried water onto its top,
+and the harmonic extension used until 2026-12-03 left a film on the dry face of a gate that
+holds water on one side). The sinking box's start, 2.6-2.7 m/s^2, means an added mass of
+about 31 kg/m, that of a flat plate of the box's width (pi rho (W/2)^2 = 31.4 kg/m); it then
+rests on the floor (wall contact, docs/method_notes.md item 15).
 
 A known fault: a box of density 0.3 released 5 cm under the surface (H/h = 10) rises through
 it and bobs, but keeps a film of water about one cell thick on its top (still there at
 1.4 s, where it should drain off in a few tenths of a second): the film hardly drains at
-this resolution. Letting the level-set advection read the values beside the box held
-constant across it (instead of the harmonic extension, which is negative under the film)
-changed nothing (64 against 73 liquid cells inside the box above the surface at 1.4 s), so
-the cells above the box are not refilled from inside it. At 1.4 s the film over the box's
+this resolution. Reading the values beside the box held constant across it (the extension
+now used) instead of the harmonic one changed nothing (64 against 73 liquid cells inside the
+box above the surface at 1.4 s), so the cells above the box are not refilled from inside it.
+At 1.0 s (rerun 2026-12-03) the film is 1.4 cells thick and uniform across the box, which
+still rises at 0.08-0.11 m/s; it spreads outwards at up to 0.1 m/s (nu = 1e-3) or 0.16 m/s
+(nu = 1e-6) at the box's edges and thins by about 2 cm/s: it drains, if slower than a
+free gravity current would. At 1.4 s the film over the box's
 middle is two cells (1.5 cm) thick, active in the pressure solve and hydrostatic there (131 Pa
 at 1.3 cm depth) and spreads outwards at up to 0.04 m/s 5 cells from the middle: it drains,
 slowly. Not the viscosity: with water's (1e-6 m^2/s instead of 1e-3) the film is the same
