@@ -84,6 +84,29 @@ def build_free_surface_operator(phi, theta_min, diagonal, weights_x, weights_y):
     return bad
 
 
+@njit(cache=True)
+def liquid_bounds(phi):
+    """The liquid's bounding box in cells: ``(i0, i1, j0, j1)``, the cells with ``phi < 0``
+    lying in rows ``i0 <= i < i1`` and columns ``j0 <= j < j1``; (0, 0, 0, 0) without any."""
+    nx, ny = phi.shape
+    i0, i1, j0, j1 = nx, 0, ny, 0
+    for i in range(nx):
+        row_low = ny
+        row_high = -1
+        for j in range(ny):
+            if phi[i, j] < 0.0:
+                row_low = min(row_low, j)
+                row_high = j
+        if row_high >= 0:
+            i0 = min(i0, i)
+            i1 = i + 1
+            j0 = min(j0, row_low)
+            j1 = max(j1, row_high + 1)
+    if i1 == 0:
+        return 0, 0, 0, 0
+    return i0, i1, j0, j1
+
+
 @njit(cache=True, inline="always")
 def _face_gradient(p_low, p_high, phi_low, phi_high, surface_low, surface_high, theta_min):
     """``(p_high - p_low)`` across one face, with the ghost-fluid value on an air side: the
