@@ -42,8 +42,11 @@ _DENSE_LIMIT_3D = 192
 # the factor's sweeps inside the coupled solve; SuperLU's answer has to be formed, one
 # solve per touched dof: the settling sphere at 6 cells per diameter (2337 dofs, half-band
 # 431 in RCM order, n b^2 = 4.3e8) spent 18 s a step there, while its banded factor takes
-# 0.2 s (SuperLU 0.1 s).
-_BANDED_WORK_LIMIT_3D = 1.0e9
+# 0.2 s (SuperLU 0.1 s). The elastic block with 20480 tetrahedra (14.6k free dofs, n b^2 =
+# 3e9) had not finished its first coupled step in 9 CPU minutes through SuperLU (the
+# compliance on ~6000 touched dofs); banded it steps in 2.5-3.8 s (1.2 s of it the body),
+# so the band is used up to 2e10 (a factor of 150 MB at most for such bodies).
+_BANDED_WORK_LIMIT_3D = 2.0e10
 
 
 @dataclass

@@ -7,8 +7,8 @@ upstream face moves by (14.63, 5.0, -0.447) mm at steady state. Their solid is n
 ours is St. Venant-Kirchhoff, the same law to first order in the strain (the block's strains
 are a few per cent).
 
-Run ``python -m elastoflow.validation._elastic_block [cell size in mm ...]`` to rewrite the
-block's section of ``docs/validation/three_d.md`` and its plot, and
+Run ``python -m elastoflow.validation._elastic_block [cell size[:element size] in mm ...]``
+to rewrite the block's section of ``docs/validation/three_d.md`` and its plot, and
 ``python -m elastoflow.validation._elastic_block --mesh`` for the solid mesh's own
 convergence (`mesh_stiffness`: the block alone under a uniform load, no fluid).
 """
@@ -41,6 +41,16 @@ class BlockRun:
     cells: tuple[int, int, int]
     tetrahedra: int
     failure: str | None = None
+    element_size: float | None = None
+    """The body's element size [m] when it differs from the cell size."""
+
+    @property
+    def label(self) -> str:
+        """``25`` or ``25:12.5``: cell size (and element size) in mm, as the command takes."""
+        text = f"{1000 * self.cell_size:g}"
+        if self.element_size is not None and self.element_size != self.cell_size:
+            text += f":{1000 * self.element_size:g}"
+        return text
 
     @property
     def steady(self) -> np.ndarray:
@@ -56,8 +66,10 @@ class BlockRun:
 
 
 def run_block(cell_size: float = 0.025, duration: float = 5.0, dt: float = 0.02,
-              progress: Callable[[str], None] | None = None) -> BlockRun:
-    """The library scene with cells (and elements) of ``cell_size`` [m] to ``duration`` [s]."""
+              progress: Callable[[str], None] | None = None,
+              element_size: float | None = None) -> BlockRun:
+    """The library scene with cells of ``cell_size`` [m] and elements of ``element_size``
+    (default the cell size) to ``duration`` [s]."""
     import tomllib
 
     from elastoflow.scenes import build_simulation, get_scene, parse_scene, scene_to_toml
@@ -66,7 +78,8 @@ def run_block(cell_size: float = 0.025, duration: float = 5.0, dt: float = 0.02,
 
     data = tomllib.loads(scene_to_toml(get_scene("elastic_block_3d")))
     data["domain"]["h"] = cell_size
-    data["bodies"][0]["shape"]["element_size"] = cell_size
+    element_size = cell_size if element_size is None else element_size
+    data["bodies"][0]["shape"]["element_size"] = element_size
     data["time"] = {"dt": dt, "duration": duration}
     data["outputs"] = {}
     from elastoflow.simulation import CoupledModel3D
@@ -91,11 +104,11 @@ def run_block(cell_size: float = 0.025, duration: float = 5.0, dt: float = 0.02,
         displacements.append(simulation.state.bodies[0].positions[point] - rest[point])
         if progress is not None and (step % 25 == 0 or step == steps - 1):
             d = 1000.0 * displacements[-1]
-            progress(f"h = {cell_size:g} m: t = {times[-1]:.2f} s, A moved ({d[0]:.2f}, "
+            progress(f"h = {cell_size:g} m, elements {element_size:g} m: t = {times[-1]:.2f} s, A moved ({d[0]:.2f}, "
                      f"{d[1]:.2f}, {d[2]:.3f}) mm")
     return BlockRun(cell_size, np.array(times), np.array(displacements),
                     _time.perf_counter() - began, model.grid.shape_cells,
-                    body.mesh.tetrahedron_count, failure)
+                    body.mesh.tetrahedron_count, failure, element_size)
 
 
 def plot_block(runs: list[BlockRun], path: Path) -> None:
@@ -108,7 +121,7 @@ def plot_block(runs: list[BlockRun], path: Path) -> None:
     for component, axis in enumerate(axes):
         for run in runs:
             axis.plot(run.times, 1000.0 * run.displacements[:, component],
-                      label=f"h = {1000 * run.cell_size:g} mm")
+                      label=f"h = {run.label} mm")
         axis.axhline(1000.0 * PUBLISHED_A[component], color="k", linestyle="--",
                      label="solids4foam steady")
         axis.set_xlabel("t [s]")
@@ -133,7 +146,7 @@ def block_section(runs: list[BlockRun], machine: str) -> str:
              "solid, ours St. Venant-Kirchhoff): point A (0.45, 0.15, -0.15) m, here "
              "z + 0.4, moves by (14.63, 5.0, -0.447) mm at steady state. Our numbers: the "
              f"mean over the last {STEADY_WINDOW:g} s of the run, and the x swing there.", "",
-             "| h [mm] | cells | tetrahedra | A: x [mm] | vs 14.63 | y [mm] | z [mm] | "
+             "| h[:element] [mm] | cells | tetrahedra | A: x [mm] | vs 14.63 | y [mm] | z [mm] | "
              "x swing [mm] | t end [s] | run time [s] |",
              "|---|---|---|---|---|---|---|---|---|---|"]
     for run in runs:
@@ -141,14 +154,14 @@ def block_section(runs: list[BlockRun], machine: str) -> str:
         mean = 1000.0 * run.steady
         end = f"{run.times[-1]:.2f}" + (" (diverged)" if run.failure else "")
         lines.append(
-            f"| {1000 * run.cell_size:g} | {nx}x{ny}x{nz} | {run.tetrahedra} | {mean[0]:.2f} | "
+            f"| {run.label} | {nx}x{ny}x{nz} | {run.tetrahedra} | {mean[0]:.2f} | "
             f"{100 * (mean[0] / (1000 * PUBLISHED_A[0]) - 1):+.1f} % | {mean[1]:.2f} | "
             f"{mean[2]:.3f} | {1000 * run.swing:.2f} | {end} | {run.seconds:.0f} |")
     for run in runs:
         if run.failure is not None:
-            lines += ["", f"h = {run.cell_size:g} m stopped: {run.failure}"]
+            lines += ["", f"h = {run.label} mm stopped: {run.failure}"]
     lines += ["", f"Machine: {machine}. Command: `python -m elastoflow.validation._elastic_block "
-              f"{' '.join(f'{1000 * r.cell_size:g}' for r in runs)}`.", "",
+              f"{' '.join(r.label for r in runs)}` (cell size[:element size] in mm).", "",
               "![elastic block](three_d_elastic_block.png)", "", END]
     return "\n".join(lines)
 
@@ -275,11 +288,13 @@ def main(argv: list[str]) -> None:
         print(replace_block(Path("docs/validation/three_d.md"), mesh_section(meshes, machine),
                             MESH_BEGIN, MESH_END), flush=True)
         return
-    sizes = [float(a) / 1000.0 for a in argv] or [0.025]
     machine = f"{platform.machine()}, {platform.processor() or 'cpu'}, 2 cores"
     runs: list[BlockRun] = []
-    for size in sizes:
-        runs.append(run_block(size, progress=lambda line: print(line, flush=True)))
+    for argument in argv or ["25"]:
+        cell, _, element = argument.partition(":")
+        runs.append(run_block(float(cell) / 1000.0,
+                              progress=lambda line: print(line, flush=True),
+                              element_size=float(element) / 1000.0 if element else None))
         # Written after each run: a long study keeps what it has finished.
         print(write_block(runs, Path("docs/validation"), machine), flush=True)
 
