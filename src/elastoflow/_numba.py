@@ -8,6 +8,27 @@ from typing import Any
 from numba import njit, prange
 
 
+def _start_threads() -> None:
+    """Start Numba's thread pool now, when a kernel module is imported.
+
+    Why: Numba starts its threads when a threaded kernel is first called from Python. A
+    cached kernel that branches to a threaded twin (`serial_and_parallel`'s dispatchers, e.g.
+    `pressure_rhs`) makes that first threaded call from compiled code, where nothing starts
+    them: with a warm disk cache it segfaulted when it was the process's first threaded
+    call (a ghost-fluid projection before any step). Starting them costs ~20 ms once.
+    """
+    try:
+        from numba.np.ufunc import parallel
+    except ImportError:  # pragma: no cover - a Numba without the threaded backend
+        return
+    launch = getattr(parallel, "_launch_threads", None)
+    if launch is not None:
+        launch()
+
+
+_start_threads()
+
+
 def serial_and_parallel(make: Callable[[Any], Callable[..., Any]], **options: Any) -> tuple[Any, Any]:
     """``(serial, parallel)`` Numba kernels from one body.
 

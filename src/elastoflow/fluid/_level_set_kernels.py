@@ -15,6 +15,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
+from elastoflow import _numba  # noqa: F401  (starts Numba's threads: see _numba)
 from elastoflow.fluid import _kernels as fluid_kernels
 
 # Per-axis crossing fraction of a liquid cell's centre to the interface, as the fraction of

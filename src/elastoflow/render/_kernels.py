@@ -11,6 +11,8 @@ import math
 import numpy as np
 from numba import njit, prange
 
+from elastoflow import _numba  # noqa: F401  (starts Numba's threads: see _numba)
+
 
 @njit(cache=True)
 def fill_triangles(image: np.ndarray, points: np.ndarray, triangles: np.ndarray,

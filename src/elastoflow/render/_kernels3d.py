@@ -14,6 +14,8 @@ import math
 import numpy as np
 from numba import njit, prange
 
+from elastoflow import _numba  # noqa: F401  (starts Numba's threads: see _numba)
+
 DEPTH_BIAS = 1e-3
 """Relative lead a line keeps over a surface at the same depth (the plane's rim over the
 plane, a box edge over a body touching the wall)."""

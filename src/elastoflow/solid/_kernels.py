@@ -16,6 +16,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
+from elastoflow import _numba  # noqa: F401  (starts Numba's threads: see _numba)
+
 # Element count from which the threaded substep kernel is the default. Its two thread launches
 # per substep cost more than they save on smaller meshes, and far more on a loaded machine
 # (measured on a shared 2-core box: 200 elements 4 us serial vs 2.6 ms threaded per substep).

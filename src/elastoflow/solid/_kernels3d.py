@@ -21,6 +21,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
+from elastoflow import _numba  # noqa: F401  (starts Numba's threads: see _numba)
+
 # Element count from which the threaded substep kernel is the default (see ElasticBody3D).
 # Measured on the shared 2-core box under load (the cantilever meshes, per substep): 400 tets
 # 34 us serial vs 205 us threaded, 3200 tets 336 vs 573 us, 10800 tets 1.03 vs 1.30 ms; the
