@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from collections.abc import Callable
 from typing import Any
 
@@ -16,7 +17,11 @@ def _start_threads() -> None:
     `pressure_rhs`) makes that first threaded call from compiled code, where nothing starts
     them: with a warm disk cache it segfaulted when it was the process's first threaded
     call (a ghost-fluid projection before any step). Starting them costs ~20 ms once.
+    ``ELASTOFLOW_LAZY_THREADS=1`` leaves them to Numba (tests/unit/test_numba_twins.py
+    tells the twins apart by which one starts them).
     """
+    if os.environ.get("ELASTOFLOW_LAZY_THREADS") == "1":
+        return
     try:
         from numba.np.ufunc import parallel
     except ImportError:  # pragma: no cover - a Numba without the threaded backend

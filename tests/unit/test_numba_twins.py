@@ -26,7 +26,9 @@ print(json.dumps(result))
 
 
 def _run(cache: str, *names: str) -> dict:
-    env = dict(os.environ, NUMBA_CACHE_DIR=cache, NUMBA_NUM_THREADS="2")
+    # Threads left to Numba: which twin starts them tells the twins apart.
+    env = dict(os.environ, NUMBA_CACHE_DIR=cache, NUMBA_NUM_THREADS="2",
+               ELASTOFLOW_LAZY_THREADS="1")
     done = subprocess.run([sys.executable, "-c", _CHILD, *names], env=env, capture_output=True,
                           text=True, check=True)
     return json.loads(done.stdout.strip().splitlines()[-1])
@@ -42,3 +44,16 @@ def test_serial_and_parallel_twins_keep_their_own_cache_entries(tmp_path) -> Non
     assert serial == {"equal": True, "cache_hits": 1, "threads_started": False}
     parallel = _run(cache, "parallel")["parallel"]
     assert parallel == {"equal": True, "cache_hits": 1, "threads_started": True}
+
+
+def test_threads_start_when_a_kernel_module_is_imported() -> None:
+    """By default the pool is running as soon as a kernel module is imported, before any
+    threaded call (a cached dispatcher's first threaded call from compiled code would find
+    it stopped)."""
+    child = ("from numba.np.ufunc import parallel\n"
+             "import elastoflow.fluid._kernels\n"
+             "print(bool(parallel._is_initialized))\n")
+    env = {key: value for key, value in os.environ.items() if key != "ELASTOFLOW_LAZY_THREADS"}
+    done = subprocess.run([sys.executable, "-c", child], env=env, capture_output=True,
+                          text=True, check=True)
+    assert done.stdout.strip().splitlines()[-1] == "True"
