@@ -214,12 +214,12 @@ def transport_level_set_with_bodies(
     lw = workspace.level_set
     step = dt / grid.h
     if transport.advection == "maccormack":
-        level_set_kernels.advect_cells_semi_lagrangian(level_set, velocity_x, velocity_y, step,
-                                                       lw.forward)
-        level_set_kernels.advect_cells_semi_lagrangian(lw.forward, velocity_x, velocity_y,
-                                                       -step, lw.backward)
-        level_set_kernels.maccormack_correct(level_set, lw.forward, lw.backward, velocity_x,
-                                             velocity_y, step, lw.backward)
+        # Two passes, each tracing back once (the clamp's range is found in the first), as
+        # `LevelSetTransport`'s own.
+        level_set_kernels.advect_cells_forward_range(level_set, velocity_x, velocity_y, step,
+                                                     lw.forward, lw.low, lw.high)
+        level_set_kernels.maccormack_backward_correct(level_set, lw.forward, lw.low, lw.high,
+                                                      velocity_x, velocity_y, step, lw.backward)
         result = lw.backward
     else:
         level_set_kernels.advect_cells_semi_lagrangian(level_set, velocity_x, velocity_y, step,
