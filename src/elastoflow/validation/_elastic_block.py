@@ -74,7 +74,7 @@ def run_block(cell_size: float = 0.025, duration: float = 5.0, dt: float = 0.02,
 
     from elastoflow.scenes import build_simulation, get_scene, parse_scene, scene_to_toml
     from elastoflow.scenes._library import ELASTIC_BLOCK_3D
-    from elastoflow.simulation import SimulationBlowUp
+    from elastoflow.validation._report import step_and_record
 
     data = tomllib.loads(scene_to_toml(get_scene("elastic_block_3d")))
     data["domain"]["h"] = cell_size
@@ -92,23 +92,18 @@ def run_block(cell_size: float = 0.025, duration: float = 5.0, dt: float = 0.02,
     point = int(np.argmin(np.linalg.norm(rest - np.asarray(ELASTIC_BLOCK_3D["point_a"]), axis=1)))
     steps = int(round(duration / dt))
     times, displacements = [0.0], [np.zeros(3)]
-    began = _time.perf_counter()
-    failure = None
-    for step in range(steps):
-        try:
-            simulation.step()
-        except SimulationBlowUp as error:
-            failure = str(error)
-            break
+
+    def record(step: int) -> None:
         times.append(simulation.time)
         displacements.append(simulation.state.bodies[0].positions[point] - rest[point])
         if progress is not None and (step % 25 == 0 or step == steps - 1):
             d = 1000.0 * displacements[-1]
-            progress(f"h = {cell_size:g} m, elements {element_size:g} m: t = {times[-1]:.2f} s, A moved ({d[0]:.2f}, "
-                     f"{d[1]:.2f}, {d[2]:.3f}) mm")
-    return BlockRun(cell_size, np.array(times), np.array(displacements),
-                    _time.perf_counter() - began, model.grid.shape_cells,
-                    body.mesh.tetrahedron_count, failure, element_size)
+            progress(f"h = {cell_size:g} m, elements {element_size:g} m: t = {times[-1]:.2f} "
+                     f"s, A moved ({d[0]:.2f}, {d[1]:.2f}, {d[2]:.3f}) mm")
+
+    failure, seconds = step_and_record(simulation, steps, record)
+    return BlockRun(cell_size, np.array(times), np.array(displacements), seconds,
+                    model.grid.shape_cells, body.mesh.tetrahedron_count, failure, element_size)
 
 
 def plot_block(runs: list[BlockRun], path: Path) -> None:

@@ -18,7 +18,6 @@ of ``docs/validation/free_surface.md`` and its plot ``gate_obstacle.png``.
 from __future__ import annotations
 
 import sys
-import time as _time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -92,8 +91,8 @@ def run_case(case: str, cells_across: float, duration: float | None = None,
     from elastoflow.fluid._free_surface_bodies import FreeSurfaceBodiesWorkspace, water_area
     from elastoflow.grid import Grid2D
     from elastoflow.scenes import build_simulation, parse_scene
-    from elastoflow.simulation import SimulationBlowUp
     from elastoflow.solid import ElasticBody
+    from elastoflow.validation._report import step_and_record
 
     data = case_data(case, cells_across)
     if duration is not None:
@@ -118,14 +117,8 @@ def run_case(case: str, cells_across: float, duration: float | None = None,
 
     steps = int(round(data["time"]["duration"] / simulation.dt))
     times, displacements, areas = [0.0], [np.zeros(2)], [area()]
-    failure = None
-    began = _time.perf_counter()
-    for step in range(steps):
-        try:
-            simulation.step()
-        except SimulationBlowUp as error:
-            failure = str(error)
-            break
+
+    def record(step: int) -> None:
         times.append(simulation.time)
         displacements.append(simulation.state.bodies[0].positions[node] - rest[node])
         areas.append(area())
@@ -133,10 +126,11 @@ def run_case(case: str, cells_across: float, duration: float | None = None,
             d = 1000.0 * displacements[-1]
             progress(f"{case} {cells_across:g}: t = {times[-1]:.3f} s, tip moved "
                      f"({d[0]:.2f}, {d[1]:.2f}) mm")
+
+    failure, seconds = step_and_record(simulation, steps, record)
     return TipRun(case, cells_across, float(grid.h), float(simulation.dt),
-                  np.array(times), np.array(displacements), np.array(areas),
-                  _time.perf_counter() - began, grid.shape_cells, body.mesh.triangle_count,
-                  failure)
+                  np.array(times), np.array(displacements), np.array(areas), seconds,
+                  grid.shape_cells, body.mesh.triangle_count, failure)
 
 
 def plot_runs(runs: list[TipRun], path: Path) -> None:

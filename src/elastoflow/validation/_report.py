@@ -16,6 +16,25 @@ from elastoflow.analysis import PeriodicStatistics
 from elastoflow.io import write_text_atomic
 from elastoflow.validation._turek_hron import REFERENCE, UNITS, Result
 
+def step_and_record(simulation: Any, steps: int, record: Callable[[int], None]
+                    ) -> tuple[str | None, float]:
+    """Step ``simulation`` ``steps`` times, calling ``record(step)`` after each, and stop at
+    a `SimulationBlowUp`: a study keeps what it measured before the failure. Returns the
+    failure's message (None when all steps ran) and the seconds the steps took."""
+    import time
+
+    from elastoflow.simulation import SimulationBlowUp
+
+    began = time.perf_counter()
+    for step in range(steps):
+        try:
+            simulation.step()
+        except SimulationBlowUp as error:
+            return str(error), time.perf_counter() - began
+        record(step)
+    return None, time.perf_counter() - began
+
+
 _LABELS = {"ux_A": "u_x(A)", "uy_A": "u_y(A)", "drag": "drag", "lift": "lift",
            "ux_tip": "u_x(tip)", "uy_tip": "u_y(tip)"}
 

@@ -14,7 +14,6 @@ monolithic]`` to rewrite the settling block of ``docs/validation/three_d.md`` an
 from __future__ import annotations
 
 import sys
-import time as _time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -95,16 +94,9 @@ def run_settling(cells_per_diameter: float = 6.0, duration: float = 4.0, dt: flo
     times, speeds, gaps = [0.0], [0.0], []
     state = simulation.state.bodies[0]
     gaps.append(float(mass @ state.positions[:, 1]) - radius - floor)
-    from elastoflow.simulation import SimulationBlowUp
+    from elastoflow.validation._report import step_and_record
 
-    began = _time.perf_counter()
-    failure = None
-    for step in range(steps):
-        try:
-            simulation.step()
-        except SimulationBlowUp as error:
-            failure = str(error)
-            break
+    def record(step: int) -> None:
         state = simulation.state.bodies[0]
         times.append(simulation.time)
         speeds.append(-float(mass @ state.velocities[:, 1]))
@@ -112,9 +104,11 @@ def run_settling(cells_per_diameter: float = 6.0, duration: float = 4.0, dt: flo
         if progress is not None and (step % 20 == 0 or step == steps - 1):
             progress(f"D/h = {cells_per_diameter:g}: t = {times[-1]:.2f} s, u = "
                      f"{speeds[-1]:.4f} m/s, gap/D = {gaps[-1] / DIAMETER:.2f}")
+
+    failure, seconds = step_and_record(simulation, steps, record)
     return SettlingRun(cells_per_diameter, np.array(times), np.array(speeds), np.array(gaps),
-                       _time.perf_counter() - began, model.grid.shape_cells,
-                       body.mesh.tetrahedron_count, simulation.scheme.name, failure)
+                       seconds, model.grid.shape_cells, body.mesh.tetrahedron_count,
+                       simulation.scheme.name, failure)
 
 
 def write_series(runs: list[SettlingRun], path: Path) -> None:
