@@ -210,7 +210,11 @@ NOTES = (
     "flap at A / L ~ 0.1-0.2): this one is thick (h / L = 0.16), its bending stiffened "
     "~1.5x by the linear tetrahedra's locking, at Re 500 on L with 16 cells along it. The "
     "threshold ~10 is read from Eloy et al.'s stability curve for an aspect ratio near 1, "
-    "not measured here: a finer sweep between U* = 6 and 12 would locate this grid's.")
+    "not measured here: a finer sweep between U* = 6 and 12 would locate this grid's. A "
+    "longer flag points the same way: L = 0.75 m (h / L = 0.107, 24 x 12 x 2 cells, M* = 1, "
+    "U* = 20 at E = 19.7 Pa; an ad-hoc run, not a library scene) was still growing at 20 s, "
+    "7.4 cm (A / L = 0.10) at 0.31 Hz, +19 % a period, smallest det F 0.98: whether it "
+    "settles, and where, needs a run of 40 s or more.")
 
 
 def flag_section(runs: list[FlagRun], machine: str, notes: str = NOTES) -> str:
