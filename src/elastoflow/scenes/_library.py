@@ -647,7 +647,9 @@ def _elastic_block_3d() -> dict:
     x 0.8 m channel, paraboloid inflow of 0.3 m/s at its centre reached in 1 s (Re 60 on the
     block's height), monolithic coupling (the explicit step diverges at this density ratio).
     Published: point A on the block's upstream face moves by (14.63, 5.0, -0.45) mm at steady
-    state (docs/validation/three_d.md). 0.025 m cells (4 across the block).
+    state (docs/validation/three_d.md). 0.025 m cells and elements (4 across the block): the
+    linear tetrahedra are then 15 % too stiff in bending, and A moves 11.6 mm; with 0.0125 m
+    elements 12.9 mm, at 3 s a step instead of 0.2 (docs/method_notes.md item 16).
     """
     c = ELASTIC_BLOCK_3D
     lx, ly, lz = c["channel"]
