@@ -639,7 +639,12 @@ NOTES = """
   x 10 D) lowers the drag by 3.1 % at D/h = 8 (1.080 -> 1.047) and by 3.1 % at D/h = 12
   (1.136 -> 1.101), where it comes out +2.1 % off Mittal, -0.1 % off Johnson & Patel and
   +1.3 % off Clift: **within 5 % of all three** (2.59 M cells, 358 s on the idle machine).
-  D/h = 16 in the larger box (6.1 M cells) was not run.
+  D/h = 16 in the larger box (240 x 160 x 160 = 6.1 M cells, run alone on 2026-12-03 with
+  `run_sphere_drag(16, upstream=5.0, downstream=10.0, half_width=5.0)`, not in the table,
+  which `main` regenerates): **C_d = 1.1089** (pressure part 0.565, drift -1.1e-3 over the
+  last D/U, lateral 4.9e-8), +2.8 % off Mittal, +0.6 % off Johnson & Patel, +2.0 % off
+  Clift: within 5 % of all three, and 0.7 % above D/h = 12 in the same box (1.047, 1.101,
+  1.109 at D/h = 8, 12, 16). 5.8 pressure iterations a step, 4.1 s a step, 811 s in all.
 """
 
 if __name__ == "__main__":
