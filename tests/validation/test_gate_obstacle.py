@@ -51,7 +51,7 @@ def test_gate_swinging_back_leaves_no_water_on_its_dry_face() -> None:
     """The level set inside the gate is its nearest face's outside value: as the gate swings
     back (after its peak at ~0.11 s) the cells it uncovers on its dry side stay air. With a
     harmonic extension through the gate, water appeared in the two cells right of the gate
-    from t = 0.164 s at 40.4 cells across the column (docs/method_notes.md item 12)."""
+    from t = 0.164 s at 40.4 cells across the column (docs/method_notes.md item 17)."""
     from elastoflow.scenes import build_simulation, parse_scene
     from elastoflow.validation._gate_obstacle import case_data
 
