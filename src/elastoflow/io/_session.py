@@ -9,7 +9,12 @@ from typing import Any
 
 import numpy as np
 
-from elastoflow.io._atomic import discard_unfinished_writes, write_text_atomic
+from elastoflow.io._atomic import (
+    discard_unfinished_writes,
+    is_temporary,
+    remove_temporaries,
+    write_text_atomic,
+)
 from elastoflow.io._checkpoint import (
     checkpoint_path,
     checkpoints_by_step,
@@ -324,6 +329,12 @@ class OutputSession:
             attempt(lambda: self._write_frame_outputs(None, force=True, video=False))
         if self._video is not None:
             attempt(lambda: self._video.cut(sim.step_index))
+            # A second Ctrl-C while a segment's encoder was being started (ffmpeg running,
+            # its writer not yet kept) leaves the encoder's temporary behind, and the
+            # orphaned ffmpeg finishes it after the run has gone; stop it and remove it.
+            parts = self._video.parts
+            if parts.is_dir() and any(is_temporary(p) for p in parts.iterdir()):
+                attempt(lambda: remove_temporaries(parts))
         for closable in (self._probes, self._fields):
             if closable is not None:
                 attempt(closable.close)

@@ -44,3 +44,39 @@ def test_session_video_has_every_step_in_order(tmp_path) -> None:
     errors = np.array([[np.abs(f.astype(float) - r).mean() for r in expected]
                        for f in frames[1:]])
     assert np.all(np.argmin(errors, axis=1) == np.arange(steps))
+
+
+def test_close_stops_an_orphaned_encoder_and_removes_its_temporary(tmp_path) -> None:
+    """A second Ctrl-C while a segment's encoder was being started leaves ffmpeg running with
+    its temporary and no writer to finish it (seen once in CI: ``video_parts/.current.<pid>
+    .tmp.mp4`` after the run had exited). Closing the session kills such a writer and
+    removes the file; the finished segments stay."""
+    import subprocess
+    import sys
+
+    from elastoflow.io import OutputSession, apply_output_overrides
+    from elastoflow.scenes import build_simulation, get_scene
+
+    scene = get_scene("bar_in_jet")
+    scene = scene.model_copy(update={"domain": scene.domain.model_copy(
+        update={"nx": 32, "ny": None})})
+    scene = apply_output_overrides(scene, video=True, fields=[], meshes=False, probes=False,
+                                   checkpoint_every=0, every=1)
+    simulation = build_simulation(scene)
+    session = OutputSession(scene, simulation, tmp_path)
+    simulation.step()
+    session.after_step(simulation, None)
+    parts = tmp_path / "video_parts"
+    stray = parts / ".current.99999.tmp.mp4"
+    stray.write_bytes(b"half an mp4")
+    # Stands in for the orphaned ffmpeg: its command line names the temporary.
+    orphan = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)",
+                               str(stray)])
+    try:
+        session.close(final_checkpoint=False, stopped=True)
+        assert orphan.wait(timeout=10) != 0  # killed
+    finally:
+        if orphan.poll() is None:
+            orphan.kill()
+    assert not stray.exists()
+    assert [p.name for p in parts.iterdir()] == ["upto_00000001.mp4"]
