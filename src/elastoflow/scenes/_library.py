@@ -466,6 +466,31 @@ ELASTIC_GATE: dict[str, Any] = {
 }
 
 
+def _walled_tank(c: dict[str, Any], lx: float, ly: float, h: float) -> dict[str, Any]:
+    """The part of a free-surface FSI scene ``c`` (`ELASTIC_GATE`, `DAM_BREAK_OBSTACLE`)
+    that both share: a no-slip tank ``lx`` x ``ly`` of cells ``h``, water in the column at
+    the left, MacCormack advection, the strong coupling, CFL 0.5, and the outputs (video,
+    the body's force, energy, iterations; the probe of a node goes first, added by the
+    scene)."""
+    width, height = c["column"]
+    return {
+        "domain": {"lx": lx, "ly": ly, "h": h},
+        "fluid": {"density": c["fluid_density"], "viscosity": c["viscosity"],
+                  "gravity": (0.0, -9.81), "advection": "maccormack"},
+        "liquid": {"boxes": [(0.0, 0.0, width, height)]},
+        "boundaries": {"left": "no_slip", "right": "no_slip", "bottom": "no_slip",
+                       "top": "no_slip"},
+        "coupling": {"scheme": "monolithic"},
+        "time": {"cfl": 0.5, "duration": c["duration"]},
+        "outputs": {
+            "video": {"view": "speed", "fps": 30, "every": 6},
+            "probes": [{"kind": "body_force", "body": 0},
+                       {"kind": "kinetic_energy"}, {"kind": "pressure_iterations"}],
+            "checkpoint": {"every": 400},
+        },
+    }
+
+
 def elastic_gate_data(cells_across_column: float = 60.4) -> dict:
     """The `elastic_gate` scene as data with ``h = A / cells_across_column``.
 
@@ -476,41 +501,27 @@ def elastic_gate_data(cells_across_column: float = 60.4) -> dict:
     the lid are far from the flow).
     """
     c = ELASTIC_GATE
-    width, height = c["column"]
+    width = c["column"][0]
     thickness, length, clearance = c["gate_thickness"], c["gate_length"], c["clearance"]
     h = width / cells_across_column
     tank_x, tank_y = c["tank"]
     nx, ny = math.ceil(tank_x / h - 1e-9), math.ceil(tank_y / h - 1e-9)
     top = clearance + length
-    return {
-        "domain": {"lx": nx * h, "ly": ny * h, "h": h},
-        "fluid": {"density": c["fluid_density"], "viscosity": c["viscosity"],
-                  "gravity": (0.0, -9.81), "advection": "maccormack"},
-        "liquid": {"boxes": [(0.0, 0.0, width, height)]},
-        "boundaries": {"left": "no_slip", "right": "no_slip", "bottom": "no_slip",
-                       "top": "no_slip"},
-        # The rigid wall that holds the water above the gate, from the gate's clamp up.
-        "obstacles": [{"shape": "rectangle", "box": (width, top, width + thickness, ny * h)}],
-        "bodies": [{
-            "name": "gate",
-            "shape": {"type": "rectangle", "box": (width, clearance, width + thickness, top),
-                      "divisions": c["gate_divisions"]},
-            "material": {"density": c["solid_density"], "young_modulus": c["young_modulus"],
-                         "poisson_ratio": c["poisson_ratio"]},
-            "fixed": {"box": (width - 0.25 * h, top - 0.25 * h, width + thickness + 0.25 * h,
-                              top + 0.25 * h)},
-        }],
-        "coupling": {"scheme": "monolithic"},
-        "time": {"cfl": 0.5, "duration": c["duration"]},
-        "outputs": {
-            "video": {"view": "speed", "fps": 30, "every": 6},
-            "probes": [{"kind": "node_displacement", "body": 0,
-                        "point": (width + 0.5 * thickness, clearance)},
-                       {"kind": "body_force", "body": 0},
-                       {"kind": "kinetic_energy"}, {"kind": "pressure_iterations"}],
-            "checkpoint": {"every": 400},
-        },
-    }
+    data = _walled_tank(c, nx * h, ny * h, h)
+    # The rigid wall that holds the water above the gate, from the gate's clamp up.
+    data["obstacles"] = [{"shape": "rectangle", "box": (width, top, width + thickness, ny * h)}]
+    data["bodies"] = [{
+        "name": "gate",
+        "shape": {"type": "rectangle", "box": (width, clearance, width + thickness, top),
+                  "divisions": c["gate_divisions"]},
+        "material": {"density": c["solid_density"], "young_modulus": c["young_modulus"],
+                     "poisson_ratio": c["poisson_ratio"]},
+        "fixed": {"box": (width - 0.25 * h, top - 0.25 * h, width + thickness + 0.25 * h,
+                          top + 0.25 * h)},
+    }]
+    data["outputs"]["probes"].insert(0, {"kind": "node_displacement", "body": 0,
+                                         "point": (width + 0.5 * thickness, clearance)})
+    return data
 
 
 @_register("elastic_gate")
@@ -550,36 +561,22 @@ def dam_break_obstacle_data(cells_across_column: float = 41.4) -> dict:
     than 4 L at the default (the far wall is 0.28 m past the obstacle).
     """
     c = DAM_BREAK_OBSTACLE
-    width, height = c["column"]
+    width = c["column"][0]
     left, thickness, tall = c["obstacle"]
     h = width / cells_across_column
     cells = math.ceil(c["tank"] / h - 1e-9)
-    return {
-        "domain": {"lx": cells * h, "ly": cells * h, "h": h},
-        "fluid": {"density": c["fluid_density"], "viscosity": c["viscosity"],
-                  "gravity": (0.0, -9.81), "advection": "maccormack"},
-        "liquid": {"boxes": [(0.0, 0.0, width, height)]},
-        "boundaries": {"left": "no_slip", "right": "no_slip", "bottom": "no_slip",
-                       "top": "no_slip"},
-        "bodies": [{
-            "name": "obstacle",
-            "shape": {"type": "rectangle", "box": (left, 0.0, left + thickness, tall),
-                      "divisions": c["obstacle_divisions"]},
-            "material": {"density": c["solid_density"], "young_modulus": c["young_modulus"],
-                         "poisson_ratio": c["poisson_ratio"]},
-            "fixed": {"box": (left - 0.25 * h, -0.25 * h, left + thickness + 0.25 * h,
-                              0.25 * h)},
-        }],
-        "coupling": {"scheme": "monolithic"},
-        "time": {"cfl": 0.5, "duration": c["duration"]},
-        "outputs": {
-            "video": {"view": "speed", "fps": 30, "every": 6},
-            "probes": [{"kind": "node_displacement", "body": 0, "point": (left, tall)},
-                       {"kind": "body_force", "body": 0},
-                       {"kind": "kinetic_energy"}, {"kind": "pressure_iterations"}],
-            "checkpoint": {"every": 400},
-        },
-    }
+    data = _walled_tank(c, cells * h, cells * h, h)
+    data["bodies"] = [{
+        "name": "obstacle",
+        "shape": {"type": "rectangle", "box": (left, 0.0, left + thickness, tall),
+                  "divisions": c["obstacle_divisions"]},
+        "material": {"density": c["solid_density"], "young_modulus": c["young_modulus"],
+                     "poisson_ratio": c["poisson_ratio"]},
+        "fixed": {"box": (left - 0.25 * h, -0.25 * h, left + thickness + 0.25 * h, 0.25 * h)},
+    }]
+    data["outputs"]["probes"].insert(0, {"kind": "node_displacement", "body": 0,
+                                         "point": (left, tall)})
+    return data
 
 
 @_register("dam_break_obstacle")

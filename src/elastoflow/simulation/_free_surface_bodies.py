@@ -31,7 +31,7 @@ from elastoflow.simulation._free_surface import FreeSurfaceScheme
 from elastoflow.simulation._report import StepReport
 from elastoflow.simulation._schemes import (
     MonolithicCoupling,
-    _finish,
+    finish_step,
     _intermediate_velocity,
     _step_boundary,
     implicit_predictor,
@@ -273,4 +273,4 @@ class FreeSurfaceMonolithicCoupling(FreeSurfaceScheme):
         extrapolate_velocity_from_valid(out, self.solver.extrapolation_layers, workspace)
         seconds["extrapolation"] = clock() - t0
         check_fluid_finite(out, next_step, state_in.time + dt)
-        return _finish(model, state_in, state_out, dt, boundary, solve, substeps_taken, seconds)
+        return finish_step(model, state_in, state_out, dt, boundary, solve, substeps_taken, seconds)

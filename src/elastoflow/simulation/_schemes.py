@@ -11,13 +11,19 @@ symmetric positive definite system (docs/method_notes.md, "Strong coupling").
 from __future__ import annotations
 
 import time as _time
-from typing import TYPE_CHECKING, Literal, Protocol
+from typing import TYPE_CHECKING, Any, Literal, Protocol
 
 import numpy as np
 
 from elastoflow.simulation._checks import check_fluid_finite, cfl_number
 from elastoflow.simulation._report import SimulationBlowUp, StepReport
-from elastoflow.simulation._state import CoupledModel, CoupledState, StepBoundary
+from elastoflow.simulation._state import (
+    BoundaryT,
+    CoupledModel,
+    CoupledModel3D,
+    CoupledState,
+    StepBoundary,
+)
 from elastoflow.solid import (
     BodyModel,
     ElasticBody,
@@ -221,7 +227,7 @@ class ExplicitCoupling:
                 substeps_taken.append(int(report.substeps))
             seconds["solid"] = clock() - t0
 
-        return _finish(model, state_in, state_out, dt, boundary, solve, substeps_taken, seconds)
+        return finish_step(model, state_in, state_out, dt, boundary, solve, substeps_taken, seconds)
 
 
 class MonolithicCoupling:
@@ -356,7 +362,7 @@ class MonolithicCoupling:
         seconds["solid"] += clock() - t0
 
         check_fluid_finite(out, next_step, state_in.time + dt)
-        return _finish(model, state_in, state_out, dt, boundary, solve, substeps_taken, seconds)
+        return finish_step(model, state_in, state_out, dt, boundary, solve, substeps_taken, seconds)
 
 
 def implicit_integrator(gamma: float | None, integrator: MidpointFem | NewmarkFem | None
@@ -471,10 +477,11 @@ def _step_boundary(model: CoupledModel, bmap: BoundaryMap,
     return StepBoundary(bmap, interior)
 
 
-def _finish(model: CoupledModel, state_in: CoupledState, state_out: CoupledState, dt: float,
-            boundary: StepBoundary | None, solve: SolveReport, substeps: list[int],
-            seconds: dict[str, float]) -> StepReport:
-    """Commit time, step index and this step's boundary data to ``state_out``; the report."""
+def finish_step(model: CoupledModel | CoupledModel3D, state_in: CoupledState[Any, BoundaryT],
+            state_out: CoupledState[Any, BoundaryT], dt: float, boundary: BoundaryT | None,
+            solve: SolveReport, substeps: list[int], seconds: dict[str, float]) -> StepReport:
+    """Commit time, step index and this step's boundary data to ``state_out``; the report
+    (2D and 3D schemes alike)."""
     state_out.step_index = state_in.step_index + 1
     state_out.time = state_in.time + dt
     state_out.boundary = boundary

@@ -22,10 +22,14 @@ import numpy as np
 
 from elastoflow.fluid import FluidState3D
 from elastoflow.linalg import SolveReport
-from elastoflow.simulation._checks import cfl_number, check_fluid_finite
+from elastoflow.simulation._checks import check_fluid_finite
 from elastoflow.simulation._report import SimulationBlowUp, StepReport
 from elastoflow.simulation._state import CoupledModel3D, CoupledState, StepBoundary3D
-from elastoflow.simulation._schemes import implicit_integrator, take_pressure_answer
+from elastoflow.simulation._schemes import (
+    finish_step,
+    implicit_integrator,
+    take_pressure_answer,
+)
 from elastoflow.solid import ElasticBody3D, ExplicitFem, MidpointFem, NewmarkFem
 
 if TYPE_CHECKING:
@@ -134,21 +138,8 @@ class _Step3D:
     def finish(self, boundary: StepBoundary3D | None, solve: SolveReport,
                substeps: list[int]) -> StepReport:
         """Commit time, step index and this step's boundary to ``state_out``; the report."""
-        state_out = self.state_out
-        state_out.step_index = self.next_step
-        state_out.time = self.now
-        state_out.boundary = boundary
-        return StepReport(
-            step=state_out.step_index,
-            time=state_out.time,
-            pressure_iterations=int(solve.iterations),
-            pressure_residual=float(solve.residual),
-            substeps=substeps,
-            cfl=cfl_number(self.model.grid, state_out.fluid, self.dt),
-            crossing_count=0 if boundary is None
-            else int(boundary.boundary_map.crossing_count),
-            seconds_by_phase=self.seconds,
-        )
+        return finish_step(self.model, self.state_in, self.state_out, self.dt, boundary, solve,
+                       substeps, self.seconds)
 
 
 class ExplicitCoupling3D:

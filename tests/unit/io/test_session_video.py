@@ -2,14 +2,15 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 
-def test_session_video_has_every_step_in_order(tmp_path) -> None:
-    import imageio.v2 as imageio
-
+def _bar_with_video(folder) -> tuple[Any, Any]:
+    """bar_in_jet at 32 cells across with a video of every step and no other output: the
+    simulation and its output session in ``folder``."""
     from elastoflow.io import OutputSession, apply_output_overrides
-    from elastoflow.render import render_frame
     from elastoflow.scenes import build_simulation, get_scene
 
     scene = get_scene("bar_in_jet")
@@ -18,7 +19,15 @@ def test_session_video_has_every_step_in_order(tmp_path) -> None:
     scene = apply_output_overrides(scene, video=True, fields=[], meshes=False, probes=False,
                                    checkpoint_every=0, every=1)
     simulation = build_simulation(scene)
-    session = OutputSession(scene, simulation, tmp_path)
+    return simulation, OutputSession(scene, simulation, folder)
+
+
+def test_session_video_has_every_step_in_order(tmp_path) -> None:
+    import imageio.v2 as imageio
+
+    from elastoflow.render import render_frame
+
+    simulation, session = _bar_with_video(tmp_path)
     steps = 6
     expected = []
     for _ in range(steps):
@@ -54,16 +63,7 @@ def test_close_stops_an_orphaned_encoder_and_removes_its_temporary(tmp_path) -> 
     import subprocess
     import sys
 
-    from elastoflow.io import OutputSession, apply_output_overrides
-    from elastoflow.scenes import build_simulation, get_scene
-
-    scene = get_scene("bar_in_jet")
-    scene = scene.model_copy(update={"domain": scene.domain.model_copy(
-        update={"nx": 32, "ny": None})})
-    scene = apply_output_overrides(scene, video=True, fields=[], meshes=False, probes=False,
-                                   checkpoint_every=0, every=1)
-    simulation = build_simulation(scene)
-    session = OutputSession(scene, simulation, tmp_path)
+    simulation, session = _bar_with_video(tmp_path)
     simulation.step()
     session.after_step(simulation, None)
     parts = tmp_path / "video_parts"
