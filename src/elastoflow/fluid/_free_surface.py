@@ -422,8 +422,8 @@ class FreeSurfaceWorkspace:
             (np.zeros((m, n)), np.zeros((m - 1, n)), np.zeros((m, n - 1)), np.zeros((m, n)))
             for m, n in (grid.shape_faces_x, grid.shape_faces_y))
         # MacCormack's passes (`FreeSurfaceSolver.advect`), allocated on first use: the
-        # forward and backward results of u and v, and four departure arrays per component
-        # (forward x, y; backward x, y), and the dye's semi-Lagrangian result.
+        # forward results of u and v and the clamp's ranges (the lows take the results), and
+        # the dye's semi-Lagrangian result.
         self.maccormack: tuple[FloatArray, ...] | None = None
         self.stress: tuple[FloatArray, FloatArray, FloatArray, FloatArray,
                            tuple[FloatArray, ...]] | None = None
@@ -455,11 +455,11 @@ class FreeSurfaceWorkspace:
         return self.stress
 
     def maccormack_arrays(self, grid: Grid2D) -> tuple[FloatArray, ...]:
-        """The MacCormack scratch arrays (allocated once)."""
+        """MacCormack's forward u and v, and the clamp's ranges (low u, high u, low v, high v)
+        (allocated once)."""
         if self.maccormack is None:
             fx, fy = grid.shape_faces_x, grid.shape_faces_y
-            self.maccormack = tuple(np.zeros(shape) for shape in (fx, fy, fx, fy)
-                                    + (fx,) * 4 + (fy,) * 4)
+            self.maccormack = tuple(np.zeros(shape) for shape in (fx, fy, fx, fx, fy, fy))
         return self.maccormack
 
 
@@ -523,7 +523,7 @@ class FreeSurfaceSolver:
             exceed the CFL number of the step, since back-traces sample that far.
         maccormack_fallback: With the fluid's ``advection="maccormack"``, where the
             velocity's correction is dropped for the semi-Lagrangian value
-            (`elastoflow.fluid._level_set_kernels.maccormack_correct_faces`):
+            (`elastoflow.fluid._level_set_kernels.advect_faces_forward_range`):
             "walls_and_air" (default), at the faces whose samples read a domain side's
             ghost and at the faces in the air or whose forward sample reads an air face;
             "walls", at the first only; "none", nowhere: the fluid's own MacCormack step
@@ -607,7 +607,7 @@ class FreeSurfaceSolver:
         With the fluid's semi-Lagrangian advection, or ``maccormack_fallback="none"``, this
         is `FluidSolver.advect`. Otherwise MacCormack with Selle's clamp, whose correction
         is dropped (the semi-Lagrangian value kept) where ``maccormack_fallback`` says
-        (`maccormack_correct_faces`); air faces are those with no liquid on a side in
+        (`advect_faces_forward_range`); air faces are those with no liquid on a side in
         ``state.level_set``, or with ``marked`` those `step` marked in
         ``workspace.liquid_faces`` before it moved the level set; the dye, if any, is
         carried semi-Lagrangian.
@@ -620,41 +620,37 @@ class FreeSurfaceSolver:
             raise ValueError(f"time step dt = {dt!r}: must be a finite number > 0")
         h = self.grid.h
         u, v = state.fluid.velocity_x, state.fluid.velocity_y
-        (forward_u, forward_v, backward_u, backward_v, fux, fuy, bux, buy,
-         fvx, fvy, bvx, bvy) = self.workspace.maccormack_arrays(self.grid)
-        # The fluid's advection kernels without bodies (the free surface has none yet).
-        none = (fluid._no_solid, fluid._no_theta, fluid._no_cut)
+        forward_u, forward_v, low_u, high_u, low_v, high_v = self.workspace.maccormack_arrays(
+            self.grid)
         ghosts = (fluid._modes_u, fluid._values_u, fluid._modes_v, fluid._values_v)
-        common = (*ghosts, False, *none, *none, fluid._near_everywhere, fluid._no_values)
-        fluid_kernels.advect_field_x(u, v, u, forward_u, dt, h, *common, 1, u, u, fux, fuy)
-        fluid_kernels.advect_field_y(u, v, v, forward_v, dt, h, *common, 1, v, v, fvx, fvy)
-        fluid_kernels.advect_field_x(u, v, forward_u, backward_u, -dt, h, *common, 1, u, u,
-                                     bux, buy)
-        fluid_kernels.advect_field_y(u, v, forward_v, backward_v, -dt, h, *common, 1, v, v,
-                                     bvx, bvy)
-        if fluid._carries_dye(state.fluid):
-            if self.workspace.dye is None:
-                self.workspace.dye = np.zeros(self.grid.shape_cells)
-            dye = state.fluid.dye
-            fluid_kernels.advect_cells(
-                u, v, dye, self.workspace.dye, dt, h, *ghosts, fluid._modes_dye,
-                fluid._values_dye, False, *none, *none, fluid._near_everywhere,
-                fluid._no_solid, 0, dye, dye, fluid._no_values, fluid._no_values)
-            fluid_kernels.copy_into(self.workspace.dye, dye)
-        # Into the backward arrays (each point reads its own backward value first), then
-        # copied: the clamp reads the source around the departure point.
         air = self.maccormack_fallback == "walls_and_air"
         liquid_u, liquid_v = self.workspace.liquid_faces
         if air and not marked:
             kernels.mark_liquid_faces(state.level_set, liquid_u, liquid_v)
-        kernels.maccormack_correct_faces(u, forward_u, backward_u, fux, fuy, bux, buy,
-                                         fluid._modes_u, fluid._values_u, liquid_u, air,
-                                         backward_u)
-        kernels.maccormack_correct_faces(v, forward_v, backward_v, fvx, fvy, bvx, bvy,
-                                         fluid._modes_v, fluid._values_v, liquid_v, air,
-                                         backward_v)
-        fluid_kernels.copy_into(backward_u, u)
-        fluid_kernels.copy_into(backward_v, v)
+        # Two passes, one back-trace each (none backward where the correction is dropped);
+        # the results over the lows, copied once both components are done: u and v are the
+        # advecting velocity of both.
+        kernels.advect_faces_forward_range(u, v, 0, dt, h, *ghosts, liquid_u, air, forward_u,
+                                           low_u, high_u)
+        kernels.advect_faces_forward_range(u, v, 1, dt, h, *ghosts, liquid_v, air, forward_v,
+                                           low_v, high_v)
+        kernels.maccormack_faces_backward_correct(u, v, 0, dt, h, *ghosts, forward_u, low_u,
+                                                  high_u, low_u)
+        kernels.maccormack_faces_backward_correct(u, v, 1, dt, h, *ghosts, forward_v, low_v,
+                                                  high_v, low_v)
+        if fluid._carries_dye(state.fluid):
+            if self.workspace.dye is None:
+                self.workspace.dye = np.zeros(self.grid.shape_cells)
+            # The fluid's advection kernel without bodies (the free surface has none yet).
+            none = (fluid._no_solid, fluid._no_theta, fluid._no_cut)
+            dye = state.fluid.dye
+            fluid_kernels.advect_cells(
+                u, v, dye, self.workspace.dye, dt, h, *ghosts, fluid._modes_dye,
+                fluid._values_dye, False, *none, *none, fluid._near_everywhere,
+                fluid._no_solid, 0, dye, fluid._no_values, fluid._no_values)
+            fluid_kernels.copy_into(self.workspace.dye, dye)
+        fluid_kernels.copy_into(low_u, u)
+        fluid_kernels.copy_into(low_v, v)
 
     def stable_dt(self, state: FreeSurfaceState, cfl: float, dt_max: float) -> float:
         """``min(dt_max, cfl h / max|u|)`` [s] over the faces, and at most the time in which

@@ -322,39 +322,60 @@ def _corner_range(f, fx, fy, modes, values):
     return low, high
 
 
+@njit(cache=True, inline="always")
+def _sample_and_range(f, fx, fy, modes, values):
+    """`_sample` and `_corner_range` together, from one read of the four values (bitwise
+    both: the same interpolation, the same order of min and max)."""
+    i0 = int(math.floor(fx))
+    j0 = int(math.floor(fy))
+    a = fx - i0
+    b = fy - j0
+    m, n = f.shape
+    if 0 <= i0 < m - 1 and 0 <= j0 < n - 1:
+        c00, c10 = f[i0, j0], f[i0 + 1, j0]
+        c01, c11 = f[i0, j0 + 1], f[i0 + 1, j0 + 1]
+        return (_lerp(_lerp(c00, c10, a), _lerp(c01, c11, a), b),
+                min(min(c00, c10), min(c01, c11)), max(max(c00, c10), max(c01, c11)))
+    c00 = _field_value(f, i0, j0, modes, values)
+    c10 = _field_value(f, i0 + 1, j0, modes, values)
+    c01 = _field_value(f, i0, j0 + 1, modes, values)
+    c11 = _field_value(f, i0 + 1, j0 + 1, modes, values)
+    low = min(min(min(min(np.inf, c00), c10), c01), c11)
+    high = max(max(max(max(-np.inf, c00), c10), c01), c11)
+    return _lerp(_lerp(c00, c10, a), _lerp(c01, c11, a), b), low, high
+
+
 @njit(cache=True, parallel=True)
 def advect_field_x(
     u, v, source, out, dt, h, modes_u, values_u, modes_v, values_v, has_interior,
-    solid_x, theta_x, cut_x, solid_y, theta_y, cut_y, near, body_velocity, mode, forward,
-    backward, departure_x, departure_y,
+    solid_x, theta_x, cut_x, solid_y, theta_y, cut_y, near, body_velocity, mode, forward, low,
+    high,
 ):
     """Transport the x-face field ``source`` by (u, v) over ``dt`` into ``out`` (nx+1, ny).
 
     The body arrays (solid flags, cut fractions and cut velocities of the x- and y-faces) are
     read only with ``has_interior``, and only for samples whose stencil is marked in ``near``
     (`near_regions`; all True when bodies may be anywhere). ``mode`` 0 samples ``source`` at
-    the departure points; 1 does the same and stores the departure points (index coordinates
-    of ``source``) in ``departure_x`` / ``departure_y``; 2 skips the trace and writes the
-    MacCormack correction ``forward + (source - backward) / 2`` of this step's
-    semi-Lagrangian result ``forward`` and its backward advection ``backward``, clamped to
-    the range of ``source`` around the stored departure point (Selle et al. 2008), so that no
-    new extrema appear; 3 writes the same correction unclamped.
+    the departure points; 1 (MacCormack's first pass) does the same and stores the range of
+    the four ``source`` values around each departure point in ``low`` / ``high``; 2
+    (MacCormack's second pass, given ``-dt``) samples ``forward``, the first pass's result,
+    at the departure points (the backward step's value ``backward``) and writes the
+    correction ``forward + (source - backward) / 2`` clamped to ``[low, high]`` (Selle et al.
+    2008), so that no new extrema appear; 3 writes the same correction unclamped. Modes 1
+    then 2 give bitwise the values of a forward pass, a backward pass and a correction
+    pass, with one back-trace fewer per point and no second read of the departure stencil.
+    ``out`` must not be ``source`` or ``forward``; in modes 2 and 3 it may be ``low`` or
+    ``high`` (each point reads its own bounds before writing).
     """
     nx1, ny = u.shape
     inv_h = 1.0 / h
     lx = (nx1 - 1) * h
     ly = ny * h
+    sampled = forward if mode >= 2 else source
     for i in prange(nx1):
         for j in range(ny):
             if has_interior and solid_x[i, j]:
                 out[i, j] = body_velocity[i, j]
-                continue
-            if mode >= 2:
-                low, high = _corner_range(
-                    source, departure_x[i, j], departure_y[i, j], modes_u, values_u
-                )
-                corrected = forward[i, j] + 0.5 * (source[i, j] - backward[i, j])
-                out[i, j] = _clamp(corrected, low, high) if mode == 2 else corrected
                 continue
             x = i * h
             y = (j + 0.5) * h
@@ -373,42 +394,44 @@ def advect_field_x(
                 )
             fx = xb * inv_h
             fy = yb * inv_h - 0.5
-            if mode == 1:
-                departure_x[i, j] = fx
-                departure_y[i, j] = fy
             if has_interior:
-                out[i, j] = _sample_with_bodies(
-                    source, fx, fy, modes_u, values_u, solid_x, theta_x, cut_x, near
+                value = _sample_with_bodies(
+                    sampled, fx, fy, modes_u, values_u, solid_x, theta_x, cut_x, near
                 )
+            elif mode == 1:
+                value, low[i, j], high[i, j] = _sample_and_range(source, fx, fy, modes_u, values_u)
+                out[i, j] = value
+                continue
             else:
-                out[i, j] = _sample(source, fx, fy, modes_u, values_u)
+                value = _sample(sampled, fx, fy, modes_u, values_u)
+            if mode >= 2:
+                corrected = forward[i, j] + 0.5 * (source[i, j] - value)
+                out[i, j] = _clamp(corrected, low[i, j], high[i, j]) if mode == 2 else corrected
+            else:
+                out[i, j] = value
+                if mode == 1:
+                    low[i, j], high[i, j] = _corner_range(source, fx, fy, modes_u, values_u)
 
 
 @njit(cache=True, parallel=True)
 def advect_field_y(
     u, v, source, out, dt, h, modes_u, values_u, modes_v, values_v, has_interior,
-    solid_x, theta_x, cut_x, solid_y, theta_y, cut_y, near, body_velocity, mode, forward,
-    backward, departure_x, departure_y,
+    solid_x, theta_x, cut_x, solid_y, theta_y, cut_y, near, body_velocity, mode, forward, low,
+    high,
 ):
     """Transport the y-face field ``source`` by (u, v) over ``dt`` into ``out`` (nx, ny+1).
 
-    ``mode`` and the departure arrays as in `advect_field_x`.
+    ``mode``, ``forward``, ``low`` and ``high`` as in `advect_field_x`.
     """
     nx, ny1 = v.shape
     inv_h = 1.0 / h
     lx = nx * h
     ly = (ny1 - 1) * h
+    sampled = forward if mode >= 2 else source
     for i in prange(nx):
         for j in range(ny1):
             if has_interior and solid_y[i, j]:
                 out[i, j] = body_velocity[i, j]
-                continue
-            if mode >= 2:
-                low, high = _corner_range(
-                    source, departure_x[i, j], departure_y[i, j], modes_v, values_v
-                )
-                corrected = forward[i, j] + 0.5 * (source[i, j] - backward[i, j])
-                out[i, j] = _clamp(corrected, low, high) if mode == 2 else corrected
                 continue
             x = (i + 0.5) * h
             y = j * h
@@ -427,42 +450,44 @@ def advect_field_y(
                 )
             fx = xb * inv_h - 0.5
             fy = yb * inv_h
-            if mode == 1:
-                departure_x[i, j] = fx
-                departure_y[i, j] = fy
             if has_interior:
-                out[i, j] = _sample_with_bodies(
-                    source, fx, fy, modes_v, values_v, solid_y, theta_y, cut_y, near
+                value = _sample_with_bodies(
+                    sampled, fx, fy, modes_v, values_v, solid_y, theta_y, cut_y, near
                 )
+            elif mode == 1:
+                value, low[i, j], high[i, j] = _sample_and_range(source, fx, fy, modes_v, values_v)
+                out[i, j] = value
+                continue
             else:
-                out[i, j] = _sample(source, fx, fy, modes_v, values_v)
+                value = _sample(sampled, fx, fy, modes_v, values_v)
+            if mode >= 2:
+                corrected = forward[i, j] + 0.5 * (source[i, j] - value)
+                out[i, j] = _clamp(corrected, low[i, j], high[i, j]) if mode == 2 else corrected
+            else:
+                out[i, j] = value
+                if mode == 1:
+                    low[i, j], high[i, j] = _corner_range(source, fx, fy, modes_v, values_v)
 
 
 @njit(cache=True, parallel=True)
 def advect_cells(
     u, v, source, out, dt, h, modes_u, values_u, modes_v, values_v, modes_c, values_c,
     has_interior, solid_x, theta_x, cut_x, solid_y, theta_y, cut_y, near, solid_cells,
-    mode, forward, backward, departure_x, departure_y,
+    mode, forward, low, high,
 ):
     """Transport a cell-centred scalar by (u, v) over ``dt`` into ``out`` (nx, ny).
 
-    ``mode`` and the departure arrays as in `advect_field_x`.
+    ``mode``, ``forward``, ``low`` and ``high`` as in `advect_field_x`.
     """
     nx, ny = source.shape
     inv_h = 1.0 / h
     lx = nx * h
     ly = ny * h
+    sampled = forward if mode >= 2 else source
     for i in prange(nx):
         for j in range(ny):
             if has_interior and solid_cells[i, j]:
                 out[i, j] = 0.0
-                continue
-            if mode >= 2:
-                low, high = _corner_range(
-                    source, departure_x[i, j], departure_y[i, j], modes_c, values_c
-                )
-                corrected = forward[i, j] + 0.5 * (source[i, j] - backward[i, j])
-                out[i, j] = _clamp(corrected, low, high) if mode == 2 else corrected
                 continue
             x = (i + 0.5) * h
             y = (j + 0.5) * h
@@ -482,15 +507,23 @@ def advect_cells(
                 )
             fx = xb * inv_h - 0.5
             fy = yb * inv_h - 0.5
-            if mode == 1:
-                departure_x[i, j] = fx
-                departure_y[i, j] = fy
             if has_interior:
-                out[i, j] = _sample_dye_with_bodies(
-                    source, fx, fy, modes_c, values_c, solid_cells, near
+                value = _sample_dye_with_bodies(
+                    sampled, fx, fy, modes_c, values_c, solid_cells, near
                 )
+            elif mode == 1:
+                value, low[i, j], high[i, j] = _sample_and_range(source, fx, fy, modes_c, values_c)
+                out[i, j] = value
+                continue
             else:
-                out[i, j] = _sample(source, fx, fy, modes_c, values_c)
+                value = _sample(sampled, fx, fy, modes_c, values_c)
+            if mode >= 2:
+                corrected = forward[i, j] + 0.5 * (source[i, j] - value)
+                out[i, j] = _clamp(corrected, low[i, j], high[i, j]) if mode == 2 else corrected
+            else:
+                out[i, j] = value
+                if mode == 1:
+                    low[i, j], high[i, j] = _corner_range(source, fx, fy, modes_c, values_c)
 
 
 def _make_copy_into(loop):

@@ -353,44 +353,109 @@ def _reads_air(fx, fy, liquid):
     return False
 
 
+@njit(cache=True, inline="always")
+def _face_departure(u, v, i, j, axis, dt, h, inv_h, lx, ly, modes_u, values_u, modes_v,
+                    values_v):
+    """Departure point of face ``(i, j)`` of ``axis`` (0: x-faces, 1: y-faces) over ``dt``,
+    in index coordinates of that component's array: the expressions of
+    `elastoflow.fluid._kernels.advect_field_x` / `advect_field_y` without bodies, so that
+    the values are bitwise theirs."""
+    if axis == 0:
+        x = i * h
+        y = (j + 0.5) * h
+        uy = fluid_kernels._sample(v, x * inv_h - 0.5, y * inv_h, modes_v, values_v)
+        xb, yb = fluid_kernels._trace_back(u, v, x, y, u[i, j], uy, dt, inv_h, lx, ly,
+                                           modes_u, values_u, modes_v, values_v)
+        return xb * inv_h, yb * inv_h - 0.5
+    x = (i + 0.5) * h
+    y = j * h
+    ux = fluid_kernels._sample(u, x * inv_h, y * inv_h - 0.5, modes_u, values_u)
+    xb, yb = fluid_kernels._trace_back(u, v, x, y, ux, v[i, j], dt, inv_h, lx, ly,
+                                       modes_u, values_u, modes_v, values_v)
+    return xb * inv_h - 0.5, yb * inv_h
+
+
 @njit(cache=True, parallel=True)
-def maccormack_correct_faces(source, forward, backward, forward_x, forward_y, backward_x,
-                             backward_y, modes, values, liquid, air, out):
-    """MacCormack's correction of one face field, with the semi-Lagrangian value where the
-    two steps do not see the same field (the free surface's velocity advection,
-    `FreeSurfaceSolver.advect`).
+def advect_faces_forward_range(u, v, axis, dt, h, modes_u, values_u, modes_v, values_v,
+                               liquid, air, forward, low, high):
+    """MacCormack's first pass for the free surface's velocity (`FreeSurfaceSolver.advect`):
+    the component ``axis`` (0: u, 1: v) carried by (u, v) over ``dt`` [s] into ``forward``
+    (the semi-Lagrangian step of `elastoflow.fluid._kernels.advect_field_x`, bitwise), and
+    into ``low`` / ``high`` the range of its four values around the departure point, which
+    `maccormack_faces_backward_correct` clamps to.
 
-    ``out = forward + (source - backward) / 2`` clamped to the range of the four ``source``
-    values around the forward departure point (Selle et al. 2008), except ``out = forward``
-    where
+    Where the correction is dropped for the semi-Lagrangian value by this pass's own
+    sample, the range is left empty (``low = inf``, ``high = -inf``), and the second pass
+    neither traces nor corrects there:
 
-    * the forward departure point's stencil (``forward_x``, ``forward_y``, index coordinates
-      in ``source``) or the backward step's (``backward_x``, ``backward_y``, in ``forward``)
-      reads beyond the array's ends, a domain side's ghost value. A no-slip wall's ghost is
-      the reflection ``-u``: liquid falling onto the floor has its backward step read it
-      while its forward step does not, and the "correction" accelerates the flow along the
-      floor (the dam break gained 60 % of its energy by T = 7; docs/method_notes.md item 12);
-    * with ``air``: the point itself, or a point of the forward stencil, has no liquid on
-      either side (``liquid`` 0, int32 marks of the step's starting level set): air values
-      are extrapolated afresh every step, not carried, so the two steps' difference there
-      is not the transport's error (a drop falling into a pool gained energy from them).
+    * the departure point's stencil reads beyond the array's ends, a domain side's ghost
+      value. A no-slip wall's ghost is the reflection ``-u``: liquid falling onto the floor
+      has its backward step read it while its forward step does not, and the "correction"
+      accelerates the flow along the floor (the dam break gained 60 % of its energy by
+      T = 7; docs/method_notes.md item 12);
+    * with ``air``: the point itself, or a point of the stencil, has no liquid on either side
+      (``liquid`` 0, int32 marks of the step's starting level set): air values are
+      extrapolated afresh every step, not carried, so the two steps' difference there is not
+      the transport's error (a drop falling into a pool gained energy from them).
 
-    ``modes``, ``values``: the field's side ghosts, as in
-    `elastoflow.fluid._kernels.advect_field_x`. ``out`` may be ``backward``.
+    ``modes_*``, ``values_*``: the components' side ghosts, as in `advect_field_x`.
     """
-    m, n = source.shape
+    f = u if axis == 0 else v
+    modes = modes_u if axis == 0 else modes_v
+    values = values_u if axis == 0 else values_v
+    m, n = f.shape
+    inv_h = 1.0 / h
+    lx = (u.shape[0] - 1) * h
+    ly = u.shape[1] * h
+    for i in prange(m):
+        for j in range(n):
+            fx, fy = _face_departure(u, v, i, j, axis, dt, h, inv_h, lx, ly, modes_u,
+                                     values_u, modes_v, values_v)
+            forward[i, j], bottom, top = fluid_kernels._sample_and_range(f, fx, fy, modes,
+                                                                         values)
+            if _reads_ghost(fx, fy, m, n) or (air and (liquid[i, j] == 0
+                                                       or _reads_air(fx, fy, liquid))):
+                bottom = np.inf
+                top = -np.inf
+            low[i, j] = bottom
+            high[i, j] = top
+
+
+@njit(cache=True, parallel=True)
+def maccormack_faces_backward_correct(u, v, axis, dt, h, modes_u, values_u, modes_v, values_v,
+                                      forward, low, high, out):
+    """MacCormack's second pass for the free surface's velocity, after
+    `advect_faces_forward_range` over the same ``dt`` [s]: ``backward`` = ``forward`` carried
+    back over ``-dt``, and ``out = forward + (f - backward) / 2`` clamped to ``[low, high]``
+    (Selle et al. 2008), ``f`` the component ``axis`` of (u, v); ``out = forward`` where the
+    range is empty (the first pass's fallback) or where the backward departure point's
+    stencil reads a domain side's ghost. Bitwise the values of a backward semi-Lagrangian
+    pass and a correction pass (the three-pass form before 2026-12-03), with one back-trace
+    per point fewer and none at the fallback points. ``out`` may be ``low`` or ``high``
+    (each point reads its own bounds first), not ``u``, ``v`` or ``forward``."""
+    f = u if axis == 0 else v
+    modes = modes_u if axis == 0 else modes_v
+    values = values_u if axis == 0 else values_v
+    m, n = f.shape
+    inv_h = 1.0 / h
+    lx = (u.shape[0] - 1) * h
+    ly = u.shape[1] * h
     for i in prange(m):
         for j in range(n):
             first = forward[i, j]
-            fx = forward_x[i, j]
-            fy = forward_y[i, j]
-            if (_reads_ghost(fx, fy, m, n) or _reads_ghost(backward_x[i, j], backward_y[i, j], m, n)
-                    or (air and (liquid[i, j] == 0 or _reads_air(fx, fy, liquid)))):
+            bottom = low[i, j]
+            top = high[i, j]
+            if bottom > top:
                 out[i, j] = first
                 continue
-            low, high = fluid_kernels._corner_range(source, fx, fy, modes, values)
-            corrected = first + 0.5 * (source[i, j] - backward[i, j])
-            out[i, j] = min(max(corrected, low), high)
+            fx, fy = _face_departure(u, v, i, j, axis, -dt, h, inv_h, lx, ly, modes_u,
+                                     values_u, modes_v, values_v)
+            if _reads_ghost(fx, fy, m, n):
+                out[i, j] = first
+                continue
+            backward = fluid_kernels._sample(forward, fx, fy, modes, values)
+            corrected = first + 0.5 * (f[i, j] - backward)
+            out[i, j] = min(max(corrected, bottom), top)
 
 
 # -- level-set transport ---------------------------------------------------------------------

@@ -348,13 +348,12 @@ class FluidSolver:
         self._buffer_u = np.zeros(fx)
         self._buffer_v = np.zeros(fy)
         self._buffer_dye = np.zeros(c)
-        # MacCormack's backward pass and the departure points (index coordinates) of its
-        # forward pass, two per field; semi-Lagrangian advection needs neither.
+        # MacCormack's clamp ranges (low, high per field), kept by its first pass; its second
+        # pass writes the result over the lows. Semi-Lagrangian advection needs neither.
         if self.advection == "maccormack":
-            self._backward = (np.zeros(fx), np.zeros(fy), np.zeros(c))
-            self._departures = tuple(np.zeros(shape) for shape in (fx, fx, fy, fy, c, c))
+            self._ranges = tuple(np.zeros(shape) for shape in (fx, fx, fy, fy, c, c))
         else:
-            self._departures = (np.zeros((1, 1)),) * 6
+            self._ranges = (np.zeros((1, 1)),) * 6
         # The extrapolated advecting velocity, and A u* of the explicit Crank-Nicolson half.
         if self.advecting_velocity == "extrapolated":
             self._advecting = (np.zeros(fx), np.zeros(fy))
@@ -451,26 +450,24 @@ class FluidSolver:
         self, state: FluidState, sources: tuple[np.ndarray, np.ndarray, np.ndarray],
         outs: tuple[np.ndarray, np.ndarray, np.ndarray], dt: float,
         interior: InteriorBoundary | None, velocity: tuple[np.ndarray, np.ndarray],
-        mode: int = 0, forwards: tuple[np.ndarray, ...] | None = None,
-        backwards: tuple[np.ndarray, ...] | None = None, dye: bool = True,
+        mode: int = 0, forwards: tuple[np.ndarray, ...] | None = None, dye: bool = True,
     ) -> None:
         h = self.grid.h
         u, v = velocity
         has, solid_x, theta_x, cut_x, body_x = self._interior_arrays(interior, 0)
         _, solid_y, theta_y, cut_y, body_y = self._interior_arrays(interior, 1)
         forwards = forwards if forwards is not None else sources
-        backwards = backwards if backwards is not None else sources
         near = self._near_regions(interior)
-        departures = self._departures
+        ranges = self._ranges
         kernels.advect_field_x(
             u, v, sources[0], outs[0], dt, h, self._modes_u, self._values_u, self._modes_v,
             self._values_v, has, solid_x, theta_x, cut_x, solid_y, theta_y, cut_y, near,
-            body_x, mode, forwards[0], backwards[0], departures[0], departures[1],
+            body_x, mode, forwards[0], ranges[0], ranges[1],
         )
         kernels.advect_field_y(
             u, v, sources[1], outs[1], dt, h, self._modes_u, self._values_u, self._modes_v,
             self._values_v, has, solid_x, theta_x, cut_x, solid_y, theta_y, cut_y, near,
-            body_y, mode, forwards[1], backwards[1], departures[2], departures[3],
+            body_y, mode, forwards[1], ranges[2], ranges[3],
         )
         if not dye:
             return
@@ -478,8 +475,7 @@ class FluidSolver:
         kernels.advect_cells(
             u, v, sources[2], outs[2], dt, h, self._modes_u, self._values_u, self._modes_v,
             self._values_v, self._modes_dye, self._values_dye, has, solid_x, theta_x, cut_x,
-            solid_y, theta_y, cut_y, near, solid_cells, mode, forwards[2], backwards[2],
-            departures[4], departures[5],
+            solid_y, theta_y, cut_y, near, solid_cells, mode, forwards[2], ranges[4], ranges[5],
         )
 
     def advect(
@@ -517,13 +513,15 @@ class FluidSolver:
         third, the dye, only with ``dye``)."""
         forward = (self._buffer_u, self._buffer_v, self._buffer_dye)
         if self.advection == "maccormack":
-            self._advect_once(state, fields, forward, dt, interior, velocity, mode=1, dye=dye)
-            backward = self._backward
-            self._advect_once(state, forward, backward, -dt, interior, velocity, dye=dye)
-            # The correction reads backward[i, j] before writing it, so it can work in place.
-            self._advect_once(state, fields, backward, dt, interior, velocity,
-                              2 if self.maccormack_limiter else 3, forward, backward, dye=dye)
-            result = backward
+            # Two passes, one back-trace each: forward with the clamp's ranges, then backward
+            # and corrected (the kernels' modes 1 and 2), written over the lows.
+            limited = self.maccormack_limiter
+            self._advect_once(state, fields, forward, dt, interior, velocity,
+                              mode=1 if limited else 0, dye=dye)
+            ranges = self._ranges
+            result = (ranges[0], ranges[2], ranges[4])
+            self._advect_once(state, fields, result, -dt, interior, velocity,
+                              mode=2 if limited else 3, forwards=forward, dye=dye)
         else:
             self._advect_once(state, fields, forward, dt, interior, velocity, dye=dye)
             result = forward
