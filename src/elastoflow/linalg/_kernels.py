@@ -363,58 +363,86 @@ def _first_smooth_row(x, b, inverse, row, start, n):
 
 
 @njit(cache=True, inline="always")
+def _span(first, stop, ranged, i, n):
+    """Columns ``[low, high)`` of row ``i`` that hold its active points: ``first[i]``,
+    ``stop[i]`` when ``ranged``, else the whole row."""
+    if ranged:
+        return first[i], stop[i]
+    return 0, n
+
+
+@njit(cache=True, inline="always")
+def _smooth_span(x, b, inverse, weights_x, weights_y, row, start, low, high, stride):
+    # The row's points of colour ``start`` in columns [low, high): the row seen from column
+    # ``low`` (the same loop as the whole row when low = 0, high = n).
+    _smooth_row(x, b, inverse, weights_x, weights_y, row + low, (start + low) & 1, high - low,
+                stride)
+
+
+@njit(cache=True, inline="always")
 def _sweep_rows(x, b, inverse, weights_x, weights_y, n, first_colour, from_zero, row_start,
-                row_stop):
+                row_stop, first, stop, ranged):
     # One Gauss-Seidel sweep (first colour, then the other) over rows [row_start, row_stop) in a
     # single pass: the second colour of row i - 1 only needs the first colour of rows i - 2 ..
     # i, so it is updated right after row i. The second colour of the block's first and last
     # rows depends on rows of the neighbouring blocks and is left to _sweep_block_edges.
+    # ``ranged``: only the columns [first[i], stop[i]) of each row (see `pcg_kernel`).
     stride = n + 2
     for i in range(row_start, row_stop):
         row = (i + 1) * stride + 1
         start = (i + first_colour) & 1
+        low, high = _span(first, stop, ranged, i, n)
         if from_zero:
-            _first_smooth_row(x, b, inverse, row, start, n)
+            _first_smooth_row(x, b, inverse, row + low, (start + low) & 1, high - low)
         else:
-            _smooth_row(x, b, inverse, weights_x, weights_y, row, start, n, stride)
+            _smooth_span(x, b, inverse, weights_x, weights_y, row, start, low, high, stride)
         if i - 1 > row_start:
             # Row i - 1's second colour starts where row i's first colour does.
-            _smooth_row(x, b, inverse, weights_x, weights_y, row - stride, start, n, stride)
+            low, high = _span(first, stop, ranged, i - 1, n)
+            _smooth_span(x, b, inverse, weights_x, weights_y, row - stride, start, low, high,
+                         stride)
 
 
 @njit(cache=True, inline="always")
 def _sweep_block_edges(x, b, inverse, weights_x, weights_y, n, first_colour, row_start,
-                       row_stop):
+                       row_stop, first, stop, ranged):
     # Second-colour points of different rows are never neighbours, so the edge rows of all
     # blocks can be updated at once.
     stride = n + 2
     row = (row_start + 1) * stride + 1
-    _smooth_row(x, b, inverse, weights_x, weights_y, row, (row_start + first_colour + 1) & 1, n,
-                stride)
+    low, high = _span(first, stop, ranged, row_start, n)
+    _smooth_span(x, b, inverse, weights_x, weights_y, row, (row_start + first_colour + 1) & 1,
+                 low, high, stride)
     last = row_stop - 1
     if last > row_start:
         row = (last + 1) * stride + 1
-        _smooth_row(x, b, inverse, weights_x, weights_y, row, (last + first_colour + 1) & 1, n,
-                    stride)
+        low, high = _span(first, stop, ranged, last, n)
+        _smooth_span(x, b, inverse, weights_x, weights_y, row, (last + first_colour + 1) & 1,
+                     low, high, stride)
 
 
 @njit(cache=True, parallel=True)
-def smooth_parallel(x, b, inverse, weights_x, weights_y, m, n, first_colour, from_zero):
+def smooth_parallel(x, b, inverse, weights_x, weights_y, m, n, first_colour, from_zero, first,
+                    stop, ranged):
     """Red-black Gauss-Seidel sweep, ``first_colour`` (points with ``(i + j) % 2 ==
-    first_colour``) first; ``from_zero`` starts from ``x = 0``."""
+    first_colour``) first; ``from_zero`` starts from ``x = 0``; ``ranged``: only the columns
+    ``[first[i], stop[i])`` of each row i (`pcg_kernel`)."""
     blocks = min(max(m // 32, 1), 16)
     for block in prange(blocks):
         _sweep_rows(x, b, inverse, weights_x, weights_y, n, first_colour, from_zero,
-                    block * m // blocks, (block + 1) * m // blocks)
+                    block * m // blocks, (block + 1) * m // blocks, first, stop, ranged)
     for block in prange(blocks):
         _sweep_block_edges(x, b, inverse, weights_x, weights_y, n, first_colour,
-                           block * m // blocks, (block + 1) * m // blocks)
+                           block * m // blocks, (block + 1) * m // blocks, first, stop, ranged)
 
 
 @njit(cache=True)
-def smooth_serial(x, b, inverse, weights_x, weights_y, m, n, first_colour, from_zero):
-    _sweep_rows(x, b, inverse, weights_x, weights_y, n, first_colour, from_zero, 0, m)
-    _sweep_block_edges(x, b, inverse, weights_x, weights_y, n, first_colour, 0, m)
+def smooth_serial(x, b, inverse, weights_x, weights_y, m, n, first_colour, from_zero, first,
+                  stop, ranged):
+    _sweep_rows(x, b, inverse, weights_x, weights_y, n, first_colour, from_zero, 0, m, first,
+                stop, ranged)
+    _sweep_block_edges(x, b, inverse, weights_x, weights_y, n, first_colour, 0, m, first, stop,
+                       ranged)
 
 
 @njit(cache=True, inline="always")
@@ -449,10 +477,44 @@ def _restrict_row(x, b, total, inverse, weights_x, weights_y, coarse_b, m, n, ic
             coarse_b[kc + jc] += value
 
 
+@njit(cache=True, inline="always")
+def _restrict_row_spans(x, b, total, inverse, weights_x, weights_y, coarse_b, m, n, ic, n_c,
+                        first, stop):
+    # `_restrict_row` over the children in the columns [first[i], stop[i]) of their rows i: the
+    # children outside hold no active point, and their terms were exact zeros (an inactive
+    # point has b = 0, no diagonal and no weights), so the sums are the same.
+    stride = n + 2
+    stride_c = n_c + 2
+    kc = (ic + 1) * stride_c + 1
+    for jc in range(n_c):
+        coarse_b[kc + jc] = 0.0
+    for i in range(2 * ic, min(2 * ic + 2, m)):
+        row = (i + 1) * stride + 1
+        odd = i & 1
+        up = uint64(stride)
+        low = first[i]
+        high = stop[i]
+        for jc in range(low // 2, (high + 1) // 2):
+            j = 2 * jc + odd
+            j_other = 2 * jc + 1 - odd
+            value = 0.0
+            if low <= j < high:
+                value = _residual_at(x, b, total, weights_x, weights_y, uint64(row + j), up)
+            if low <= j_other < high and inverse[row + j_other] == 0.0:
+                value += b[row + j_other]
+            coarse_b[kc + jc] += value
+
+
 def _make_restrict(loop):
-    def kernel(x, b, total, inverse, weights_x, weights_y, coarse_b, m, n, m_c, n_c):
+    def kernel(x, b, total, inverse, weights_x, weights_y, coarse_b, m, n, m_c, n_c, first,
+               stop, ranged):
         for ic in loop(m_c):
-            _restrict_row(x, b, total, inverse, weights_x, weights_y, coarse_b, m, n, ic, n_c)
+            if ranged:
+                _restrict_row_spans(x, b, total, inverse, weights_x, weights_y, coarse_b, m, n,
+                                    ic, n_c, first, stop)
+            else:
+                _restrict_row(x, b, total, inverse, weights_x, weights_y, coarse_b, m, n, ic,
+                              n_c)
     return kernel
 
 
@@ -475,9 +537,16 @@ def _prolong_row(coarse_x, x, i, n, n_c):
 
 
 def _make_prolong(loop):
-    def kernel(coarse_x, x, m, n, n_c):
+    def kernel(coarse_x, x, m, n, n_c, first, stop, ranged):
         for i in loop(m):
-            _prolong_row(coarse_x, x, i, n, n_c)
+            if ranged:
+                # Only the row's active columns (the others are not read: `pcg_kernel`).
+                row = (i + 1) * (n + 2) + 1
+                kc = (i // 2 + 1) * (n_c + 2) + 1
+                for j in range(first[i], stop[i]):
+                    x[row + j] += coarse_x[kc + j // 2]
+            else:
+                _prolong_row(coarse_x, x, i, n, n_c)
     return kernel
 
 
@@ -573,13 +642,17 @@ def build_coarse_levels_kernel(rows, cols, offsets, diagonal, weights_x, weights
 
 
 @njit(cache=True)
-def v_cycle(levels, r, z, sweeps):
+def v_cycle(levels, r, z, sweeps, first, stop, ranged, fine_parallel):
     """Symmetric V-cycle ``z = M r``: red-black Gauss-Seidel before, black-red after.
     ``levels`` bundles the hierarchy (`_Hierarchy.levels`): rows, cols and offsets of every
     level, their diagonal, weights, totals and inverse totals, the levels' x and b, and the
-    coarsest level's factor."""
+    coarsest level's factor. ``ranged``: the finest level only in the columns
+    ``[first[i], stop[i])`` of each row i (`pcg_kernel`); ``fine_parallel``: whether the
+    finest level's sweeps, restriction and prolongation use the threads (they have no sums,
+    so the values do not depend on it)."""
     (rows, cols, offsets, _, weights_x, weights_y, total, inverse, level_x, level_b,
      coarse_factor) = levels
+    last_columns = stop
     count = rows.shape[0]
     for level in range(count - 1):
         m = rows[level]
@@ -596,16 +669,19 @@ def v_cycle(levels, r, z, sweeps):
         wx = weights_x[start:stop]
         wy = weights_y[start:stop]
         coarse_b = level_b[stop:offsets[level + 2]]
-        if m * n > PARALLEL_MINIMUM:
+        spans = ranged and level == 0
+        if (fine_parallel if level == 0 else m * n > PARALLEL_MINIMUM):
             for sweep in range(sweeps):
-                smooth_parallel(x, b, inv, wx, wy, m, n, 0, sweep == 0)
+                smooth_parallel(x, b, inv, wx, wy, m, n, 0, sweep == 0, first, last_columns,
+                                spans)
             restrict_parallel(x, b, total[start:stop], inv, wx, wy, coarse_b, m, n,
-                              rows[level + 1], cols[level + 1])
+                              rows[level + 1], cols[level + 1], first, last_columns, spans)
         else:
             for sweep in range(sweeps):
-                smooth_serial(x, b, inv, wx, wy, m, n, 0, sweep == 0)
+                smooth_serial(x, b, inv, wx, wy, m, n, 0, sweep == 0, first, last_columns,
+                              spans)
             restrict_serial(x, b, total[start:stop], inv, wx, wy, coarse_b, m, n,
-                            rows[level + 1], cols[level + 1])
+                            rows[level + 1], cols[level + 1], first, last_columns, spans)
     last = count - 1
     if last == 0:
         coarse_solve_kernel(coarse_factor, r, z, rows[0], cols[0])
@@ -627,21 +703,23 @@ def v_cycle(levels, r, z, sweeps):
         wx = weights_x[start:stop]
         wy = weights_y[start:stop]
         coarse_x = level_x[stop:offsets[level + 2]]
-        if m * n > PARALLEL_MINIMUM:
-            prolong_parallel(coarse_x, x, m, n, cols[level + 1])
+        spans = ranged and level == 0
+        if (fine_parallel if level == 0 else m * n > PARALLEL_MINIMUM):
+            prolong_parallel(coarse_x, x, m, n, cols[level + 1], first, last_columns, spans)
             for sweep in range(sweeps):
-                smooth_parallel(x, b, inv, wx, wy, m, n, 1, False)
+                smooth_parallel(x, b, inv, wx, wy, m, n, 1, False, first, last_columns, spans)
         else:
-            prolong_serial(coarse_x, x, m, n, cols[level + 1])
+            prolong_serial(coarse_x, x, m, n, cols[level + 1], first, last_columns, spans)
             for sweep in range(sweeps):
-                smooth_serial(x, b, inv, wx, wy, m, n, 1, False)
+                smooth_serial(x, b, inv, wx, wy, m, n, 1, False, first, last_columns, spans)
 
 
 @njit(cache=True, inline="always")
-def _residual_norm_row(x, b, total, weights_x, weights_y, r, i, n):
+def _residual_norm_row(x, b, total, weights_x, weights_y, r, i, n, low, high):
     up = uint64(n + 2)
-    k = uint64((i + 1) * (n + 2) + 1)
-    end = k + uint64(n)
+    row = (i + 1) * (n + 2) + 1
+    k = uint64(row + low)
+    end = uint64(row + high)
     squared = 0.0
     while k < end:
         value = _residual_at(x, b, total, weights_x, weights_y, k, up)
@@ -652,9 +730,10 @@ def _residual_norm_row(x, b, total, weights_x, weights_y, r, i, n):
 
 
 @njit(cache=True, inline="always")
-def _dot_row(a, b, i, n):
-    k = uint64((i + 1) * (n + 2) + 1)
-    end = k + uint64(n)
+def _dot_row(a, b, i, n, low, high):
+    row = (i + 1) * (n + 2) + 1
+    k = uint64(row + low)
+    end = uint64(row + high)
     total = 0.0
     while k < end:
         total += a[k] * b[k]
@@ -663,11 +742,12 @@ def _dot_row(a, b, i, n):
 
 
 @njit(cache=True, inline="always")
-def _search_direction_row(z, p, q, total, weights_x, weights_y, beta, i, n):
+def _search_direction_row(z, p, q, total, weights_x, weights_y, beta, i, n, low, high):
     one = uint64(1)
     up = uint64(n + 2)
-    k = uint64((i + 1) * (n + 2) + 1)
-    end = k + uint64(n)
+    row = (i + 1) * (n + 2) + 1
+    k = uint64(row + low)
+    end = uint64(row + high)
     product = 0.0
     if beta == 0.0:
         # First direction of a (re)start: p and q hold stale values of an earlier solve, which
@@ -695,9 +775,10 @@ def _search_direction_row(z, p, q, total, weights_x, weights_y, beta, i, n):
 
 
 @njit(cache=True, inline="always")
-def _step_row(x, r, p, q, alpha, i, n):
-    k = uint64((i + 1) * (n + 2) + 1)
-    end = k + uint64(n)
+def _step_row(x, r, p, q, alpha, i, n, low, high):
+    row = (i + 1) * (n + 2) + 1
+    k = uint64(row + low)
+    end = uint64(row + high)
     squared = 0.0
     while k < end:
         x[k] += alpha * p[k]
@@ -709,11 +790,12 @@ def _step_row(x, r, p, q, alpha, i, n):
 
 
 def _make_residual_norm(loop):
-    def kernel(x, b, total, weights_x, weights_y, r, m, n):
+    def kernel(x, b, total, weights_x, weights_y, r, m, n, first, stop, ranged):
         """``r = b - A x``; return ``|r|^2``."""
         squared = 0.0
         for i in loop(m):
-            squared += _residual_norm_row(x, b, total, weights_x, weights_y, r, i, n)
+            low, high = _span(first, stop, ranged, i, n)
+            squared += _residual_norm_row(x, b, total, weights_x, weights_y, r, i, n, low, high)
         return squared
     return kernel
 
@@ -722,10 +804,11 @@ residual_norm_serial, residual_norm_parallel = serial_and_parallel(_make_residua
 
 
 def _make_dot(loop):
-    def kernel(a, b, m, n):
+    def kernel(a, b, m, n, first, stop, ranged):
         total = 0.0
         for i in loop(m):
-            total += _dot_row(a, b, i, n)
+            low, high = _span(first, stop, ranged, i, n)
+            total += _dot_row(a, b, i, n, low, high)
         return total
     return kernel
 
@@ -734,11 +817,13 @@ dot_serial, dot_parallel = serial_and_parallel(_make_dot)
 
 
 def _make_search_direction(loop):
-    def kernel(z, p, q, total, weights_x, weights_y, beta, m, n):
+    def kernel(z, p, q, total, weights_x, weights_y, beta, m, n, first, stop, ranged):
         """``p = z + beta p`` and ``q = A z + beta q`` (= ``A p``) in one pass; return ``p . q``."""
         product = 0.0
         for i in loop(m):
-            product += _search_direction_row(z, p, q, total, weights_x, weights_y, beta, i, n)
+            low, high = _span(first, stop, ranged, i, n)
+            product += _search_direction_row(z, p, q, total, weights_x, weights_y, beta, i, n,
+                                             low, high)
         return product
     return kernel
 
@@ -747,11 +832,12 @@ search_direction_serial, search_direction_parallel = serial_and_parallel(_make_s
 
 
 def _make_step(loop):
-    def kernel(x, r, p, q, alpha, m, n):
+    def kernel(x, r, p, q, alpha, m, n, first, stop, ranged):
         """``x += alpha p``, ``r -= alpha q``; return ``|r|^2``."""
         squared = 0.0
         for i in loop(m):
-            squared += _step_row(x, r, p, q, alpha, i, n)
+            low, high = _span(first, stop, ranged, i, n)
+            squared += _step_row(x, r, p, q, alpha, i, n, low, high)
         return squared
     return kernel
 
@@ -759,38 +845,81 @@ def _make_step(loop):
 step_serial, step_parallel = serial_and_parallel(_make_step)
 
 
+# The threaded or serial twin by the whole level's size, also when only spans of it are
+# worked on: the sums' order (one partial sum per thread) stays that of the whole level.
 @njit(cache=True)
-def _residual_norm(x, b, total, weights_x, weights_y, r, m, n):
+def _residual_norm(x, b, total, weights_x, weights_y, r, m, n, first, stop, ranged):
     if m * n > PARALLEL_MINIMUM:
-        return residual_norm_parallel(x, b, total, weights_x, weights_y, r, m, n)
-    return residual_norm_serial(x, b, total, weights_x, weights_y, r, m, n)
+        return residual_norm_parallel(x, b, total, weights_x, weights_y, r, m, n, first, stop,
+                                      ranged)
+    return residual_norm_serial(x, b, total, weights_x, weights_y, r, m, n, first, stop,
+                                ranged)
 
 
 @njit(cache=True)
-def _dot(a, b, m, n):
+def _dot(a, b, m, n, first, stop, ranged):
     if m * n > PARALLEL_MINIMUM:
-        return dot_parallel(a, b, m, n)
-    return dot_serial(a, b, m, n)
+        return dot_parallel(a, b, m, n, first, stop, ranged)
+    return dot_serial(a, b, m, n, first, stop, ranged)
 
 
 @njit(cache=True)
-def _search_direction(z, p, q, total, weights_x, weights_y, beta, m, n):
+def _search_direction(z, p, q, total, weights_x, weights_y, beta, m, n, first, stop, ranged):
     if m * n > PARALLEL_MINIMUM:
-        return search_direction_parallel(z, p, q, total, weights_x, weights_y, beta, m, n)
-    return search_direction_serial(z, p, q, total, weights_x, weights_y, beta, m, n)
+        return search_direction_parallel(z, p, q, total, weights_x, weights_y, beta, m, n,
+                                         first, stop, ranged)
+    return search_direction_serial(z, p, q, total, weights_x, weights_y, beta, m, n, first,
+                                   stop, ranged)
 
 
 @njit(cache=True)
-def _step(x, r, p, q, alpha, m, n):
+def _step(x, r, p, q, alpha, m, n, first, stop, ranged):
     if m * n > PARALLEL_MINIMUM:
-        return step_parallel(x, r, p, q, alpha, m, n)
-    return step_serial(x, r, p, q, alpha, m, n)
+        return step_parallel(x, r, p, q, alpha, m, n, first, stop, ranged)
+    return step_serial(x, r, p, q, alpha, m, n, first, stop, ranged)
 
 
 @njit(cache=True)
-def pcg_kernel(levels, b, x, r, p, q, z, threshold, max_iterations, sweeps):
+def active_spans_kernel(active, first, stop):
+    """For each row i of the ``(m, n)`` mask ``active``, the smallest column range
+    ``[first[i], stop[i])`` holding its active points (``0, 0`` when none); returns whether
+    some row is not whole (``[0, n)``), that is whether the spans save work, and the spans'
+    total size."""
+    m, n = active.shape
+    partial = False
+    points = 0
+    for i in range(m):
+        low = 0
+        while low < n and not active[i, low]:
+            low += 1
+        high = n
+        while high > low and not active[i, high - 1]:
+            high -= 1
+        if low == high:
+            low = high = 0
+        first[i] = low
+        stop[i] = high
+        points += high - low
+        if low != 0 or high != n:
+            partial = True
+    return partial, points
+
+
+@njit(cache=True)
+def pcg_kernel(levels, b, x, r, p, q, z, threshold, max_iterations, sweeps, first, stop,
+               ranged, span_points):
     """Preconditioned CG on level 0 until ``|b - A x|^2 <= threshold`` (checked on the true
-    residual), ``levels`` as in `v_cycle`. Returns ``(iterations, |b - A x|^2)``."""
+    residual), ``levels`` as in `v_cycle`. Returns ``(iterations, |b - A x|^2)``.
+
+    ``ranged``: level 0 is worked on only in the columns ``[first[i], stop[i])`` of each row
+    i, which hold every active point (`active_spans_kernel`): a free surface's liquid fills a
+    few per cent of its box. The values there are bitwise those of the whole level: an
+    inactive point has b = 0, no diagonal and no weights, so in the whole-level iteration
+    every vector is 0 there (up to the sign of zero), and its neighbours read it with weight
+    0; outside the spans the vectors keep stale finite values, read only with weight 0, and x
+    keeps its loaded 0. ``span_points``, the spans' total size, decides whether the V-cycle's
+    finest level uses the threads (the CG's sums keep the whole level's choice, and so their
+    order)."""
     rows, cols, offsets, _, weights_x, weights_y, total = levels[:7]
     m = rows[0]
     n = cols[0]
@@ -798,37 +927,40 @@ def pcg_kernel(levels, b, x, r, p, q, z, threshold, max_iterations, sweeps):
     d_total = total[:size]
     wx = weights_x[:size]
     wy = weights_y[:size]
-    squared = _residual_norm(x, b, d_total, wx, wy, r, m, n)
+    spans = (first, stop, ranged)
+    # A few thousand points of liquid: the threads' start costs more than the sweep.
+    fine_parallel = m * n > PARALLEL_MINIMUM and (not ranged or span_points > PARALLEL_MINIMUM)
+    squared = _residual_norm(x, b, d_total, wx, wy, r, m, n, *spans)
     iterations = 0
     while True:
         # The recursive residual drifts from b - A x; confirm convergence on the true one and
         # restart CG from it when they disagree.
         if squared <= threshold:
-            squared = _residual_norm(x, b, d_total, wx, wy, r, m, n)
+            squared = _residual_norm(x, b, d_total, wx, wy, r, m, n, *spans)
             if squared <= threshold:
                 break
         if iterations >= max_iterations:
-            squared = _residual_norm(x, b, d_total, wx, wy, r, m, n)
+            squared = _residual_norm(x, b, d_total, wx, wy, r, m, n, *spans)
             break
-        v_cycle(levels, r, z, sweeps)
-        rz = _dot(r, z, m, n)
+        v_cycle(levels, r, z, sweeps, *spans, fine_parallel)
+        rz = _dot(r, z, m, n, *spans)
         beta = 0.0
         pq = 1.0
         while iterations < max_iterations:
-            pq = _search_direction(z, p, q, d_total, wx, wy, beta, m, n)
+            pq = _search_direction(z, p, q, d_total, wx, wy, beta, m, n, *spans)
             if pq <= 0.0:
                 break
             alpha = rz / pq
-            squared = _step(x, r, p, q, alpha, m, n)
+            squared = _step(x, r, p, q, alpha, m, n, *spans)
             iterations += 1
             if squared <= threshold:
                 break
-            v_cycle(levels, r, z, sweeps)
-            rz_next = _dot(r, z, m, n)
+            v_cycle(levels, r, z, sweeps, *spans, fine_parallel)
+            rz_next = _dot(r, z, m, n, *spans)
             beta = rz_next / rz
             rz = rz_next
         if pq <= 0.0:
-            squared = _residual_norm(x, b, d_total, wx, wy, r, m, n)
+            squared = _residual_norm(x, b, d_total, wx, wy, r, m, n, *spans)
             break
     return iterations, squared
 
@@ -1247,37 +1379,40 @@ def pcg_low_rank_kernel(levels, b, x, r, p, q, z, threshold, max_iterations, swe
     d_total = operator_total
     wx = weights_x[:size]
     wy = weights_y[:size]
-    _residual_norm(x, b, d_total, wx, wy, r, m, n)
+    # The whole level (no spans): C's columns may reach any point.
+    spans = (rows, rows, False)
+    fine_parallel = m * n > PARALLEL_MINIMUM
+    _residual_norm(x, b, d_total, wx, wy, r, m, n, *spans)
     _add_low_rank(x, r, x, term_cells, term, -1.0)
     # Summed afresh: an update of |r|^2 by differences cancels catastrophically near the end.
-    squared = _dot(r, r, m, n)
+    squared = _dot(r, r, m, n, *spans)
     iterations = 0
     while True:
         if squared <= threshold or iterations >= max_iterations:
             break
-        v_cycle(levels, r, z, sweeps)
-        rz = _dot(r, z, m, n)
+        v_cycle(levels, r, z, sweeps, *spans, fine_parallel)
+        rz = _dot(r, z, m, n, *spans)
         beta = 0.0
         pq = 1.0
         while iterations < max_iterations:
-            pq = _search_direction(z, p, q, d_total, wx, wy, beta, m, n)
+            pq = _search_direction(z, p, q, d_total, wx, wy, beta, m, n, *spans)
             extra = _add_low_rank(z, q, p, term_cells, term, 1.0)
             pq += extra
             if pq <= 0.0:
                 break
             alpha = rz / pq
-            squared = _step(x, r, p, q, alpha, m, n)
+            squared = _step(x, r, p, q, alpha, m, n, *spans)
             iterations += 1
             if squared <= threshold:
                 break
-            v_cycle(levels, r, z, sweeps)
-            rz_next = _dot(r, z, m, n)
+            v_cycle(levels, r, z, sweeps, *spans, fine_parallel)
+            rz_next = _dot(r, z, m, n, *spans)
             beta = rz_next / rz
             rz = rz_next
         # Confirm on the true residual; restart from it when the recursion drifted.
-        _residual_norm(x, b, d_total, wx, wy, r, m, n)
+        _residual_norm(x, b, d_total, wx, wy, r, m, n, *spans)
         _add_low_rank(x, r, x, term_cells, term, -1.0)
-        squared = _dot(r, r, m, n)
+        squared = _dot(r, r, m, n, *spans)
         if pq <= 0.0 or squared <= threshold:
             break
     return iterations, squared

@@ -10,6 +10,7 @@ from numpy.typing import NDArray
 
 from elastoflow.linalg._banded import banded_selected_inverse
 from elastoflow.linalg._kernels import (
+    active_spans_kernel,
     build_coarse_levels_kernel,
     chebyshev_kernel,
     load_operator_kernel,
@@ -198,6 +199,12 @@ class _Hierarchy:
         self.coarse = True
         self.spread = 1.0
         self.null_space: _NullSpace | None = None
+        # Per fine row, the columns [first, stop) that hold its active points, and whether
+        # some row is not whole: the CG then works on those spans only (`pcg_kernel`).
+        self.first = np.zeros(shape[0], dtype=np.int64)
+        self.stop = np.zeros(shape[0], dtype=np.int64)
+        self.ranged = False
+        self.span_points = shape[0] * shape[1]
         # The operator the levels hold; kept alive so that its identity is not reused.
         self.operator: Operator5Point | None = None
 
@@ -250,6 +257,8 @@ class _Hierarchy:
         # A wider interval is still a valid bound; this keeps the recurrence finite for an
         # operator with no weights at all.
         self.spread = max(float(spread), 1e-3)
+        partial, points = active_spans_kernel(active, self.first, self.stop)
+        self.ranged, self.span_points = bool(partial), int(points)
         self._build(dominant)
         self.null_space = _analyse(operator, active, all_have_diagonal)
         self.operator = operator
@@ -400,6 +409,7 @@ class PoissonSolverMGPCG:
             iterations, squared = pcg_kernel(
                 hierarchy.levels(), hierarchy.b, hierarchy.x, hierarchy.r, hierarchy.p,
                 hierarchy.q, hierarchy.z, threshold, self.max_iterations, self.smoothing_sweeps,
+                hierarchy.first, hierarchy.stop, hierarchy.ranged, hierarchy.span_points,
             )
         x = _output(out, operator.shape)
         unpad_values_kernel(solution, x)
