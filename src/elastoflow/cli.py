@@ -509,7 +509,7 @@ def validate(
                                                "default all (boundary-study: poisson, "
                                                "leakage, spurious, force_jump, dfg, "
                                                "speed, stability; force-smoothness: disc, "
-                                               "flap10, flap20, fsi2).")
+                                               "flap10, flap20, fsi2, refinement).")
                     ] = None,
     resolution: Annotated[int, typer.Option(help="Benchmark: about this many cells per "
                                             "cylinder diameter (turek-hron) or metre "
@@ -693,14 +693,23 @@ def _force_smoothness(case: str | None, out: Path) -> None:
     dual-cell boundary; print the table and write the report."""
     from elastoflow.validation._force_smoothness import (
         CASES,
+        disc_refinement,
         force_smoothness_table,
+        refinement_table,
         run_force_smoothness,
         write_force_smoothness_report,
+        write_refinement_report,
     )
 
-    if case is not None and case not in CASES:
-        _fail(f"{case!r}: the force-smoothness cases are {', '.join(CASES)}")
+    if case is not None and case not in (*CASES, "refinement"):
+        _fail(f"{case!r}: the force-smoothness cases are {', '.join(CASES)}, refinement")
     _output_folder(out, "--out")
+    if case == "refinement":
+        runs = disc_refinement()
+        for line in refinement_table(runs):
+            typer.echo(line)
+        typer.echo(f"wrote {write_refinement_report(runs, out)}")
+        return
     study = run_force_smoothness(CASES if case is None else (case,))
     for line in force_smoothness_table(study):
         typer.echo(line)

@@ -8,7 +8,9 @@ own force on the body after every step (`CoupledState.body_forces`), the force t
 moves with. Measures over the case's window: the largest step-to-step change, its 99th
 percentile, and the noise: the root mean square of the force less a 15-step cubic
 Savitzky-Golay fit (what is left when the smooth signal, however fast, is taken out).
-``elastoflow validate force-smoothness`` writes ``docs/validation/force_smoothness.md``.
+``elastoflow validate force-smoothness`` writes ``docs/validation/force_smoothness.md``;
+``elastoflow validate force-smoothness refinement`` adds the disc refined in h and dt together
+and in dt alone (`disc_refinement`).
 """
 
 from __future__ import annotations
@@ -66,21 +68,28 @@ class ForceRun:
     def noise(self) -> float:
         """Root mean square of the force less its `FIT_WINDOW`-step cubic Savitzky-Golay
         fit [N/m]."""
+        return self.noise_over(FIT_WINDOW)
+
+    def noise_over(self, window: int) -> float:
+        """Root mean square of the force less its cubic Savitzky-Golay fit over ``window``
+        steps (odd) [N/m]."""
         from scipy.signal import savgol_filter
 
-        residual = self.force - savgol_filter(self.force, FIT_WINDOW, FIT_ORDER)
+        residual = self.force - savgol_filter(self.force, window, FIT_ORDER)
         return float(np.sqrt(np.mean(residual**2)))
 
 
-def coasting_disc(boundary: str, steps: int = 150, warmup: int = 50) -> ForceRun:
-    """A disc (R = 0.1 m = 9.6 cells, 1000 times denser than the water) started at 0.2 m/s
-    through water at rest (nu = 1e-3: Re 40), 192 x 96 cells, dt = 0.01 s: it crosses 29
-    cells in 150 steps; the drag over the steps after ``warmup``."""
+def coasting_disc(boundary: str, steps: int = 150, warmup: int = 50, *, cells: int = 96,
+                  dt: float = 0.01) -> ForceRun:
+    """A disc (R = 0.1 m, 1000 times denser than the water) started at 0.2 m/s through water
+    at rest (nu = 1e-3: Re 40) in a 2 m x 1 m box of 2 ``cells`` x ``cells`` (96: R = 9.6
+    cells; dt = 0.01 s: it crosses 29 cells in 150 steps); the drag over the steps after
+    ``warmup``."""
     from elastoflow import coupling, fluid, solid
     from elastoflow.grid import Grid2D
     from elastoflow.simulation import Simulation
 
-    n = 96
+    n = cells
     grid = Grid2D(nx=2 * n, ny=n, h=1.0 / n)
     walls = fluid.DomainBoundaries(left=fluid.WallNoSlip(), right=fluid.WallNoSlip(),
                                    bottom=fluid.WallNoSlip(), top=fluid.WallNoSlip())
@@ -89,10 +98,10 @@ def coasting_disc(boundary: str, steps: int = 150, warmup: int = 50) -> ForceRun
     outline = coupling.obstacle_circle((0.5, 0.5), 0.1, segments=48).polygon
     mesh = solid.mesh_from_polygon(outline, element_size=0.03)
     body = solid.ElasticBody(mesh, solid.MaterialStVK(1.0e6, 1.0e9, 0.3))
-    simulation = Simulation(grid, solver, bodies=[body], dt=0.01, coupling="monolithic",
+    simulation = Simulation(grid, solver, bodies=[body], dt=dt, coupling="monolithic",
                             boundary=boundary)
     simulation.state.bodies[0].velocities[:, 0] = 0.2
-    return _record("disc", boundary, "drag", simulation, steps, warmup * 0.01)
+    return _record("disc", boundary, "drag", simulation, steps, warmup * dt)
 
 
 def _record(case: str, boundary: str, component: str, simulation: Any, steps: int,
@@ -232,5 +241,118 @@ def write_force_smoothness_report(study: ForceSmoothnessStudy, folder: str | Pat
     if ratios:
         lines += [f"Noise with the dual cells over the cut cells': {', '.join(ratios)}.", ""]
     path = folder / "force_smoothness.md"
+    # The refinement study is written by its own command: keep its block.
+    old = path.read_text() if path.exists() else ""
+    if REFINEMENT_BEGIN in old and REFINEMENT_END in old:
+        block = old.split(REFINEMENT_BEGIN, 1)[1].split(REFINEMENT_END, 1)[0]
+        lines += [REFINEMENT_BEGIN + block + REFINEMENT_END, ""]
     write_text_atomic(path, "\n".join(lines))
     return [path, figure]
+
+
+# The disc refined: in h and dt together (the CFL number fixed at 0.19) and in dt alone.
+REFINEMENT_BEGIN, REFINEMENT_END = "<!-- refinement:begin -->", "<!-- refinement:end -->"
+JOINT_CELLS: tuple[int, ...] = (48, 96, 192)
+DT_ALONE: tuple[float, ...] = (0.01, 0.005, 0.0025)
+_DISC_DT_AT_96 = 0.01
+_DISC_WINDOW = (0.5, 1.5)  # [s]: the drag after the start-up, as in `coasting_disc`'s default
+
+
+@dataclass(frozen=True)
+class RefinementRun:
+    """The coasting disc at one grid and time step.
+
+    Attributes:
+        series: "h and dt" (the CFL number fixed) or "dt alone" (96 cells).
+        cells: Cells across the 1 m of the box (the disc's radius is ``cells / 10``).
+        dt: Time step [s].
+        run: The drag after each step from 0.5 s to 1.5 s.
+    """
+
+    series: str
+    cells: int
+    dt: float
+    run: ForceRun
+
+    @property
+    def window(self) -> int:
+        """The fit's window in steps: `FIT_WINDOW` steps at 96 cells and dt = 0.01 s, the
+        same distance travelled (2.9 cells) at every grid and time step."""
+        steps = round(FIT_WINDOW * (_DISC_DT_AT_96 * 96 / self.cells) / self.dt)
+        return steps if steps % 2 else steps + 1
+
+    @property
+    def noise(self) -> float:
+        """Noise of the drag [N/m] over `window`."""
+        return self.run.noise_over(self.window)
+
+
+def disc_refinement(boundaries: Sequence[str] = BOUNDARIES,
+                    joint: Sequence[int] = JOINT_CELLS,
+                    dts: Sequence[float] = DT_ALONE) -> tuple[RefinementRun, ...]:
+    """The coasting disc with each treatment: at ``joint`` cells with dt = 0.96 s / cells
+    (h and dt together), and at 96 cells with each of ``dts`` (dt alone; the run at
+    dt = 0.01 s is shared with the first series when both hold it)."""
+    runs: list[RefinementRun] = []
+    for boundary in boundaries:
+        done: dict[tuple[int, float], ForceRun] = {}
+
+        def disc(cells: int, dt: float, boundary: str = boundary,
+                 done: dict[tuple[int, float], ForceRun] = done) -> ForceRun:
+            key = (cells, round(dt, 12))
+            if key not in done:
+                done[key] = coasting_disc(boundary, round(_DISC_WINDOW[1] / dt),
+                                          round(_DISC_WINDOW[0] / dt), cells=cells, dt=dt)
+            return done[key]
+
+        for cells in joint:
+            dt = _DISC_DT_AT_96 * 96 / cells
+            runs.append(RefinementRun("h and dt", cells, dt, disc(cells, dt)))
+        for dt in dts:
+            runs.append(RefinementRun("dt alone", 96, dt, disc(96, dt)))
+    return tuple(runs)
+
+
+def refinement_table(runs: Sequence[RefinementRun]) -> list[str]:
+    """One row per run: the drag, its largest step-to-step change and its noise, both as a
+    share of the drag, and the noise's exponent against the row above in the same series
+    (noise ~ h^p with h and dt refined together; noise ~ dt^p with dt alone)."""
+    lines = ["| series | treatment | cells (R/h) | dt [s] | mean drag [N/m] | largest jump | "
+             "noise (rms) | order | wall time [s] |", "|---|---|---|---|---|---|---|---|---|"]
+    previous: RefinementRun | None = None
+    for r in runs:
+        share = abs(r.run.mean)
+        order = ""
+        if (previous is not None and previous.series == r.series
+                and previous.run.boundary == r.run.boundary and r.noise > 0.0):
+            ratio = r.cells / previous.cells if r.series == "h and dt" else previous.dt / r.dt
+            order = f"{math.log(previous.noise / r.noise) / math.log(ratio):.2f}"
+        lines.append(f"| {r.series} | {r.run.boundary} | {r.cells} ({r.cells / 10:g}) | "
+                     f"{r.dt:g} | {r.run.mean:.3f} | {100 * r.run.largest_jump / share:.2f} % | "
+                     f"{100 * r.noise / share:.2f} % | {order} | {r.run.seconds:.0f} |")
+        previous = r
+    return lines
+
+
+def refinement_block(runs: Sequence[RefinementRun]) -> str:
+    """The Markdown section of the refinement study, between its markers."""
+    return "\n".join([
+        REFINEMENT_BEGIN, "", "## The coasting disc refined", "",
+        "The disc of the table above (R = 0.1 m, 0.2 m/s, Re 40) over 0.5-1.5 s, refined in h "
+        "and dt together (the CFL number fixed at 0.19, the body's 48-sided outline the same) "
+        "and in dt alone at 96 cells. Noise: as above, the fit's window spanning the same "
+        "distance travelled (2.9 cells) in every run. Order: p in noise ~ h^p (h and dt) or "
+        "noise ~ dt^p (dt alone), from the row above. Command: `elastoflow validate "
+        "force-smoothness refinement --out docs/validation`.", "",
+        *refinement_table(runs), "", REFINEMENT_END])
+
+
+def write_refinement_report(runs: Sequence[RefinementRun], folder: str | Path) -> Path:
+    """The refinement block in ``folder / force_smoothness.md`` (created if missing)."""
+    from elastoflow.validation._report import replace_block
+
+    page = Path(folder) / "force_smoothness.md"
+    if not page.exists():
+        write_text_atomic(page, "# Force smoothness (issue 12)\n")
+    return replace_block(page, refinement_block(runs), REFINEMENT_BEGIN, REFINEMENT_END,
+                         before=None)
