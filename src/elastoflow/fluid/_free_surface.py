@@ -430,6 +430,10 @@ class FreeSurfaceWorkspace:
         self.dye: FloatArray | None = None
         self.liquid_faces = (np.zeros(grid.shape_faces_x, dtype=np.int32),
                              np.zeros(grid.shape_faces_y, dtype=np.int32))
+        # Per row of u and of v, the hull of the columns with a value other than 0 (low u,
+        # high u, low v, high v; `nonzero_spans`).
+        self.nonzero_spans = (np.zeros(nx + 1, dtype=np.int64), np.zeros(nx + 1, dtype=np.int64),
+                              np.zeros(nx, dtype=np.int64), np.zeros(nx, dtype=np.int64))
         # The pressure solve's arrays on the liquid's box, per box shape (a few in a run).
         self.boxes: dict[tuple[int, int], tuple[FloatArray, ...]] = {}
 
@@ -627,13 +631,16 @@ class FreeSurfaceSolver:
         liquid_u, liquid_v = self.workspace.liquid_faces
         if air and not marked:
             kernels.mark_liquid_faces(state.level_set, liquid_u, liquid_v)
-        # Two passes, one back-trace each (none backward where the correction is dropped);
-        # the results over the lows, copied once both components are done: u and v are the
-        # advecting velocity of both.
+        # Two passes, one back-trace each (none backward where the correction is dropped,
+        # none at all in still air); the results over the lows, copied once both components
+        # are done: u and v are the advecting velocity of both.
+        spans = self.workspace.nonzero_spans
+        kernels.nonzero_spans(u, spans[0], spans[1])
+        kernels.nonzero_spans(v, spans[2], spans[3])
         kernels.advect_faces_forward_range(u, v, 0, dt, h, *ghosts, liquid_u, air, forward_u,
-                                           low_u, high_u)
+                                           low_u, high_u, *spans)
         kernels.advect_faces_forward_range(u, v, 1, dt, h, *ghosts, liquid_v, air, forward_v,
-                                           low_v, high_v)
+                                           low_v, high_v, *spans)
         kernels.maccormack_faces_backward_correct(u, v, 0, dt, h, *ghosts, forward_u, low_u,
                                                   high_u, low_u)
         kernels.maccormack_faces_backward_correct(u, v, 1, dt, h, *ghosts, forward_v, low_v,

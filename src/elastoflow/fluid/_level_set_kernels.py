@@ -375,9 +375,51 @@ def _face_departure(u, v, i, j, axis, dt, h, inv_h, lx, ly, modes_u, values_u, m
     return xb * inv_h - 0.5, yb * inv_h
 
 
+# Beyond the nonzero values' hull of a row, this many rows and columns: the back-trace of a
+# face whose surroundings hold zeros stays on the face (nothing moves it) and reads the
+# values within one index of it; two keep a margin.
+_STILL_MARGIN = 2
+_NO_SPAN = 1 << 40
+
+
+@njit(cache=True)
+def nonzero_spans(f, low, high):
+    """For each row i of ``f``, the hull ``[low[i], high[i])`` of the columns holding a value
+    other than 0 (NaN counts); ``low = 2^40``, ``high = -2^40`` for a row of zeros."""
+    m, n = f.shape
+    for i in range(m):
+        first = 0
+        while first < n and f[i, first] == 0.0:
+            first += 1
+        if first == n:
+            low[i] = _NO_SPAN
+            high[i] = -_NO_SPAN
+            continue
+        last = n
+        while f[i, last - 1] == 0.0:
+            last -= 1
+        low[i] = first
+        high[i] = last
+
+
+@njit(cache=True, inline="always")
+def _moving_columns(low_u, high_u, low_v, high_v, i):
+    """Hull of the columns near which a face of row ``i`` may read a value other than 0
+    (rows ``i - 2 .. i + 2`` of u and of v, widened by `_STILL_MARGIN`)."""
+    begin = _NO_SPAN
+    end = -_NO_SPAN
+    for row in range(max(i - _STILL_MARGIN, 0), min(i + _STILL_MARGIN + 1, low_u.shape[0])):
+        begin = min(begin, low_u[row])
+        end = max(end, high_u[row])
+    for row in range(max(i - _STILL_MARGIN, 0), min(i + _STILL_MARGIN + 1, low_v.shape[0])):
+        begin = min(begin, low_v[row])
+        end = max(end, high_v[row])
+    return begin - _STILL_MARGIN, end + _STILL_MARGIN
+
+
 @njit(cache=True, parallel=True)
 def advect_faces_forward_range(u, v, axis, dt, h, modes_u, values_u, modes_v, values_v,
-                               liquid, air, forward, low, high):
+                               liquid, air, forward, low, high, low_u, high_u, low_v, high_v):
     """MacCormack's first pass for the free surface's velocity (`FreeSurfaceSolver.advect`):
     the component ``axis`` (0: u, 1: v) carried by (u, v) over ``dt`` [s] into ``forward``
     (the semi-Lagrangian step of `elastoflow.fluid._kernels.advect_field_x`, bitwise), and
@@ -399,6 +441,12 @@ def advect_faces_forward_range(u, v, axis, dt, h, modes_u, values_u, modes_v, va
       the transport's error (a drop falling into a pool gained energy from them).
 
     ``modes_*``, ``values_*``: the components' side ghosts, as in `advect_field_x`.
+    ``low_u`` ... ``high_v``: `nonzero_spans` of u and v. With ``air``, an air face (whose
+    correction is dropped anyway) in still surroundings, beyond them by `_STILL_MARGIN` rows
+    and columns and as far from the sides, is not traced: its semi-Lagrangian value is
+    +0.0 (interpolating zeros gives +0.0 whatever their signs), which it gets directly. Most
+    of a dam break's air is still: the velocity is extrapolated 5 faces into it and zero
+    beyond.
     """
     f = u if axis == 0 else v
     modes = modes_u if axis == 0 else modes_v
@@ -408,7 +456,15 @@ def advect_faces_forward_range(u, v, axis, dt, h, modes_u, values_u, modes_v, va
     lx = (u.shape[0] - 1) * h
     ly = u.shape[1] * h
     for i in prange(m):
+        still_row = air and _STILL_MARGIN <= i < m - _STILL_MARGIN
+        begin, end = _moving_columns(low_u, high_u, low_v, high_v, i)
         for j in range(n):
+            if (still_row and (j < begin or j >= end) and _STILL_MARGIN <= j < n - _STILL_MARGIN
+                    and liquid[i, j] == 0):
+                forward[i, j] = 0.0
+                low[i, j] = np.inf
+                high[i, j] = -np.inf
+                continue
             fx, fy = _face_departure(u, v, i, j, axis, dt, h, inv_h, lx, ly, modes_u,
                                      values_u, modes_v, values_v)
             forward[i, j], bottom, top = fluid_kernels._sample_and_range(f, fx, fy, modes,
