@@ -19,8 +19,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from elastoflow.fluid import DomainBoundaries, FluidSolver, FluidState, WallMoving, WallNoSlip
-from elastoflow.grid import Grid2D
+from elastoflow.validation import _cavity as cavity
 
 REFERENCE = Path("/work/shared/reference/ghia_cavity.json")
 FLAGGED_V_RE400_X = 0.9063
@@ -35,38 +34,17 @@ def _reference(reynolds: int) -> tuple[np.ndarray, np.ndarray]:
     return u, v
 
 
-def run_cavity(n: int, reynolds: int, advection: str = "maccormack", cfl: float = 1.0,
-               t_max: float = 60.0, tolerance: float = 1e-4) -> dict:
-    """Steady cavity flow on an n x n grid (n even) and its centreline errors vs Ghia."""
-    grid = Grid2D(n, n, 1.0 / n)
-    solver = FluidSolver(
-        grid, density=1.0, viscosity=1.0 / reynolds,
-        boundaries=DomainBoundaries(WallNoSlip(), WallNoSlip(), WallNoSlip(), WallMoving(1.0)),
-        advection=advection,
-    )
-    state = FluidState.zeros(grid)
-    dt = cfl * grid.h
-    check_every = max(1, round(0.5 / dt))
-    previous = state.velocity_x.copy()
-    time, steps, change = 0.0, 0, np.inf
-    while time < t_max and change > tolerance:
-        solver.step(state, dt, time)
-        time += dt
-        steps += 1
-        if steps % check_every == 0:
-            change = float(np.abs(state.velocity_x - previous).max()) / (check_every * dt)
-            previous[...] = state.velocity_x
-    centres = (np.arange(n) + 0.5) / n
-    y = np.concatenate([[0.0], centres, [1.0]])
-    u = np.concatenate([[0.0], state.velocity_x[n // 2], [1.0]])
-    x = np.concatenate([[0.0], centres, [1.0]])
-    v = np.concatenate([[0.0], state.velocity_y[:, n // 2], [0.0]])
+def run_cavity(n: int, reynolds: int, advection: str = "maccormack") -> dict:
+    """Steady cavity flow on an n x n grid (`elastoflow.validation._cavity.run_cavity`) and
+    its centreline errors against Ghia."""
+    result = cavity.run_cavity(n, reynolds, advection)
     reference_u, reference_v = _reference(reynolds)
-    error_u = np.sqrt(np.mean((np.interp(reference_u[:, 0], y, u) - reference_u[:, 1]) ** 2))
-    error_v = np.sqrt(np.mean((np.interp(reference_v[:, 0], x, v) - reference_v[:, 1]) ** 2))
-    return {"y": y, "u": u, "x": x, "v": v, "error_u": float(error_u),
-            "error_v": float(error_v), "steps": steps, "time": time, "change": change,
-            "reference_u": reference_u, "reference_v": reference_v}
+    error_u = np.sqrt(np.mean((result.u_at(reference_u[:, 0]) - reference_u[:, 1]) ** 2))
+    error_v = np.sqrt(np.mean((result.v_at(reference_v[:, 0]) - reference_v[:, 1]) ** 2))
+    return {"y": result.y, "u": result.u, "x": result.x, "v": result.v,
+            "error_u": float(error_u), "error_v": float(error_v), "steps": result.steps,
+            "time": result.time, "change": result.change, "reference_u": reference_u,
+            "reference_v": reference_v}
 
 
 @pytest.mark.slow
@@ -95,6 +73,31 @@ def test_cavity_re400_converges_towards_ghia():
     assert fine["error_v"] < 0.03
     assert fine["error_u"] < 0.6 * coarse["error_u"]
     assert fine["error_v"] < 0.6 * coarse["error_v"]
+
+
+def test_the_sample_points_are_ghias() -> None:
+    reference_u, reference_v = _reference(100)
+    assert np.array_equal(np.sort(reference_u[:, 0]), cavity.GHIA_Y)
+    assert np.array_equal(np.sort(_reference_v_all(100)[:, 0]), cavity.GHIA_X)
+
+
+def _reference_v_all(reynolds: int) -> np.ndarray:
+    data = json.loads(REFERENCE.read_text())
+    return np.array(data["table_II_v_along_horizontal_centerline_y_0.5"][f"Re{reynolds}"])[1:-1]
+
+
+@pytest.mark.slow
+def test_cavity_re1000_profiles_converge() -> None:
+    """Ghia's Re 1000 table is withheld: the profiles must converge between grids, the
+    difference between 64² and 128² under half that between 32² and 64²."""
+    runs = [cavity.run_cavity(n, 1000, t_max=150.0) for n in (32, 64, 128)]
+    assert all(r.change <= 1e-4 for r in runs), [r.change for r in runs]
+    row = cavity.convergence(runs, cavity.GHIA_Y, cavity.GHIA_X)
+    assert row.difference_u[1] < 0.5 * row.difference_u[0], row
+    assert row.difference_v[1] < 0.5 * row.difference_v[0], row
+    # The primary vortex: a return flow along the floor, the lid's flow under it.
+    fine = runs[-1]
+    assert fine.u_at(np.array([0.2]))[0] < 0.0 < fine.u_at(np.array([0.95]))[0]
 
 
 def main(output_directory: str) -> None:
