@@ -30,7 +30,7 @@ from elastoflow.fluid import _free_surface_bodies_kernels as kernels
 from elastoflow.fluid import _kernels as fluid_kernels
 from elastoflow.fluid import _level_set_kernels as level_set_kernels
 from elastoflow.fluid._interior import InteriorBoundary
-from elastoflow.fluid._level_set import LevelSetTransport, LevelSetWorkspace
+from elastoflow.fluid._level_set import LevelSetTransport, LevelSetWorkspace, still_air_spans
 from elastoflow.fluid._solver import CoupledBodies, FluidSolver
 from elastoflow.fluid._solver import _takes_out as takes_out
 from elastoflow.fluid._solver import _writable_into as writable_into
@@ -216,10 +216,12 @@ def transport_level_set_with_bodies(
     if transport.advection == "maccormack":
         # Two passes, each tracing back once (the clamp's range is found in the first), as
         # `LevelSetTransport`'s own.
+        spans = still_air_spans(velocity_x, velocity_y, lw)
         level_set_kernels.advect_cells_forward_range(level_set, velocity_x, velocity_y, step,
-                                                     lw.forward, lw.low, lw.high)
+                                                     lw.forward, lw.low, lw.high, *spans)
         level_set_kernels.maccormack_backward_correct(level_set, lw.forward, lw.low, lw.high,
-                                                      velocity_x, velocity_y, step, lw.backward)
+                                                      velocity_x, velocity_y, step, lw.backward,
+                                                      *spans)
         result = lw.backward
     else:
         level_set_kernels.advect_cells_semi_lagrangian(level_set, velocity_x, velocity_y, step,

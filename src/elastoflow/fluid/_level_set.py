@@ -193,7 +193,21 @@ class LevelSetWorkspace:
         # MacCormack's clamp range, from its first pass (`advect_cells_forward_range`).
         self.low = np.zeros(shape)
         self.high = np.zeros(shape)
+        # Per row of u and of v, the hull of the columns with a value other than 0 (low u,
+        # high u, low v, high v; `nonzero_spans`): cells in still air are not traced.
+        nx = shape[0]
+        self.nonzero_spans = (np.zeros(nx + 1, dtype=np.int64), np.zeros(nx + 1, dtype=np.int64),
+                              np.zeros(nx, dtype=np.int64), np.zeros(nx, dtype=np.int64))
         self.fixed = np.zeros(shape, dtype=np.bool_)
+
+
+def still_air_spans(velocity_x: FloatArray, velocity_y: FloatArray,
+                    workspace: LevelSetWorkspace) -> tuple[NDArray[np.int64], ...]:
+    """`nonzero_spans` of u and v into the workspace's arrays, for the MacCormack kernels."""
+    spans = workspace.nonzero_spans
+    kernels.nonzero_spans(velocity_x, spans[0], spans[1])
+    kernels.nonzero_spans(velocity_y, spans[2], spans[3])
+    return spans
 
 
 def transport_level_set(
@@ -210,10 +224,11 @@ def transport_level_set(
     forward, backward = workspace.forward, workspace.backward
     if transport.advection == "maccormack":
         # Two passes, each tracing back once (the clamp's range is found in the first).
+        spans = still_air_spans(velocity_x, velocity_y, workspace)
         kernels.advect_cells_forward_range(level_set, velocity_x, velocity_y, step, forward,
-                                           workspace.low, workspace.high)
+                                           workspace.low, workspace.high, *spans)
         kernels.maccormack_backward_correct(level_set, forward, workspace.low, workspace.high,
-                                            velocity_x, velocity_y, step, backward)
+                                            velocity_x, velocity_y, step, backward, *spans)
         result = backward
     else:
         kernels.advect_cells_semi_lagrangian(level_set, velocity_x, velocity_y, step, forward)

@@ -583,30 +583,49 @@ def maccormack_correct(phi, forward, backward, u, v, step, out):
             out[i, j] = min(max(value, low), high)
 
 
+@njit(cache=True, inline="always")
+def _cell_departure(u, v, i, j, step, still_row, begin, end, ny):
+    """`_departure` of cell (i, j); in still surroundings (``still_row``, the columns outside
+    ``[begin, end)`` from `_moving_columns`, two cells from the sides) the cell itself: a
+    trace through zeros ends where it started, exactly (x - step * 0 = x)."""
+    if still_row and (j < begin or j >= end) and _STILL_MARGIN <= j < ny - _STILL_MARGIN:
+        return float(i), float(j)
+    return _departure(u, v, float(i), float(j), step)
+
+
 @njit(cache=True, parallel=True)
-def advect_cells_forward_range(phi, u, v, step, forward, low, high):
+def advect_cells_forward_range(phi, u, v, step, forward, low, high, low_u, high_u, low_v,
+                               high_v):
     """MacCormack's first pass: ``forward = phi`` at the departure points (as
     `advect_cells_semi_lagrangian`), and into ``low`` / ``high`` the range of the four
     values of ``phi`` around each departure point, which `maccormack_backward_correct`
-    clamps to: one back-trace per point where `maccormack_correct` traced again."""
+    clamps to: one back-trace per point where `maccormack_correct` traced again.
+    ``low_u`` ... ``high_v``: `nonzero_spans` of u and v; in still air the departure point
+    is the cell itself without a trace (the same values)."""
     nx, ny = phi.shape
     for i in prange(nx):
+        still_row = _STILL_MARGIN <= i < nx - _STILL_MARGIN
+        begin, end = _moving_columns(low_u, high_u, low_v, high_v, i)
         for j in range(ny):
-            xd, yd = _departure(u, v, float(i), float(j), step)
+            xd, yd = _cell_departure(u, v, i, j, step, still_row, begin, end, ny)
             forward[i, j] = _sample_clamped(phi, xd, yd)
             low[i, j], high[i, j] = _range_around(phi, xd, yd)
 
 
 @njit(cache=True, parallel=True)
-def maccormack_backward_correct(phi, forward, low, high, u, v, step, out):
+def maccormack_backward_correct(phi, forward, low, high, u, v, step, out, low_u, high_u, low_v,
+                                high_v):
     """MacCormack's second and third passes in one: ``backward`` = ``forward`` carried back
     over ``-step``, and ``out = forward + (phi - backward) / 2`` clamped to ``[low, high]``
     (from `advect_cells_forward_range`); the same values as `advect_cells_semi_lagrangian`
-    then `maccormack_correct`. ``out`` must not be ``forward``; it may be ``low`` or ``high``."""
+    then `maccormack_correct`. ``out`` must not be ``forward``; it may be ``low`` or ``high``.
+    ``low_u`` ... ``high_v`` as in `advect_cells_forward_range`."""
     nx, ny = phi.shape
     for i in prange(nx):
+        still_row = _STILL_MARGIN <= i < nx - _STILL_MARGIN
+        begin, end = _moving_columns(low_u, high_u, low_v, high_v, i)
         for j in range(ny):
-            xd, yd = _departure(u, v, float(i), float(j), -step)
+            xd, yd = _cell_departure(u, v, i, j, -step, still_row, begin, end, ny)
             backward = _sample_clamped(forward, xd, yd)
             value = forward[i, j] + 0.5 * (phi[i, j] - backward)
             out[i, j] = min(max(value, low[i, j]), high[i, j])

@@ -89,11 +89,42 @@ def test_fused_maccormack_equals_the_three_passes() -> None:
     low = np.empty_like(phi)
     high = np.empty_like(phi)
     out = np.empty_like(phi)
-    kernels.advect_cells_forward_range(phi, u, v, step, fused_forward, low, high)
-    kernels.maccormack_backward_correct(phi, fused_forward, low, high, u, v, step, out)
+    spans = [np.empty(n, np.int64) for n in (nx + 1, nx + 1, nx, nx)]
+    kernels.nonzero_spans(u, spans[0], spans[1])
+    kernels.nonzero_spans(v, spans[2], spans[3])
+    kernels.advect_cells_forward_range(phi, u, v, step, fused_forward, low, high, *spans)
+    kernels.maccormack_backward_correct(phi, fused_forward, low, high, u, v, step, out, *spans)
     assert np.array_equal(fused_forward, forward)
     assert np.array_equal(out, backward)
     assert np.all(low <= out) and np.all(out <= high)
+
+
+def test_the_level_set_in_still_air_is_not_traced_and_keeps_its_values() -> None:
+    """With the velocity zero over part of the grid (-0.0 in it), the two passes give bitwise
+    (sign bits included) the values of the semi-Lagrangian passes and the correction, which
+    trace everywhere."""
+    nx, ny = 23, 31
+    rng = np.random.default_rng(9)
+    x, y = np.meshgrid(np.arange(nx), np.arange(ny), indexing="ij")
+    phi = np.hypot(x - 9.3, y - 8.1) - 5.2 + 0.3 * rng.standard_normal((nx, ny))
+    u = rng.uniform(-1.0, 1.5, (nx + 1, ny))
+    v = rng.uniform(-1.2, 0.8, (nx, ny + 1))
+    u[:, 14:] = 0.0
+    v[:, 14:] = -0.0
+    step = 1.7
+    forward, backward = np.empty_like(phi), np.empty_like(phi)
+    kernels.advect_cells_semi_lagrangian(phi, u, v, step, forward)
+    kernels.advect_cells_semi_lagrangian(forward, u, v, -step, backward)
+    kernels.maccormack_correct(phi, forward, backward, u, v, step, backward)
+    spans = [np.empty(n, np.int64) for n in (nx + 1, nx + 1, nx, nx)]
+    kernels.nonzero_spans(u, spans[0], spans[1])
+    kernels.nonzero_spans(v, spans[2], spans[3])
+    assert spans[1].max() == 14
+    fused_forward, low, high, out = (np.empty_like(phi) for _ in range(4))
+    kernels.advect_cells_forward_range(phi, u, v, step, fused_forward, low, high, *spans)
+    kernels.maccormack_backward_correct(phi, fused_forward, low, high, u, v, step, out, *spans)
+    assert np.array_equal(fused_forward.view(np.uint64), forward.view(np.uint64))
+    assert np.array_equal(out.view(np.uint64), backward.view(np.uint64))
 
 
 def test_the_ghost_fluid_operator_refuses_a_level_set_with_nan() -> None:
