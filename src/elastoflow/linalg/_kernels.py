@@ -642,21 +642,25 @@ def build_coarse_levels_kernel(rows, cols, offsets, diagonal, weights_x, weights
 
 
 @njit(cache=True)
-def v_cycle(levels, r, z, sweeps, first, stop, ranged, fine_parallel):
+def v_cycle(levels, r, z, sweeps, first, last, ranged, fine_parallel):
     """Symmetric V-cycle ``z = M r``: red-black Gauss-Seidel before, black-red after.
     ``levels`` bundles the hierarchy (`_Hierarchy.levels`): rows, cols and offsets of every
     level, their diagonal, weights, totals and inverse totals, the levels' x and b, and the
-    coarsest level's factor. ``ranged``: the finest level only in the columns
-    ``[first[i], stop[i])`` of each row i (`pcg_kernel`); ``fine_parallel``: whether the
-    finest level's sweeps, restriction and prolongation use the threads (they have no sums,
-    so the values do not depend on it)."""
+    coarsest level's factor. ``ranged``: every level but the coarsest only in the columns
+    ``[first[k + i], last[k + i])`` of each of its rows i, k the rows of the finer levels
+    (`pcg_kernel`, `level_spans_kernel`); ``fine_parallel``: whether the finest level's
+    sweeps, restriction and prolongation use the threads (they have no sums, so the values
+    do not depend on it)."""
     (rows, cols, offsets, _, weights_x, weights_y, total, inverse, level_x, level_b,
      coarse_factor) = levels
-    last_columns = stop
     count = rows.shape[0]
+    row_start = 0
     for level in range(count - 1):
         m = rows[level]
         n = cols[level]
+        level_first = first[row_start:row_start + m] if ranged else first
+        last_columns = last[row_start:row_start + m] if ranged else last
+        row_start += m
         start = offsets[level]
         stop = offsets[level + 1]
         if level == 0:
@@ -669,28 +673,32 @@ def v_cycle(levels, r, z, sweeps, first, stop, ranged, fine_parallel):
         wx = weights_x[start:stop]
         wy = weights_y[start:stop]
         coarse_b = level_b[stop:offsets[level + 2]]
-        spans = ranged and level == 0
         if (fine_parallel if level == 0 else m * n > PARALLEL_MINIMUM):
             for sweep in range(sweeps):
-                smooth_parallel(x, b, inv, wx, wy, m, n, 0, sweep == 0, first, last_columns,
-                                spans)
+                smooth_parallel(x, b, inv, wx, wy, m, n, 0, sweep == 0, level_first,
+                                last_columns, ranged)
             restrict_parallel(x, b, total[start:stop], inv, wx, wy, coarse_b, m, n,
-                              rows[level + 1], cols[level + 1], first, last_columns, spans)
+                              rows[level + 1], cols[level + 1], level_first, last_columns,
+                              ranged)
         else:
             for sweep in range(sweeps):
-                smooth_serial(x, b, inv, wx, wy, m, n, 0, sweep == 0, first, last_columns,
-                              spans)
+                smooth_serial(x, b, inv, wx, wy, m, n, 0, sweep == 0, level_first,
+                              last_columns, ranged)
             restrict_serial(x, b, total[start:stop], inv, wx, wy, coarse_b, m, n,
-                            rows[level + 1], cols[level + 1], first, last_columns, spans)
-    last = count - 1
-    if last == 0:
+                            rows[level + 1], cols[level + 1], level_first, last_columns, ranged)
+    coarsest = count - 1
+    if coarsest == 0:
         coarse_solve_kernel(coarse_factor, r, z, rows[0], cols[0])
         return
-    coarse_solve_kernel(coarse_factor, level_b[offsets[last]:offsets[last + 1]],
-                        level_x[offsets[last]:offsets[last + 1]], rows[last], cols[last])
+    coarse_solve_kernel(coarse_factor, level_b[offsets[coarsest]:offsets[coarsest + 1]],
+                        level_x[offsets[coarsest]:offsets[coarsest + 1]], rows[coarsest],
+                        cols[coarsest])
     for level in range(count - 2, -1, -1):
         m = rows[level]
         n = cols[level]
+        row_start -= m
+        level_first = first[row_start:row_start + m] if ranged else first
+        last_columns = last[row_start:row_start + m] if ranged else last
         start = offsets[level]
         stop = offsets[level + 1]
         if level == 0:
@@ -703,15 +711,18 @@ def v_cycle(levels, r, z, sweeps, first, stop, ranged, fine_parallel):
         wx = weights_x[start:stop]
         wy = weights_y[start:stop]
         coarse_x = level_x[stop:offsets[level + 2]]
-        spans = ranged and level == 0
         if (fine_parallel if level == 0 else m * n > PARALLEL_MINIMUM):
-            prolong_parallel(coarse_x, x, m, n, cols[level + 1], first, last_columns, spans)
+            prolong_parallel(coarse_x, x, m, n, cols[level + 1], level_first, last_columns,
+                             ranged)
             for sweep in range(sweeps):
-                smooth_parallel(x, b, inv, wx, wy, m, n, 1, False, first, last_columns, spans)
+                smooth_parallel(x, b, inv, wx, wy, m, n, 1, False, level_first, last_columns,
+                                ranged)
         else:
-            prolong_serial(coarse_x, x, m, n, cols[level + 1], first, last_columns, spans)
+            prolong_serial(coarse_x, x, m, n, cols[level + 1], level_first, last_columns,
+                           ranged)
             for sweep in range(sweeps):
-                smooth_serial(x, b, inv, wx, wy, m, n, 1, False, first, last_columns, spans)
+                smooth_serial(x, b, inv, wx, wy, m, n, 1, False, level_first, last_columns,
+                              ranged)
 
 
 @njit(cache=True, inline="always")
@@ -880,6 +891,31 @@ def _step(x, r, p, q, alpha, m, n, first, stop, ranged):
 
 
 @njit(cache=True)
+def level_spans_kernel(rows, cols, offsets, total, first, stop):
+    """The spans of `active_spans_kernel` for every level but the finest, from the levels'
+    totals (a coarse point is active when its total is > 0: the sum of its diagonal and
+    weights, all >= 0), after the finest level's rows in ``first`` / ``stop``."""
+    row_start = rows[0]
+    for level in range(1, rows.shape[0]):
+        m = rows[level]
+        n = cols[level]
+        stride = n + 2
+        for i in range(m):
+            row = offsets[level] + (i + 1) * stride + 1
+            low = 0
+            while low < n and not total[row + low] > 0.0:
+                low += 1
+            high = n
+            while high > low and not total[row + high - 1] > 0.0:
+                high -= 1
+            if low == high:
+                low = high = 0
+            first[row_start + i] = low
+            stop[row_start + i] = high
+        row_start += m
+
+
+@njit(cache=True)
 def active_spans_kernel(active, first, stop):
     """For each row i of the ``(m, n)`` mask ``active``, the smallest column range
     ``[first[i], stop[i])`` holding its active points (``0, 0`` when none); returns whether
@@ -912,7 +948,8 @@ def pcg_kernel(levels, b, x, r, p, q, z, threshold, max_iterations, sweeps, firs
     residual), ``levels`` as in `v_cycle`. Returns ``(iterations, |b - A x|^2)``.
 
     ``ranged``: level 0 is worked on only in the columns ``[first[i], stop[i])`` of each row
-    i, which hold every active point (`active_spans_kernel`): a free surface's liquid fills a
+    i, which hold every active point (`active_spans_kernel`), and the coarser levels on
+    theirs (`level_spans_kernel`, after level 0's rows): a free surface's liquid fills a
     few per cent of its box. The values there are bitwise those of the whole level: an
     inactive point has b = 0, no diagonal and no weights, so in the whole-level iteration
     every vector is 0 there (up to the sign of zero), and its neighbours read it with weight

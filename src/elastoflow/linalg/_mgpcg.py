@@ -13,6 +13,7 @@ from elastoflow.linalg._kernels import (
     active_spans_kernel,
     build_coarse_levels_kernel,
     chebyshev_kernel,
+    level_spans_kernel,
     load_operator_kernel,
     low_rank_apply_kernel,
     low_rank_band_gap,
@@ -199,10 +200,11 @@ class _Hierarchy:
         self.coarse = True
         self.spread = 1.0
         self.null_space: _NullSpace | None = None
-        # Per fine row, the columns [first, stop) that hold its active points, and whether
-        # some row is not whole: the CG then works on those spans only (`pcg_kernel`).
-        self.first = np.zeros(shape[0], dtype=np.int64)
-        self.stop = np.zeros(shape[0], dtype=np.int64)
+        # Per row of each level (the finest first), the columns [first, stop) that hold its
+        # active points, and whether some fine row is not whole: the CG then works on those
+        # spans only (`pcg_kernel`).
+        self.first = np.zeros(int(sum(rows)), dtype=np.int64)
+        self.stop = np.zeros(int(sum(rows)), dtype=np.int64)
         self.ranged = False
         self.span_points = shape[0] * shape[1]
         # The operator the levels hold; kept alive so that its identity is not reused.
@@ -278,6 +280,9 @@ class _Hierarchy:
         build_coarse_levels_kernel(self.rows, self.cols, self.offsets, self.diagonal,
                                    self.weights_x, self.weights_y, self.total, self.inverse,
                                    self.dense, self.factor)
+        if self.ranged:
+            level_spans_kernel(self.rows, self.cols, self.offsets, self.total, self.first,
+                               self.stop)
 
 
 def _load(hierarchy: _Hierarchy, null_space: _NullSpace, rhs: NDArray[np.float64],
