@@ -17,6 +17,7 @@ import pytest
 
 from elastoflow.fluid import DomainBoundaries, FluidSolver, FluidState, Inflow, Outflow, WallNoSlip
 from elastoflow.grid import Grid2D
+from elastoflow.validation._report import step_to_steady
 
 LENGTH = 4
 REYNOLDS = 10.0
@@ -32,17 +33,7 @@ def run_poiseuille(n: int, *, incremental_pressure: bool = True, cfl: float = 4.
         incremental_pressure=incremental_pressure,
     )
     state = FluidState.zeros(grid)
-    dt = cfl * grid.h / 1.5
-    check_every = max(1, round(0.5 / dt))
-    previous = state.velocity_x.copy()
-    time, steps, change = 0.0, 0, np.inf
-    while time < t_max and change > tolerance:
-        solver.step(state, dt, time)
-        time += dt
-        steps += 1
-        if steps % check_every == 0:
-            change = float(np.abs(state.velocity_x - previous).max()) / (check_every * dt)
-            previous[...] = state.velocity_x
+    steps, time, change = step_to_steady(solver, state, cfl * grid.h / 1.5, t_max, tolerance)
     y = (np.arange(n) + 0.5) / n
     exact = 6.0 * y * (1.0 - y)
     profiles = {x: state.velocity_x[x * n].copy() for x in (1, 2, 3)}

@@ -78,6 +78,7 @@ def run_cavity(cells: int, reynolds: float, advection: str = "maccormack", cfl: 
     """The steady cavity flow on a ``cells`` x ``cells`` grid (even), dt = ``cfl`` h."""
     from elastoflow.fluid import DomainBoundaries, FluidSolver, FluidState, WallMoving, WallNoSlip
     from elastoflow.grid import Grid2D
+    from elastoflow.validation._report import step_to_steady
 
     if cells % 2:
         raise ValueError(f"cells = {cells}: must be even (the centrelines lie on grid lines)")
@@ -89,17 +90,7 @@ def run_cavity(cells: int, reynolds: float, advection: str = "maccormack", cfl: 
         advection=advection,
     )
     state = FluidState.zeros(grid)
-    dt = cfl * grid.h
-    check_every = max(1, round(0.5 / dt))
-    previous = state.velocity_x.copy()
-    time, steps, change = 0.0, 0, math.inf
-    while time < t_max and change > tolerance:
-        solver.step(state, dt, time)
-        time += dt
-        steps += 1
-        if steps % check_every == 0:
-            change = float(np.abs(state.velocity_x - previous).max()) / (check_every * dt)
-            previous[...] = state.velocity_x
+    steps, time, change = step_to_steady(solver, state, cfl * grid.h, t_max, tolerance)
     centres = (np.arange(cells) + 0.5) / cells
     ends = np.concatenate([[0.0], centres, [1.0]])
     return CavityRun(

@@ -39,6 +39,24 @@ _LABELS = {"ux_A": "u_x(A)", "uy_A": "u_y(A)", "drag": "drag", "lift": "lift",
            "ux_tip": "u_x(tip)", "uy_tip": "u_y(tip)"}
 
 
+def step_to_steady(solver: Any, state: Any, dt: float, t_max: float, tolerance: float
+                   ) -> tuple[int, float, float]:
+    """Step a fluid-only ``solver`` from ``state`` until u changes by less than ``tolerance``
+    per unit time (checked every half time unit) or ``t_max`` is reached; returns the steps
+    taken, the time reached and the last change."""
+    check_every = max(1, round(0.5 / dt))
+    previous = state.velocity_x.copy()
+    time, steps, change = 0.0, 0, float("inf")
+    while time < t_max and change > tolerance:
+        solver.step(state, dt, time)
+        time += dt
+        steps += 1
+        if steps % check_every == 0:
+            change = float(np.abs(state.velocity_x - previous).max()) / (check_every * dt)
+            previous[...] = state.velocity_x
+    return steps, time, change
+
+
 def describe(result: Result) -> str:
     """One line: case, resolution, grid, scheme, step and wall time."""
     s = result.setup
