@@ -231,6 +231,11 @@ class _Hierarchy:
         self.r = np.zeros(self.b.size)
         self.z = np.zeros(self.b.size)
 
+    def clear_vectors(self) -> None:
+        """Zero the iteration vectors and the levels' x and b."""
+        for array in (self.r, self.z, self.p, self.q, self.level_x, self.level_b):
+            array[:] = 0.0
+
     def _level(self, array: NDArray[np.float64], level: int) -> NDArray[np.float64]:
         return array[self.offsets[level]:self.offsets[level + 1]]
 
@@ -416,6 +421,10 @@ class PoissonSolverMGPCG:
                 hierarchy.q, hierarchy.z, threshold, self.max_iterations, self.smoothing_sweeps,
                 hierarchy.first, hierarchy.stop, hierarchy.ranged, hierarchy.span_points,
             )
+            if not math.isfinite(squared):
+                # Outside the spans the vectors keep their values, read with weight 0: a
+                # NaN or inf left there would spread to every later solve.
+                hierarchy.clear_vectors()
         x = _output(out, operator.shape)
         unpad_values_kernel(solution, x)
         null_space.remove_means(x)
