@@ -5,6 +5,7 @@ bodies only."""
 from __future__ import annotations
 
 import numpy as np
+from coupling_surfaces import icosphere
 
 from elastoflow.coupling import build_boundary_map_3d
 from elastoflow.coupling._interior3d import interior_boundary_3d
@@ -14,7 +15,6 @@ from elastoflow.fluid._boundaries3d import DomainBoundaries3D
 from elastoflow.fluid._interior3d import InteriorBoundary3D
 from elastoflow.fluid._solver3d import FluidSolver3D
 from elastoflow.grid import Grid3D
-from tests.unit.coupling.test_map3d import icosphere
 
 GRID = Grid3D(nx=20, ny=16, nz=16, h=0.1)
 _FIELDS = ("solid_cells", "solid_faces_x", "solid_faces_y", "solid_faces_z",

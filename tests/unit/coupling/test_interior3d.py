@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from coupling_surfaces import icosphere
 
 from elastoflow.coupling import build_boundary_map_3d
 from elastoflow.coupling._interior3d import force_traction_3d, interior_boundary_3d
@@ -16,7 +17,6 @@ from elastoflow.fluid._solver3d import FluidSolver3D
 from elastoflow.fluid._state3d import FluidState3D
 from elastoflow.grid import Grid3D
 from elastoflow.linalg import PoissonSolverMGPCG3D, apply_operator_3d
-from tests.unit.coupling.test_map3d import icosphere
 
 GRID = Grid3D(nx=16, ny=12, nz=12, h=0.1)
 CENTRE = np.array([0.73, 0.61, 0.58])
