@@ -856,11 +856,11 @@ def _make_step(loop):
 step_serial, step_parallel = serial_and_parallel(_make_step)
 
 
-# The threaded or serial twin by the whole level's size, also when only spans of it are
-# worked on: the sums' order (one partial sum per thread) stays that of the whole level.
+# The threaded or serial twin: threaded on a large level unless only a few points of it are
+# worked on (``parallel``, chosen once per solve by `pcg_kernel`).
 @njit(cache=True)
-def _residual_norm(x, b, total, weights_x, weights_y, r, m, n, first, stop, ranged):
-    if m * n > PARALLEL_MINIMUM:
+def _residual_norm(x, b, total, weights_x, weights_y, r, m, n, first, stop, ranged, parallel):
+    if parallel:
         return residual_norm_parallel(x, b, total, weights_x, weights_y, r, m, n, first, stop,
                                       ranged)
     return residual_norm_serial(x, b, total, weights_x, weights_y, r, m, n, first, stop,
@@ -868,15 +868,16 @@ def _residual_norm(x, b, total, weights_x, weights_y, r, m, n, first, stop, rang
 
 
 @njit(cache=True)
-def _dot(a, b, m, n, first, stop, ranged):
-    if m * n > PARALLEL_MINIMUM:
+def _dot(a, b, m, n, first, stop, ranged, parallel):
+    if parallel:
         return dot_parallel(a, b, m, n, first, stop, ranged)
     return dot_serial(a, b, m, n, first, stop, ranged)
 
 
 @njit(cache=True)
-def _search_direction(z, p, q, total, weights_x, weights_y, beta, m, n, first, stop, ranged):
-    if m * n > PARALLEL_MINIMUM:
+def _search_direction(z, p, q, total, weights_x, weights_y, beta, m, n, first, stop, ranged,
+                      parallel):
+    if parallel:
         return search_direction_parallel(z, p, q, total, weights_x, weights_y, beta, m, n,
                                          first, stop, ranged)
     return search_direction_serial(z, p, q, total, weights_x, weights_y, beta, m, n, first,
@@ -884,8 +885,8 @@ def _search_direction(z, p, q, total, weights_x, weights_y, beta, m, n, first, s
 
 
 @njit(cache=True)
-def _step(x, r, p, q, alpha, m, n, first, stop, ranged):
-    if m * n > PARALLEL_MINIMUM:
+def _step(x, r, p, q, alpha, m, n, first, stop, ranged, parallel):
+    if parallel:
         return step_parallel(x, r, p, q, alpha, m, n, first, stop, ranged)
     return step_serial(x, r, p, q, alpha, m, n, first, stop, ranged)
 
@@ -965,39 +966,43 @@ def pcg_kernel(levels, b, x, r, p, q, z, threshold, max_iterations, sweeps, firs
     wx = weights_x[:size]
     wy = weights_y[:size]
     spans = (first, stop, ranged)
-    # A few thousand points of liquid: the threads' start costs more than the sweep.
+    # A few thousand points of liquid: the threads' start costs more than the work.
     fine_parallel = m * n > PARALLEL_MINIMUM and (not ranged or span_points > PARALLEL_MINIMUM)
-    squared = _residual_norm(x, b, d_total, wx, wy, r, m, n, *spans)
+    squared = _residual_norm(x, b, d_total, wx, wy, r, m, n, *spans, fine_parallel)
     iterations = 0
     while True:
         # The recursive residual drifts from b - A x; confirm convergence on the true one and
         # restart CG from it when they disagree.
         if squared <= threshold:
-            squared = _residual_norm(x, b, d_total, wx, wy, r, m, n, *spans)
+            squared = _residual_norm(x, b, d_total, wx, wy, r, m, n, *spans,
+                                     fine_parallel)
             if squared <= threshold:
                 break
         if iterations >= max_iterations:
-            squared = _residual_norm(x, b, d_total, wx, wy, r, m, n, *spans)
+            squared = _residual_norm(x, b, d_total, wx, wy, r, m, n, *spans,
+                                     fine_parallel)
             break
         v_cycle(levels, r, z, sweeps, *spans, fine_parallel)
-        rz = _dot(r, z, m, n, *spans)
+        rz = _dot(r, z, m, n, *spans, fine_parallel)
         beta = 0.0
         pq = 1.0
         while iterations < max_iterations:
-            pq = _search_direction(z, p, q, d_total, wx, wy, beta, m, n, *spans)
+            pq = _search_direction(z, p, q, d_total, wx, wy, beta, m, n, *spans,
+                                   fine_parallel)
             if pq <= 0.0:
                 break
             alpha = rz / pq
-            squared = _step(x, r, p, q, alpha, m, n, *spans)
+            squared = _step(x, r, p, q, alpha, m, n, *spans, fine_parallel)
             iterations += 1
             if squared <= threshold:
                 break
             v_cycle(levels, r, z, sweeps, *spans, fine_parallel)
-            rz_next = _dot(r, z, m, n, *spans)
+            rz_next = _dot(r, z, m, n, *spans, fine_parallel)
             beta = rz_next / rz
             rz = rz_next
         if pq <= 0.0:
-            squared = _residual_norm(x, b, d_total, wx, wy, r, m, n, *spans)
+            squared = _residual_norm(x, b, d_total, wx, wy, r, m, n, *spans,
+                                     fine_parallel)
             break
     return iterations, squared
 
@@ -1419,37 +1424,38 @@ def pcg_low_rank_kernel(levels, b, x, r, p, q, z, threshold, max_iterations, swe
     # The whole level (no spans): C's columns may reach any point.
     spans = (rows, rows, False)
     fine_parallel = m * n > PARALLEL_MINIMUM
-    _residual_norm(x, b, d_total, wx, wy, r, m, n, *spans)
+    _residual_norm(x, b, d_total, wx, wy, r, m, n, *spans, fine_parallel)
     _add_low_rank(x, r, x, term_cells, term, -1.0)
     # Summed afresh: an update of |r|^2 by differences cancels catastrophically near the end.
-    squared = _dot(r, r, m, n, *spans)
+    squared = _dot(r, r, m, n, *spans, fine_parallel)
     iterations = 0
     while True:
         if squared <= threshold or iterations >= max_iterations:
             break
         v_cycle(levels, r, z, sweeps, *spans, fine_parallel)
-        rz = _dot(r, z, m, n, *spans)
+        rz = _dot(r, z, m, n, *spans, fine_parallel)
         beta = 0.0
         pq = 1.0
         while iterations < max_iterations:
-            pq = _search_direction(z, p, q, d_total, wx, wy, beta, m, n, *spans)
+            pq = _search_direction(z, p, q, d_total, wx, wy, beta, m, n, *spans,
+                                   fine_parallel)
             extra = _add_low_rank(z, q, p, term_cells, term, 1.0)
             pq += extra
             if pq <= 0.0:
                 break
             alpha = rz / pq
-            squared = _step(x, r, p, q, alpha, m, n, *spans)
+            squared = _step(x, r, p, q, alpha, m, n, *spans, fine_parallel)
             iterations += 1
             if squared <= threshold:
                 break
             v_cycle(levels, r, z, sweeps, *spans, fine_parallel)
-            rz_next = _dot(r, z, m, n, *spans)
+            rz_next = _dot(r, z, m, n, *spans, fine_parallel)
             beta = rz_next / rz
             rz = rz_next
         # Confirm on the true residual; restart from it when the recursion drifted.
-        _residual_norm(x, b, d_total, wx, wy, r, m, n, *spans)
+        _residual_norm(x, b, d_total, wx, wy, r, m, n, *spans, fine_parallel)
         _add_low_rank(x, r, x, term_cells, term, -1.0)
-        squared = _dot(r, r, m, n, *spans)
+        squared = _dot(r, r, m, n, *spans, fine_parallel)
         if pq <= 0.0 or squared <= threshold:
             break
     return iterations, squared

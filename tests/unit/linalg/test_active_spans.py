@@ -1,6 +1,8 @@
 """MGPCG on the active spans of each row (a free surface's liquid in a few per cent of its
-box): bitwise the solution and iterations of the whole-level iteration, also after a solve
-whose active points were elsewhere (stale values outside the spans)."""
+box): the solution and iterations of the whole-level iteration, also after a solve whose
+active points were elsewhere (stale values outside the spans). Bitwise where both run their
+sums on the same threads; where the spans are too small for threads on a large level, the
+CG's sums run serially and the solutions agree to round-off."""
 
 from __future__ import annotations
 
@@ -47,13 +49,13 @@ def _solve_both(solver: PoissonSolverMGPCG, operator: Operator5Point, rhs: np.nd
     return x_spans, report_spans.iterations, x_whole, report_whole.iterations
 
 
-@pytest.mark.parametrize(("shape", "depth", "film"), [
-    ((128, 96), 6, 3),     # spans below the threads' limit: the fine level serial
-    ((160, 128), 70, 4),   # spans above it: threaded
-    ((37, 21), 4, 2),      # a serial level throughout
+@pytest.mark.parametrize(("shape", "depth", "film", "bitwise"), [
+    ((128, 96), 6, 3, False),    # spans below the threads' limit: the fine level serial
+    ((160, 128), 70, 4, True),   # spans above it: threaded
+    ((37, 21), 4, 2, True),      # a serial level throughout
 ])
 def test_the_spans_give_the_whole_levels_values(shape: tuple[int, int], depth: int,
-                                                film: int) -> None:
+                                                film: int, bitwise: bool) -> None:
     active = _dam_break_like(shape, depth, film)
     operator = _liquid_operator(active)
     rhs = np.where(active, np.random.default_rng(2).standard_normal(shape), 0.0)
@@ -64,7 +66,11 @@ def test_the_spans_give_the_whole_levels_values(shape: tuple[int, int], depth: i
     solver.solve(_liquid_operator(other), np.where(other, 1.0, 0.0))
     x_spans, iterations_spans, x_whole, iterations_whole = _solve_both(solver, operator, rhs)
     assert iterations_spans == iterations_whole > 1
-    assert np.array_equal(x_spans, x_whole)
+    if bitwise:
+        assert np.array_equal(x_spans, x_whole)
+    else:
+        scale = float(np.abs(x_whole).max())
+        np.testing.assert_allclose(x_spans, x_whole, rtol=0.0, atol=1e-12 * scale)
     assert np.all(x_spans[~active] == 0.0)
     fresh, _ = PoissonSolverMGPCG().solve(operator, rhs)
     assert np.array_equal(fresh, x_spans)
