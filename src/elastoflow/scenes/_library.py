@@ -686,7 +686,7 @@ def _bar_in_jet_3d() -> dict:
     """3D: the paper's Fig. 6 in real 3D, a rubber bar hanging in a jet from below, 64^3.
 
     The 2D scene's bar (5 cm square, 50 cm long, fixed at its top, E = 60 kPa) and 1 m/s
-    jet, 1 cm off the bar's axis in x and z. The explicit scheme (the only one in 3D so far)
+    jet, 1 cm off the bar's axis in x and z. The explicit scheme (the 3D scenes' default)
     needs a body heavier than the fluid it moves sideways: the bar is 3000 kg/m^3 (added mass
     about 0.4 of its own), where the 2D scene's 1100 would diverge without relaxation.
     """
