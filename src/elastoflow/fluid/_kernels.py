@@ -345,6 +345,29 @@ def _sample_and_range(f, fx, fy, modes, values):
     return _lerp(_lerp(c00, c10, a), _lerp(c01, c11, a), b), low, high
 
 
+@njit(cache=True, inline="always")
+def _write_advected(source, sampled, forward, out, low, high, i, j, fx, fy, modes, values,
+                    mode, sample, have_sample):
+    """What ``mode`` (see `advect_field_x`) makes of the departure point (fx, fy) of point
+    (i, j), written into ``out`` (and on the first pass the clamp's range into ``low`` /
+    ``high``); ``sample``: the value there read across bodies, when ``have_sample``."""
+    if have_sample:
+        value = sample
+    elif mode == 1:
+        value, low[i, j], high[i, j] = _sample_and_range(source, fx, fy, modes, values)
+        out[i, j] = value
+        return
+    else:
+        value = _sample(sampled, fx, fy, modes, values)
+    if mode >= 2:
+        corrected = forward[i, j] + 0.5 * (source[i, j] - value)
+        out[i, j] = _clamp(corrected, low[i, j], high[i, j]) if mode == 2 else corrected
+    else:
+        out[i, j] = value
+        if mode == 1:
+            low[i, j], high[i, j] = _corner_range(source, fx, fy, modes, values)
+
+
 @njit(cache=True, parallel=True)
 def advect_field_x(
     u, v, source, out, dt, h, modes_u, values_u, modes_v, values_v, has_interior,
@@ -394,23 +417,13 @@ def advect_field_x(
                 )
             fx = xb * inv_h
             fy = yb * inv_h - 0.5
+            value = 0.0
             if has_interior:
                 value = _sample_with_bodies(
                     sampled, fx, fy, modes_u, values_u, solid_x, theta_x, cut_x, near
                 )
-            elif mode == 1:
-                value, low[i, j], high[i, j] = _sample_and_range(source, fx, fy, modes_u, values_u)
-                out[i, j] = value
-                continue
-            else:
-                value = _sample(sampled, fx, fy, modes_u, values_u)
-            if mode >= 2:
-                corrected = forward[i, j] + 0.5 * (source[i, j] - value)
-                out[i, j] = _clamp(corrected, low[i, j], high[i, j]) if mode == 2 else corrected
-            else:
-                out[i, j] = value
-                if mode == 1:
-                    low[i, j], high[i, j] = _corner_range(source, fx, fy, modes_u, values_u)
+            _write_advected(source, sampled, forward, out, low, high, i, j, fx, fy, modes_u,
+                            values_u, mode, value, has_interior)
 
 
 @njit(cache=True, parallel=True)
@@ -450,23 +463,13 @@ def advect_field_y(
                 )
             fx = xb * inv_h - 0.5
             fy = yb * inv_h
+            value = 0.0
             if has_interior:
                 value = _sample_with_bodies(
                     sampled, fx, fy, modes_v, values_v, solid_y, theta_y, cut_y, near
                 )
-            elif mode == 1:
-                value, low[i, j], high[i, j] = _sample_and_range(source, fx, fy, modes_v, values_v)
-                out[i, j] = value
-                continue
-            else:
-                value = _sample(sampled, fx, fy, modes_v, values_v)
-            if mode >= 2:
-                corrected = forward[i, j] + 0.5 * (source[i, j] - value)
-                out[i, j] = _clamp(corrected, low[i, j], high[i, j]) if mode == 2 else corrected
-            else:
-                out[i, j] = value
-                if mode == 1:
-                    low[i, j], high[i, j] = _corner_range(source, fx, fy, modes_v, values_v)
+            _write_advected(source, sampled, forward, out, low, high, i, j, fx, fy, modes_v,
+                            values_v, mode, value, has_interior)
 
 
 @njit(cache=True, parallel=True)
@@ -507,23 +510,13 @@ def advect_cells(
                 )
             fx = xb * inv_h - 0.5
             fy = yb * inv_h - 0.5
+            value = 0.0
             if has_interior:
                 value = _sample_dye_with_bodies(
                     sampled, fx, fy, modes_c, values_c, solid_cells, near
                 )
-            elif mode == 1:
-                value, low[i, j], high[i, j] = _sample_and_range(source, fx, fy, modes_c, values_c)
-                out[i, j] = value
-                continue
-            else:
-                value = _sample(sampled, fx, fy, modes_c, values_c)
-            if mode >= 2:
-                corrected = forward[i, j] + 0.5 * (source[i, j] - value)
-                out[i, j] = _clamp(corrected, low[i, j], high[i, j]) if mode == 2 else corrected
-            else:
-                out[i, j] = value
-                if mode == 1:
-                    low[i, j], high[i, j] = _corner_range(source, fx, fy, modes_c, values_c)
+            _write_advected(source, sampled, forward, out, low, high, i, j, fx, fy, modes_c,
+                            values_c, mode, value, has_interior)
 
 
 def _make_copy_into(loop):
