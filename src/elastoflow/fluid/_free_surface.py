@@ -414,7 +414,8 @@ class FreeSurfaceWorkspace:
         self.valid_u = np.zeros(grid.shape_faces_x, dtype=np.int32)
         self.valid_v = np.zeros(grid.shape_faces_y, dtype=np.int32)
         faces = max((nx + 1) * ny, nx * (ny + 1))
-        self.frontier = (np.zeros((faces, 2), dtype=np.int64), np.zeros((faces, 2), dtype=np.int64))
+        # The breadth-first fronts of u's and v's extrapolation (`extrapolate_faces_pair`).
+        self.frontier = np.zeros((4, faces, 2), dtype=np.int64)
         self.level_set = LevelSetWorkspace(grid)
         self.ghosts = (np.zeros(grid.shape_faces_x), np.zeros(grid.shape_faces_y))
         self.surface = np.zeros((nx, ny))
@@ -599,11 +600,9 @@ class FreeSurfaceSolver:
         if not solved:
             kernels.mark_liquid_faces(state.level_set, workspace.valid_u, workspace.valid_v)
         layers = self.extrapolation_layers
-        frontier, previous = workspace.frontier
-        kernels.extrapolate_faces(state.fluid.velocity_x, workspace.valid_u, layers, 0,
-                                  frontier, previous)
-        kernels.extrapolate_faces(state.fluid.velocity_y, workspace.valid_v, layers, 1,
-                                  frontier, previous)
+        kernels.extrapolate_faces_pair(state.fluid.velocity_x, workspace.valid_u,
+                                       state.fluid.velocity_y, workspace.valid_v, layers,
+                                       workspace.frontier)
 
     def advect(self, state: FreeSurfaceState, dt: float, marked: bool = False) -> None:
         """Carry the velocity (and dye) by the velocity over ``dt`` [s], in place.

@@ -54,8 +54,8 @@ class FreeSurfaceBodiesWorkspace:
         self.valid_u = np.zeros(grid.shape_faces_x, dtype=np.int32)
         self.valid_v = np.zeros(grid.shape_faces_y, dtype=np.int32)
         faces = max((nx + 1) * ny, nx * (ny + 1))
-        self.frontier = (np.zeros((faces, 2), dtype=np.int64),
-                         np.zeros((faces, 2), dtype=np.int64))
+        # The breadth-first fronts of u's and v's extrapolation (`extrapolate_faces_pair`).
+        self.frontier = np.zeros((4, faces, 2), dtype=np.int64)
         self.level_set = LevelSetWorkspace(grid)
         self.known = np.zeros((nx, ny), dtype=np.int8)
         self.fresh = np.zeros((nx, ny), dtype=np.int8)
@@ -143,11 +143,9 @@ def extrapolate_velocity_from_valid(state: FluidState, layers: int,
                                     workspace: FreeSurfaceBodiesWorkspace) -> None:
     """Extend the velocity from the faces `GhostFluidCoupledProjection.project` marked into
     the rest (``layers`` layers, the rest of the air set to 0), in place."""
-    frontier, previous = workspace.frontier
-    level_set_kernels.extrapolate_faces(state.velocity_x, workspace.valid_u, layers, 0,
-                                        frontier, previous)
-    level_set_kernels.extrapolate_faces(state.velocity_y, workspace.valid_v, layers, 1,
-                                        frontier, previous)
+    level_set_kernels.extrapolate_faces_pair(state.velocity_x, workspace.valid_u,
+                                             state.velocity_y, workspace.valid_v, layers,
+                                             workspace.frontier)
 
 
 def carry_level_set_across_bodies(level_set: FloatArray, interior: InteriorBoundary, h: float,

@@ -327,6 +327,19 @@ def extrapolate_faces(f, valid, layers, side_axis, frontier, previous):
                 valid[i, j] = layers + 1
 
 
+@njit(cache=True, parallel=True)
+def extrapolate_faces_pair(u, valid_u, v, valid_v, layers, scratch):
+    """`extrapolate_faces` of u (``side_axis`` 0) and v (1) at once, one per thread: the two
+    are independent and each is a serial breadth-first front, so the pair takes the time of
+    the longer one (bitwise the two calls). ``scratch``: int64, shape (4, m n, 2), the
+    fronts of u then of v."""
+    for k in prange(2):
+        if k == 0:
+            extrapolate_faces(u, valid_u, layers, 0, scratch[0], scratch[1])
+        else:
+            extrapolate_faces(v, valid_v, layers, 1, scratch[2], scratch[3])
+
+
 # -- the velocity's MacCormack correction ----------------------------------------------------
 
 @njit(cache=True, inline="always")
