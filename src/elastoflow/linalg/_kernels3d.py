@@ -11,7 +11,7 @@ picked by `PARALLEL_MINIMUM_3D`. Pointwise kernels that do not care about the di
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 from elastoflow._numba import serial_and_parallel
 
@@ -24,6 +24,18 @@ BLACK = 1
 # coarse levels) are applied with that one number: the weight arrays are half the memory
 # traffic of a Gauss-Seidel sweep, and the sweeps are memory-bound.
 NOT_UNIFORM = -1.0
+# A level whose weights are all equal outside a box around the bodies (the pressure operator
+# with bodies) is applied with that one number outside the box and with its arrays inside:
+# ``box`` (int64, 6) holds ``i0, i1, j0, j1, k0, k1``, half-open; ``NO_BOX`` is empty.
+NO_BOX = np.zeros(6, dtype=np.int64)
+
+
+@njit(cache=True, inline="always")
+def _row_box(box, i, j, l):
+    """The columns ``[k0, k1)`` of row ``(i, j)`` inside ``box`` (``(l, l)`` when none)."""
+    if box[0] <= i < box[1] and box[2] <= j < box[3]:
+        return box[4], box[5]
+    return l, l
 
 
 @njit(cache=True, inline="always")
@@ -489,18 +501,33 @@ def residual_kernel_3d(diagonal, weights_x, weights_y, weights_z, x, b, r):
     return _residual_serial(diagonal, weights_x, weights_y, weights_z, x, b, r)
 
 
+@njit(cache=True, inline="always")
+def _residual_run(total, weight, x, b, r, i, j, k_from, k_to, m, n, l):
+    plane = 0.0
+    for k in range(k_from, k_to):
+        value = (b[i, j, k] - total[i, j, k] * x[i, j, k]
+                 + weight * _neighbour_values(x, i, j, k, m, n, l))
+        r[i, j, k] = value
+        plane += value * value
+    return plane
+
+
 def _make_residual_uniform(loop):
-    def kernel(total, weight, x, b, r):
+    def kernel(total, weight, x, b, r, diagonal, weights_x, weights_y, weights_z, box):
         m, n, l = x.shape
         squared = 0.0
         for i in loop(m):
             plane = 0.0
             for j in range(n):
-                for k in range(l):
-                    value = (b[i, j, k] - total[i, j, k] * x[i, j, k]
-                             + weight * _neighbour_values(x, i, j, k, m, n, l))
+                k0, k1 = _row_box(box, i, j, l)
+                plane += _residual_run(total, weight, x, b, r, i, j, 0, k0, m, n, l)
+                for k in range(k0, k1):
+                    d, coupled = _neighbour_sum(diagonal, weights_x, weights_y, weights_z,
+                                                x, i, j, k, m, n, l)
+                    value = b[i, j, k] - d * x[i, j, k] + coupled
                     r[i, j, k] = value
                     plane += value * value
+                plane += _residual_run(total, weight, x, b, r, i, j, k1, l, m, n, l)
             squared += plane
         return squared
     return kernel
@@ -511,12 +538,16 @@ _residual_uniform_serial, _residual_uniform_parallel = serial_and_parallel(
 
 
 @njit(cache=True)
-def residual_uniform_kernel_3d(total, weight, x, b, r):
-    """`residual_kernel_3d` for an operator whose weights all equal ``weight``, with its
-    ``total = diagonal + sum of weights``: 2 operator arrays read instead of 4."""
+def residual_uniform_kernel_3d(total, weight, x, b, r, diagonal, weights_x, weights_y,
+                               weights_z, box):
+    """`residual_kernel_3d` for an operator whose weights all equal ``weight`` outside
+    ``box`` (`NO_BOX`: everywhere), with its ``total = diagonal + sum of weights``: 2 operator
+    arrays read instead of 4 there, the operator's own arrays inside."""
     if x.size > PARALLEL_MINIMUM_3D:
-        return _residual_uniform_parallel(total, weight, x, b, r)
-    return _residual_uniform_serial(total, weight, x, b, r)
+        return _residual_uniform_parallel(total, weight, x, b, r, diagonal, weights_x,
+                                          weights_y, weights_z, box)
+    return _residual_uniform_serial(total, weight, x, b, r, diagonal, weights_x, weights_y,
+                                    weights_z, box)
 
 
 def _make_apply_dot(loop):
@@ -708,6 +739,56 @@ def uniform_weight_kernel(weights_x, weights_y, weights_z):
     return value
 
 
+@njit(cache=True, parallel=True)
+def uniform_box_kernel(weights_x, weights_y, weights_z, weight, box):
+    """Write into ``box`` (int64, 6: ``i0, i1, j0, j1, k0, k1``, half-open) the smallest box
+    holding every point one of whose weights differs from ``weight``; returns how many
+    weights differ (0: ``box`` is `NO_BOX`). Outside the box the operator is applied with
+    ``weight`` alone (`sweep_kernel_3d` and the `*_uniform_kernel_3d` kernels)."""
+    m = weights_y.shape[0]
+    n = weights_x.shape[1]
+    l = weights_x.shape[2]
+    # Per plane i: the rows and columns of its differing weights (the x-weights of plane i
+    # also touch plane i + 1: added below).
+    low_j = np.full(m, n, dtype=np.int64)
+    high_j = np.full(m, -1, dtype=np.int64)
+    low_k = np.full(m, l, dtype=np.int64)
+    high_k = np.full(m, -1, dtype=np.int64)
+    count_x = np.zeros(m, dtype=np.int64)
+    count_yz = np.zeros(m, dtype=np.int64)
+    for i in prange(m):
+        for j in range(n):
+            for k in range(l):
+                along_x = i < m - 1 and weights_x[i, j, k] != weight
+                along_y = j < n - 1 and weights_y[i, j, k] != weight
+                along_z = k < l - 1 and weights_z[i, j, k] != weight
+                if not (along_x or along_y or along_z):
+                    continue
+                count_x[i] += 1 if along_x else 0
+                count_yz[i] += (1 if along_y else 0) + (1 if along_z else 0)
+                low_j[i] = min(low_j[i], j)
+                high_j[i] = max(high_j[i], j + 1 if along_y else j)
+                low_k[i] = min(low_k[i], k)
+                high_k[i] = max(high_k[i], k + 1 if along_z else k)
+    box[:] = 0
+    total = 0
+    i0, i1, j0, j1, k0, k1 = m, -1, n, -1, l, -1
+    for i in range(m):
+        total += count_x[i] + count_yz[i]
+        if high_j[i] < 0:
+            continue
+        i0 = min(i0, i)
+        # Plane i's x-weights join it to plane i + 1.
+        i1 = max(i1, i + 1 if count_x[i] else i)
+        j0 = min(j0, low_j[i])
+        j1 = max(j1, high_j[i])
+        k0 = min(k0, low_k[i])
+        k1 = max(k1, high_k[i])
+    if total:
+        box[0], box[1], box[2], box[3], box[4], box[5] = i0, i1 + 1, j0, j1 + 1, k0, k1 + 1
+    return total
+
+
 @njit(cache=True, inline="always")
 def _neighbour_values(x, i, j, k, m, n, l):
     """Sum of ``x`` over the in-range neighbours of ``[i, j, k]``."""
@@ -728,11 +809,31 @@ def _neighbour_values(x, i, j, k, m, n, l):
 
 
 @njit(cache=True, inline="always")
+def _sweep_run_uniform(x, b, inverse, weight, i, j, k_from, k_to, m, n, l):
+    for k in range(k_from, k_to, 2):
+        x[i, j, k] = (b[i, j, k] + weight * _neighbour_values(x, i, j, k, m, n, l)
+                      ) * inverse[i, j, k]
+
+
+@njit(cache=True, inline="always")
+def _sweep_run_weighted(x, b, inverse, weights_x, weights_y, weights_z, i, j, k_from, k_to,
+                        m, n, l):
+    for k in range(k_from, k_to, 2):
+        inv = inverse[i, j, k]
+        if inv == 0.0:
+            x[i, j, k] = 0.0
+            continue
+        coupled = _coupled_sum(weights_x, weights_y, weights_z, x, i, j, k, m, n, l)
+        x[i, j, k] = (b[i, j, k] + coupled) * inv
+
+
+@njit(cache=True, inline="always")
 def _half_sweep_plane(x, b, inverse, weights_x, weights_y, weights_z, weight, i, colour,
-                      from_zero):
+                      from_zero, box):
     """The points of ``colour`` on plane ``i``: ``x = (b + sum w x_nb) / D`` (0 where
-    inactive), with the one ``weight`` unless it is `NOT_UNIFORM`; ``from_zero``: x is 0
-    everywhere before, so the plane becomes ``b / D`` on ``colour`` and 0 on the other."""
+    inactive), with the one ``weight`` outside ``box`` unless it is `NOT_UNIFORM`;
+    ``from_zero``: x is 0 everywhere before, so the plane becomes ``b / D`` on ``colour``
+    and 0 on the other."""
     m, n, l = x.shape
     for j in range(n):
         start = (colour + i + j) & 1
@@ -740,22 +841,22 @@ def _half_sweep_plane(x, b, inverse, weights_x, weights_y, weights_z, weight, i,
             for k in range(l):
                 x[i, j, k] = b[i, j, k] * inverse[i, j, k] if (k & 1) == start else 0.0
         elif weight != NOT_UNIFORM:
-            for k in range(start, l, 2):
-                x[i, j, k] = (b[i, j, k] + weight * _neighbour_values(x, i, j, k, m, n, l)
-                              ) * inverse[i, j, k]
+            k0, k1 = _row_box(box, i, j, l)
+            # The first column of this colour at or after each segment's start.
+            first_in = k0 + ((start - k0) & 1)
+            after = k1 + ((start - k1) & 1)
+            _sweep_run_uniform(x, b, inverse, weight, i, j, start, k0, m, n, l)
+            _sweep_run_weighted(x, b, inverse, weights_x, weights_y, weights_z, i, j,
+                                first_in, k1, m, n, l)
+            _sweep_run_uniform(x, b, inverse, weight, i, j, after, l, m, n, l)
         else:
-            for k in range(start, l, 2):
-                inv = inverse[i, j, k]
-                if inv == 0.0:
-                    x[i, j, k] = 0.0
-                    continue
-                coupled = _coupled_sum(weights_x, weights_y, weights_z, x, i, j, k, m, n, l)
-                x[i, j, k] = (b[i, j, k] + coupled) * inv
+            _sweep_run_weighted(x, b, inverse, weights_x, weights_y, weights_z, i, j, start,
+                                l, m, n, l)
 
 
 def _make_sweep(loop):
     def kernel(x, b, inverse, weights_x, weights_y, weights_z, weight, first, from_zero,
-               chunks):
+               chunks, box):
         m = x.shape[0]
         second = 1 - first
         size = (m + chunks - 1) // chunks
@@ -769,13 +870,13 @@ def _make_sweep(loop):
             for i in range(start, stop + 1):
                 if i < stop:
                     _half_sweep_plane(x, b, inverse, weights_x, weights_y, weights_z, weight,
-                                      i, first, from_zero)
+                                      i, first, from_zero, box)
                 plane = i - 1
                 if plane < start or (plane == start and start > 0) or (
                         plane == stop - 1 and stop < m):
                     continue
                 _half_sweep_plane(x, b, inverse, weights_x, weights_y, weights_z, weight,
-                                  plane, second, False)
+                                  plane, second, False, box)
         for c in loop(chunks):
             start = c * size
             stop = min(start + size, m)
@@ -783,10 +884,10 @@ def _make_sweep(loop):
                 continue
             if start > 0:
                 _half_sweep_plane(x, b, inverse, weights_x, weights_y, weights_z, weight,
-                                  start, second, False)
+                                  start, second, False, box)
             if stop < m and (stop - 1 != start or start == 0):
                 _half_sweep_plane(x, b, inverse, weights_x, weights_y, weights_z, weight,
-                                  stop - 1, second, False)
+                                  stop - 1, second, False, box)
     return kernel
 
 
@@ -795,11 +896,11 @@ _sweep_serial, _sweep_parallel = serial_and_parallel(_make_sweep)
 
 @njit(cache=True)
 def sweep_kernel_3d(x, b, inverse, weights_x, weights_y, weights_z, weight, first, from_zero,
-                    chunks):
+                    chunks, box):
     """One red-black Gauss-Seidel sweep on ``A x = b``: the points of colour ``first`` (`RED`:
     i + j + k even, `BLACK`: odd) get ``x = (b + sum w x_nb) / D``, then those of the other
-    colour; ``weight``: the one value of all weights, or `NOT_UNIFORM` (then the weight
-    arrays are read); ``from_zero``: x starts at 0 (not read; no fill needed); ``chunks``:
+    colour; ``weight``: the one value of all weights outside ``box`` (`NO_BOX`: of all), or
+    `NOT_UNIFORM` (then the weight arrays are read everywhere); ``from_zero``: x starts at 0 (not read; no fill needed); ``chunks``:
     the number of plane ranges walked in parallel (the thread count: `numba.get_num_threads`
     from the caller, which a cached kernel cannot call).
 
@@ -809,13 +910,13 @@ def sweep_kernel_3d(x, b, inverse, weights_x, weights_y, weights_z, weight, firs
     """
     if x.size > PARALLEL_MINIMUM_3D:
         return _sweep_parallel(x, b, inverse, weights_x, weights_y, weights_z, weight, first,
-                               from_zero, chunks)
+                               from_zero, chunks, box)
     return _sweep_serial(x, b, inverse, weights_x, weights_y, weights_z, weight, first,
-                         from_zero, 1)
+                         from_zero, 1, box)
 
 
 def _make_restrict_uniform(loop):
-    def kernel(x, b, total, weight, coarse_b):
+    def kernel(x, b, total, weight, coarse_b, weights_x, weights_y, weights_z, box):
         m, n, l = x.shape
         mc, nc, lc = coarse_b.shape
         for ic in loop(mc):
@@ -825,11 +926,19 @@ def _make_restrict_uniform(loop):
             for i in range(2 * ic, min(2 * ic + 2, m)):
                 for j in range(n):
                     jc = j >> 1
+                    k0, k1 = _row_box(box, i, j, l)
                     for kc in range(lc):
                         pair = 0.0
                         for k in range(2 * kc, min(2 * kc + 2, l)):
-                            pair += (b[i, j, k] - total[i, j, k] * x[i, j, k]
-                                     + weight * _neighbour_values(x, i, j, k, m, n, l))
+                            if k0 <= k < k1:
+                                # Inside the box: as `restrict_residual_kernel_3d`.
+                                t = total[i, j, k]
+                                if t > 0.0:
+                                    pair += b[i, j, k] - t * x[i, j, k] + _coupled_sum(
+                                        weights_x, weights_y, weights_z, x, i, j, k, m, n, l)
+                            else:
+                                pair += (b[i, j, k] - total[i, j, k] * x[i, j, k]
+                                         + weight * _neighbour_values(x, i, j, k, m, n, l))
                         coarse_b[ic, jc, kc] += pair
     return kernel
 
@@ -839,25 +948,44 @@ _restrict_uniform_serial, _restrict_uniform_parallel = serial_and_parallel(
 
 
 @njit(cache=True)
-def restrict_residual_uniform_kernel_3d(x, b, total, weight, coarse_b):
-    """`restrict_residual_kernel_3d` for an operator whose weights all equal ``weight``."""
+def restrict_residual_uniform_kernel_3d(x, b, total, weight, coarse_b, weights_x, weights_y,
+                                        weights_z, box):
+    """`restrict_residual_kernel_3d` for an operator whose weights all equal ``weight``
+    outside ``box`` (`NO_BOX`: everywhere)."""
     if x.size > PARALLEL_MINIMUM_3D:
-        return _restrict_uniform_parallel(x, b, total, weight, coarse_b)
-    return _restrict_uniform_serial(x, b, total, weight, coarse_b)
+        return _restrict_uniform_parallel(x, b, total, weight, coarse_b, weights_x, weights_y,
+                                          weights_z, box)
+    return _restrict_uniform_serial(x, b, total, weight, coarse_b, weights_x, weights_y,
+                                    weights_z, box)
+
+
+@njit(cache=True, inline="always")
+def _apply_dot_run(total, weight, p, q, i, j, k_from, k_to, m, n, l):
+    plane = 0.0
+    for k in range(k_from, k_to):
+        value = (total[i, j, k] * p[i, j, k]
+                 - weight * _neighbour_values(p, i, j, k, m, n, l))
+        q[i, j, k] = value
+        plane += value * p[i, j, k]
+    return plane
 
 
 def _make_apply_dot_uniform(loop):
-    def kernel(total, weight, p, q):
+    def kernel(total, weight, p, q, diagonal, weights_x, weights_y, weights_z, box):
         m, n, l = p.shape
         dot = 0.0
         for i in loop(m):
             plane = 0.0
             for j in range(n):
-                for k in range(l):
-                    value = (total[i, j, k] * p[i, j, k]
-                             - weight * _neighbour_values(p, i, j, k, m, n, l))
+                k0, k1 = _row_box(box, i, j, l)
+                plane += _apply_dot_run(total, weight, p, q, i, j, 0, k0, m, n, l)
+                for k in range(k0, k1):
+                    d, coupled = _neighbour_sum(diagonal, weights_x, weights_y, weights_z,
+                                                p, i, j, k, m, n, l)
+                    value = d * p[i, j, k] - coupled
                     q[i, j, k] = value
                     plane += value * p[i, j, k]
+                plane += _apply_dot_run(total, weight, p, q, i, j, k1, l, m, n, l)
             dot += plane
         return dot
     return kernel
@@ -868,12 +996,15 @@ _apply_dot_uniform_serial, _apply_dot_uniform_parallel = serial_and_parallel(
 
 
 @njit(cache=True)
-def apply_dot_uniform_kernel_3d(total, weight, p, q):
-    """`apply_dot_kernel_3d` for an operator whose weights all equal ``weight``, with its
-    ``total = diagonal + sum of weights``."""
+def apply_dot_uniform_kernel_3d(total, weight, p, q, diagonal, weights_x, weights_y,
+                                weights_z, box):
+    """`apply_dot_kernel_3d` for an operator whose weights all equal ``weight`` outside
+    ``box`` (`NO_BOX`: everywhere), with its ``total = diagonal + sum of weights``."""
     if p.size > PARALLEL_MINIMUM_3D:
-        return _apply_dot_uniform_parallel(total, weight, p, q)
-    return _apply_dot_uniform_serial(total, weight, p, q)
+        return _apply_dot_uniform_parallel(total, weight, p, q, diagonal, weights_x,
+                                           weights_y, weights_z, box)
+    return _apply_dot_uniform_serial(total, weight, p, q, diagonal, weights_x, weights_y,
+                                     weights_z, box)
 
 
 def _make_jacobi(loop):

@@ -22,6 +22,7 @@ from elastoflow.linalg._kernels import (
 )
 from elastoflow.linalg._kernels3d import (
     BLACK,
+    NO_BOX,
     NOT_UNIFORM,
     RED,
     apply_dot_kernel_3d,
@@ -45,6 +46,7 @@ from elastoflow.linalg._kernels3d import (
     sweep_kernel_3d,
     step_jacobi_kernel_3d,
     step_kernel_3d,
+    uniform_box_kernel,
     uniform_weight_kernel,
 )
 from elastoflow.linalg._mgpcg import LowRankTerm
@@ -97,8 +99,9 @@ class _NullSpace3D:
 @dataclass
 class _Level:
     """One level's operator (``total = diagonal + sum of weights``, its inverse, 0 at inactive
-    points; ``uniform``: the one value of all its weights, or `NOT_UNIFORM`) and its
-    correction ``x`` and right-hand side ``b``."""
+    points; ``uniform``: the one value of all its weights outside ``box``, or `NOT_UNIFORM`;
+    ``box``: `NO_BOX` when they are all equal, else the box around the bodies, whose weights
+    the kernels read from the arrays) and its correction ``x`` and right-hand side ``b``."""
 
     diagonal: NDArray[np.float64]
     weights_x: NDArray[np.float64]
@@ -109,6 +112,7 @@ class _Level:
     x: NDArray[np.float64]
     b: NDArray[np.float64]
     uniform: float = NOT_UNIFORM
+    box: NDArray[np.int64] = field(default_factory=lambda: NO_BOX)
 
     @classmethod
     def zeros(cls, shape: Shape3) -> _Level:
@@ -117,16 +121,34 @@ class _Level:
                    np.zeros((m, n, l - 1)), np.zeros(shape), np.zeros(shape), np.zeros(shape),
                    np.zeros(shape))
 
+    def set_uniform(self) -> None:
+        """Find ``uniform`` and ``box`` for the weights just loaded: the one value of all
+        of them, or of all outside a box holding at most half the level (the value of the
+        first x-weight; the bodies' neighbourhood in the pressure operator with bodies)."""
+        self.uniform = float(uniform_weight_kernel(self.weights_x, self.weights_y,
+                                                   self.weights_z))
+        self.box = NO_BOX
+        if self.uniform != NOT_UNIFORM or not self.weights_x.size:
+            return
+        candidate = float(self.weights_x[0, 0, 0])
+        if not candidate > 0.0:
+            return
+        box = np.zeros(6, dtype=np.int64)
+        differing = uniform_box_kernel(self.weights_x, self.weights_y, self.weights_z,
+                                       candidate, box)
+        if differing and int(np.prod(box[1::2] - box[::2])) <= self.total.size // 2:
+            self.uniform, self.box = candidate, box
+
     def sweep(self, x: NDArray[np.float64], b: NDArray[np.float64], first: int,
               from_zero: bool, chunks: int) -> None:
         """One red-black Gauss-Seidel sweep on this level, colour ``first`` first;
         ``from_zero``: x is taken as 0 (and need not be filled); ``chunks``: the threads."""
         sweep_kernel_3d(x, b, self.inverse, self.weights_x, self.weights_y, self.weights_z,
-                        self.uniform, first, from_zero, chunks)
+                        self.uniform, first, from_zero, chunks, self.box)
 
     def prolong(self, coarse_x: NDArray[np.float64], x: NDArray[np.float64]) -> None:
         """``x += P coarse_x`` at this level's active points (all of a uniform level)."""
-        if self.uniform != NOT_UNIFORM:
+        if self.uniform != NOT_UNIFORM and self.box is NO_BOX:
             prolong_add_all_kernel_3d(coarse_x, x)
         else:
             prolong_add_kernel_3d(coarse_x, self.inverse, x)
@@ -135,7 +157,9 @@ class _Level:
                  r: NDArray[np.float64]) -> float:
         """``r = b - A x``; returns ``|r|^2``."""
         if self.uniform != NOT_UNIFORM:
-            return float(residual_uniform_kernel_3d(self.total, self.uniform, x, b, r))
+            return float(residual_uniform_kernel_3d(self.total, self.uniform, x, b, r,
+                                                    self.diagonal, self.weights_x,
+                                                    self.weights_y, self.weights_z, self.box))
         return float(residual_kernel_3d(self.diagonal, self.weights_x, self.weights_y,
                                         self.weights_z, x, b, r))
 
@@ -143,7 +167,9 @@ class _Level:
                  coarse_b: NDArray[np.float64]) -> None:
         """``coarse_b`` = the residual of this level summed over each coarse point."""
         if self.uniform != NOT_UNIFORM:
-            restrict_residual_uniform_kernel_3d(x, b, self.total, self.uniform, coarse_b)
+            restrict_residual_uniform_kernel_3d(x, b, self.total, self.uniform, coarse_b,
+                                                self.weights_x, self.weights_y,
+                                                self.weights_z, self.box)
         else:
             restrict_residual_kernel_3d(x, b, self.total, self.weights_x, self.weights_y,
                                         self.weights_z, coarse_b)
@@ -194,8 +220,7 @@ class _Hierarchy3D:
             fine.inverse, active,
         )
         self.active = active
-        fine.uniform = float(uniform_weight_kernel(fine.weights_x, fine.weights_y,
-                                                   fine.weights_z))
+        fine.set_uniform()
         # A strongly diagonal operator (implicit viscosity) needs no coarse correction.
         self.coarse = len(self.levels) == 1 or dominance < _SMOOTHER_ONLY_DOMINANCE
         if self.coarse:
@@ -213,8 +238,7 @@ class _Hierarchy3D:
             load_operator_kernel_3d(coarse.diagonal, coarse.weights_x, coarse.weights_y,
                                     coarse.weights_z, coarse.total, coarse.inverse,
                                     np.empty(coarse.total.shape, dtype=np.bool_))
-            coarse.uniform = float(uniform_weight_kernel(coarse.weights_x, coarse.weights_y,
-                                                         coarse.weights_z))
+            coarse.set_uniform()
         last = self.levels[-1]
         dense_matrix_kernel_3d(last.diagonal, last.weights_x, last.weights_y, last.weights_z,
                                self.dense)
@@ -461,7 +485,9 @@ class PoissonSolverMGPCG3D:
             recursive = squared
             while recursive > threshold and iterations < self.max_iterations:
                 if fine.uniform != NOT_UNIFORM:
-                    pq = apply_dot_uniform_kernel_3d(fine.total, fine.uniform, p, q)
+                    pq = apply_dot_uniform_kernel_3d(fine.total, fine.uniform, p, q,
+                                                     fine.diagonal, fine.weights_x,
+                                                     fine.weights_y, fine.weights_z, fine.box)
                 else:
                     pq = apply_dot_kernel_3d(*a, p, q)
                 if not (pq > 0.0):

@@ -16,10 +16,19 @@ from elastoflow.linalg import (
 )
 from elastoflow.linalg._kernels3d import (
     BLACK,
+    NO_BOX,
+    NOT_UNIFORM,
     RED,
     _sweep_parallel,
     _sweep_serial,
+    apply_dot_kernel_3d,
+    apply_dot_uniform_kernel_3d,
     load_operator_kernel_3d,
+    residual_kernel_3d,
+    residual_uniform_kernel_3d,
+    restrict_residual_kernel_3d,
+    restrict_residual_uniform_kernel_3d,
+    uniform_box_kernel,
     uniform_weight_kernel,
 )
 
@@ -43,6 +52,28 @@ def random_operator(shape: tuple[int, int, int], seed: int) -> Operator7Point:
         rng.uniform(0.0, 0.2, shape) * (rng.random(shape) < 0.1),
         rng.uniform(0.1, 2.0, (m - 1, n, l)), rng.uniform(0.1, 2.0, (m, n - 1, l)),
         rng.uniform(0.1, 2.0, (m, n, l - 1)))
+
+
+def body_operator(shape: tuple[int, int, int], seed: int,
+                  box: tuple[int, int, int, int, int, int]) -> Operator7Point:
+    """Unit weights (Dirichlet on the last x plane) except the weights touching the points
+    of ``box`` (half-open), which are random, a third of them 0, and some of its points
+    inactive: the pressure operator around a body."""
+    rng = np.random.default_rng(seed)
+    base = laplacian(0, outflow=True, shape=shape)
+    arrays = [base.diagonal.copy(), base.weights_x.copy(), base.weights_y.copy(),
+              base.weights_z.copy()]
+    i0, i1, j0, j1, k0, k1 = box
+    inside = np.zeros(shape, dtype=bool)
+    inside[i0:i1, j0:j1, k0:k1] = True
+    for axis, weights in enumerate(arrays[1:]):
+        low = [slice(None)] * 3
+        high = [slice(None)] * 3
+        low[axis], high[axis] = slice(None, -1), slice(1, None)
+        touched = inside[tuple(low)] | inside[tuple(high)]
+        values = rng.uniform(0.1, 1.0, weights.shape) * (rng.random(weights.shape) > 0.3)
+        weights[touched] = values[touched]
+    return Operator7Point(*arrays)
 
 
 def sparse_matrix(operator: Operator7Point) -> sparse.csr_matrix:
@@ -222,17 +253,25 @@ def test_shapes_of_equal_size_share_vectors_without_mixing_answers() -> None:
     assert len(solver._vector_pool) == 1 and len(solver._hierarchies) == 3
 
 
-@pytest.mark.parametrize("uniform", [True, False])
-def test_a_sweep_is_its_two_half_sweeps_however_the_planes_are_split(uniform: bool) -> None:
+@pytest.mark.parametrize("kind", ["uniform", "weighted", "boxed"])
+def test_a_sweep_is_its_two_half_sweeps_however_the_planes_are_split(kind: str) -> None:
     # The fused red-black sweep walks chunks of planes, the second colour one plane behind:
-    # it must give the two half sweeps one after the other, for any split into chunks.
+    # it must give the two half sweeps one after the other, for any split into chunks; with
+    # a box, the weights' arrays inside it and the one weight outside.
     shape = (11, 6, 5)
-    operator = laplacian(0, outflow=True, shape=shape) if uniform else random_operator(shape, 4)
+    operator = {"uniform": lambda: laplacian(0, outflow=True, shape=shape),
+                "weighted": lambda: random_operator(shape, 4),
+                "boxed": lambda: body_operator(shape, 4, (3, 7, 1, 4, 2, 4))}[kind]()
     a = (operator.diagonal, operator.weights_x, operator.weights_y, operator.weights_z)
     total, inverse = np.empty(shape), np.empty(shape)
     load_operator_kernel_3d(*a, total, inverse, np.empty(shape, dtype=np.bool_))
     weight = uniform_weight_kernel(*a[1:])
-    assert (weight == 1.0) == uniform
+    assert (weight == 1.0) == (kind == "uniform")
+    box = NO_BOX
+    if kind == "boxed":
+        box = np.zeros(6, dtype=np.int64)
+        assert uniform_box_kernel(*a[1:], 1.0, box) > 0
+        weight = 1.0
     rng = np.random.default_rng(5)
     b, start = rng.standard_normal(shape), rng.standard_normal(shape)
     colour = np.indices(shape).sum(axis=0) % 2
@@ -245,8 +284,87 @@ def test_a_sweep_is_its_two_half_sweeps_however_the_planes_are_split(uniform: bo
         for chunks in (1, 2, 3, 4, 11, 20):
             x = start.copy()
             sweep = _sweep_serial if chunks == 1 else _sweep_parallel
-            sweep(x, b, inverse, *a[1:], weight, first, from_zero, chunks)
+            sweep(x, b, inverse, *a[1:], weight, first, from_zero, chunks, box)
             swept.append(x)
         np.testing.assert_allclose(swept[0], expected, rtol=1e-13, atol=1e-13)
         for x in swept[1:]:
             np.testing.assert_array_equal(x, swept[0])
+
+
+def test_the_box_holds_every_point_of_a_differing_weight() -> None:
+    # The box is the smallest one holding both ends of every weight that differs from the
+    # one value: checked against the ends found with numpy.
+    shape = (9, 7, 8)
+    operator = body_operator(shape, 2, (2, 5, 3, 6, 1, 4))
+    a = (operator.weights_x, operator.weights_y, operator.weights_z)
+    ends = np.zeros(shape, dtype=bool)
+    for axis, weights in enumerate(a):
+        differ = weights != 1.0
+        low = [slice(None)] * 3
+        high = [slice(None)] * 3
+        low[axis], high[axis] = slice(None, -1), slice(1, None)
+        ends[tuple(low)] |= differ
+        ends[tuple(high)] |= differ
+    where = np.argwhere(ends)
+    box = np.zeros(6, dtype=np.int64)
+    count = uniform_box_kernel(*a, 1.0, box)
+    assert count == sum(int(np.count_nonzero(w != 1.0)) for w in a)
+    expected = [v for axis in range(3)
+                for v in (where[:, axis].min(), where[:, axis].max() + 1)]
+    assert list(box) == expected
+    # All weights equal: no box.
+    plain = laplacian(0, shape=shape)
+    assert uniform_box_kernel(plain.weights_x, plain.weights_y, plain.weights_z, 1.0,
+                              box) == 0
+    assert list(box) == [0] * 6
+
+
+def test_the_boxed_kernels_are_the_weighted_ones_to_round_off() -> None:
+    # Residual, product and restriction with the one weight outside the box and the arrays
+    # inside give the weighted kernels' values (the sums differ only in rounding).
+    shape = (12, 9, 10)
+    operator = body_operator(shape, 7, (4, 9, 2, 6, 3, 8))
+    a = (operator.diagonal, operator.weights_x, operator.weights_y, operator.weights_z)
+    total, inverse = np.empty(shape), np.empty(shape)
+    load_operator_kernel_3d(*a, total, inverse, np.empty(shape, dtype=np.bool_))
+    box = np.zeros(6, dtype=np.int64)
+    uniform_box_kernel(*a[1:], 1.0, box)
+    rng = np.random.default_rng(1)
+    x, b = rng.standard_normal(shape), rng.standard_normal(shape)
+    x[total == 0.0] = 0.0
+    r_weighted, r_boxed = np.empty(shape), np.empty(shape)
+    squared = residual_kernel_3d(*a, x, b, r_weighted)
+    assert residual_uniform_kernel_3d(total, 1.0, x, b, r_boxed, *a, box) == pytest.approx(
+        squared, rel=1e-13)
+    np.testing.assert_allclose(r_boxed, r_weighted, rtol=1e-13, atol=1e-13)
+    q_weighted, q_boxed = np.empty(shape), np.empty(shape)
+    dot = apply_dot_kernel_3d(*a, x, q_weighted)
+    assert apply_dot_uniform_kernel_3d(total, 1.0, x, q_boxed, *a, box) == pytest.approx(
+        dot, rel=1e-13)
+    np.testing.assert_allclose(q_boxed, q_weighted, rtol=1e-13, atol=1e-13)
+    coarse = tuple((s + 1) // 2 for s in shape)
+    c_weighted, c_boxed = np.empty(coarse), np.empty(coarse)
+    restrict_residual_kernel_3d(x, b, total, *a[1:], c_weighted)
+    restrict_residual_uniform_kernel_3d(x, b, total, 1.0, c_boxed, *a[1:], box)
+    np.testing.assert_allclose(c_boxed, c_weighted, rtol=1e-12, atol=1e-12)
+
+
+def test_a_body_operator_solves_with_its_box(monkeypatch: pytest.MonkeyPatch) -> None:
+    # The solver finds the box on the fine level and solves to its tolerance; the answer is
+    # the one the weighted kernels give everywhere (the box's search switched off).
+    shape = (16, 12, 14)
+    operator = body_operator(shape, 3, (5, 10, 3, 8, 4, 9))
+    rhs = np.random.default_rng(4).standard_normal(shape)
+    solver = PoissonSolverMGPCG3D(rtol=1e-10)
+    x, report = solver.solve(operator, rhs)
+    assert report.converged
+    level = solver._hierarchy(shape).levels[0]
+    assert level.uniform == 1.0 and level.box is not NO_BOX
+    import elastoflow.linalg._mgpcg3d as module
+
+    monkeypatch.setattr(module, "uniform_box_kernel", lambda *args: 0)
+    weighted = PoissonSolverMGPCG3D(rtol=1e-10)
+    y, other = weighted.solve(operator, rhs)
+    assert other.converged
+    assert weighted._hierarchy(shape).levels[0].uniform == NOT_UNIFORM
+    np.testing.assert_allclose(x, y, rtol=0, atol=1e-8 * np.abs(y).max())
