@@ -502,8 +502,9 @@ def residual_kernel_3d(diagonal, weights_x, weights_y, weights_z, x, b, r):
 
 
 @njit(cache=True, inline="always")
-def _residual_run(total, weight, x, b, r, i, j, k_from, k_to, m, n, l):
-    plane = 0.0
+def _residual_run(total, weight, x, b, r, i, j, k_from, k_to, m, n, l, plane):
+    # ``plane`` carried through, not restarted: without a box the sums are bitwise those
+    # of one loop over the row.
     for k in range(k_from, k_to):
         value = (b[i, j, k] - total[i, j, k] * x[i, j, k]
                  + weight * _neighbour_values(x, i, j, k, m, n, l))
@@ -520,14 +521,14 @@ def _make_residual_uniform(loop):
             plane = 0.0
             for j in range(n):
                 k0, k1 = _row_box(box, i, j, l)
-                plane += _residual_run(total, weight, x, b, r, i, j, 0, k0, m, n, l)
+                plane = _residual_run(total, weight, x, b, r, i, j, 0, k0, m, n, l, plane)
                 for k in range(k0, k1):
                     d, coupled = _neighbour_sum(diagonal, weights_x, weights_y, weights_z,
                                                 x, i, j, k, m, n, l)
                     value = b[i, j, k] - d * x[i, j, k] + coupled
                     r[i, j, k] = value
                     plane += value * value
-                plane += _residual_run(total, weight, x, b, r, i, j, k1, l, m, n, l)
+                plane = _residual_run(total, weight, x, b, r, i, j, k1, l, m, n, l, plane)
             squared += plane
         return squared
     return kernel
@@ -960,8 +961,8 @@ def restrict_residual_uniform_kernel_3d(x, b, total, weight, coarse_b, weights_x
 
 
 @njit(cache=True, inline="always")
-def _apply_dot_run(total, weight, p, q, i, j, k_from, k_to, m, n, l):
-    plane = 0.0
+def _apply_dot_run(total, weight, p, q, i, j, k_from, k_to, m, n, l, plane):
+    # ``plane`` carried through, as in `_residual_run`.
     for k in range(k_from, k_to):
         value = (total[i, j, k] * p[i, j, k]
                  - weight * _neighbour_values(p, i, j, k, m, n, l))
@@ -978,14 +979,14 @@ def _make_apply_dot_uniform(loop):
             plane = 0.0
             for j in range(n):
                 k0, k1 = _row_box(box, i, j, l)
-                plane += _apply_dot_run(total, weight, p, q, i, j, 0, k0, m, n, l)
+                plane = _apply_dot_run(total, weight, p, q, i, j, 0, k0, m, n, l, plane)
                 for k in range(k0, k1):
                     d, coupled = _neighbour_sum(diagonal, weights_x, weights_y, weights_z,
                                                 p, i, j, k, m, n, l)
                     value = d * p[i, j, k] - coupled
                     q[i, j, k] = value
                     plane += value * p[i, j, k]
-                plane += _apply_dot_run(total, weight, p, q, i, j, k1, l, m, n, l)
+                plane = _apply_dot_run(total, weight, p, q, i, j, k1, l, m, n, l, plane)
             dot += plane
         return dot
     return kernel
