@@ -317,7 +317,7 @@ class FluidSolver3D:
         operator = (np.empty((nx, ny, nz)), np.empty((nx - 1, ny, nz)),
                     np.empty((nx, ny - 1, nz)), np.empty((nx, ny, nz - 1)))
         kernels.build_pressure_operator_3d(fractions, self._outflow, operator)
-        return Operator7Point(*operator)
+        return Operator7Point.assembled(*operator)
 
     def _pressure_operator_bodies(self, interior: InteriorBoundary3D) -> Operator7Point:
         fractions = (interior.open_fraction_x, interior.open_fraction_y,
@@ -400,7 +400,7 @@ class FluidSolver3D:
             self._viscosity_bodies[axis] = (c, arrays, interior.box)
         kernels.build_viscosity_system_3d(field, c, axis, sides, has_interior, body, True,
                                           arrays, rhs, region)
-        operator = Operator7Point(*arrays)
+        operator = Operator7Point.assembled(*arrays)
         if interior is not None:
             return operator, rhs
         # One dt at a time in practice; a changing dt must not grow the cache without end.

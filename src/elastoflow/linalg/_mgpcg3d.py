@@ -401,8 +401,9 @@ class PoissonSolverMGPCG3D:
         _output(out, shape)  # type: ignore[arg-type]
         rhs, x0 = self._checked(shape, rhs, x0)
         extra = coupling.diagonal(shape)
-        preconditioned = Operator7Point(operator.diagonal + extra, operator.weights_x,
-                                        operator.weights_y, operator.weights_z)
+        preconditioned = Operator7Point.assembled(operator.diagonal + extra,
+                                                  operator.weights_x, operator.weights_y,
+                                                  operator.weights_z)
         hierarchy = self._hierarchy(shape)
         null_space = hierarchy.prepare(preconditioned)
         if not hierarchy.coarse:

@@ -368,3 +368,21 @@ def test_a_body_operator_solves_with_its_box(monkeypatch: pytest.MonkeyPatch) ->
     assert other.converged
     assert weighted._hierarchy(shape).levels[0].uniform == NOT_UNIFORM
     np.testing.assert_allclose(x, y, rtol=0, atol=1e-8 * np.abs(y).max())
+
+
+def test_an_assembled_operator_is_the_checked_one_and_wrong_shapes_are_refused() -> None:
+    # The library's kernels build operators through `Operator7Point.assembled`, which skips
+    # the pass over the values but not the shapes.
+    operator = random_operator((5, 4, 3), 8)
+    arrays = (operator.diagonal, operator.weights_x, operator.weights_y, operator.weights_z)
+    assembled = Operator7Point.assembled(*arrays)
+    for name in ("diagonal", "weights_x", "weights_y", "weights_z"):
+        assert getattr(assembled, name) is getattr(operator, name)
+    x = np.random.default_rng(2).standard_normal((5, 4, 3))
+    np.testing.assert_array_equal(apply_operator_3d(assembled, x),
+                                  apply_operator_3d(operator, x))
+    with pytest.raises(ValueError, match="weights_y: shape"):
+        Operator7Point.assembled(arrays[0], arrays[1], arrays[1], arrays[3])
+    with pytest.raises(ValueError, match="values must be finite"):
+        Operator7Point.assembled(arrays[0].astype(np.float32), arrays[1], arrays[2],
+                                 np.full_like(arrays[3], np.nan))
