@@ -17,6 +17,12 @@ from elastoflow._numba import serial_and_parallel
 
 # Below this many points a parallel region costs more than it saves (a 16^3 level).
 PARALLEL_MINIMUM_3D = 16 * 16 * 16
+# The stencil kernels (sweep, residual, restriction, product) take their threaded twin down
+# to an 8^3 level: their serial twins, indexing with signed neighbour offsets, compile to
+# code 3-25x slower than the threaded ones run on one thread (16^3: a sweep 88 against 15
+# us, the weighted residual 191 against 8; measured on the kernels alone), which is more
+# than a parallel region's start costs. The pointwise kernels keep `PARALLEL_MINIMUM_3D`.
+STENCIL_PARALLEL_MINIMUM_3D = 4 * 4 * 4
 # Gauss-Seidel colours: a point (i, j, k) is red when i + j + k is even.
 RED = 0
 BLACK = 1
@@ -108,7 +114,7 @@ _apply_serial, _apply_parallel = serial_and_parallel(_make_apply)
 def apply_operator_kernel_3d(diagonal, weights_x, weights_y, weights_z, x, out):
     """``out = A x`` for the 7-point operator, all arrays ``(m, n, l)`` (weights one shorter
     along their axis)."""
-    if x.size > PARALLEL_MINIMUM_3D:
+    if x.size > STENCIL_PARALLEL_MINIMUM_3D:
         return _apply_parallel(diagonal, weights_x, weights_y, weights_z, x, out)
     return _apply_serial(diagonal, weights_x, weights_y, weights_z, x, out)
 
@@ -346,7 +352,7 @@ _restrict_serial, _restrict_parallel = serial_and_parallel(_make_restrict)
 def restrict_residual_kernel_3d(x, b, total, weights_x, weights_y, weights_z, coarse_b):
     """``coarse_b`` = the residual ``b - A x`` summed over each coarse point's children (the
     transpose of piecewise-constant prolongation)."""
-    if x.size > PARALLEL_MINIMUM_3D:
+    if x.size > STENCIL_PARALLEL_MINIMUM_3D:
         return _restrict_parallel(x, b, total, weights_x, weights_y, weights_z, coarse_b)
     return _restrict_serial(x, b, total, weights_x, weights_y, weights_z, coarse_b)
 
@@ -496,7 +502,7 @@ _residual_serial, _residual_parallel = serial_and_parallel(_make_residual,
 @njit(cache=True)
 def residual_kernel_3d(diagonal, weights_x, weights_y, weights_z, x, b, r):
     """``r = b - A x``; returns ``|r|^2``."""
-    if x.size > PARALLEL_MINIMUM_3D:
+    if x.size > STENCIL_PARALLEL_MINIMUM_3D:
         return _residual_parallel(diagonal, weights_x, weights_y, weights_z, x, b, r)
     return _residual_serial(diagonal, weights_x, weights_y, weights_z, x, b, r)
 
@@ -544,7 +550,7 @@ def residual_uniform_kernel_3d(total, weight, x, b, r, diagonal, weights_x, weig
     """`residual_kernel_3d` for an operator whose weights all equal ``weight`` outside
     ``box`` (`NO_BOX`: everywhere), with its ``total = diagonal + sum of weights``: 2 operator
     arrays read instead of 4 there, the operator's own arrays inside."""
-    if x.size > PARALLEL_MINIMUM_3D:
+    if x.size > STENCIL_PARALLEL_MINIMUM_3D:
         return _residual_uniform_parallel(total, weight, x, b, r, diagonal, weights_x,
                                           weights_y, weights_z, box)
     return _residual_uniform_serial(total, weight, x, b, r, diagonal, weights_x, weights_y,
@@ -576,7 +582,7 @@ _apply_dot_serial, _apply_dot_parallel = serial_and_parallel(_make_apply_dot,
 @njit(cache=True)
 def apply_dot_kernel_3d(diagonal, weights_x, weights_y, weights_z, p, q):
     """``q = A p``; returns ``p . q``."""
-    if p.size > PARALLEL_MINIMUM_3D:
+    if p.size > STENCIL_PARALLEL_MINIMUM_3D:
         return _apply_dot_parallel(diagonal, weights_x, weights_y, weights_z, p, q)
     return _apply_dot_serial(diagonal, weights_x, weights_y, weights_z, p, q)
 
@@ -909,7 +915,7 @@ def sweep_kernel_3d(x, b, inverse, weights_x, weights_y, weights_z, weight, firs
     reads the arrays once instead of twice; the result is exactly that of the two half
     sweeps one after the other.
     """
-    if x.size > PARALLEL_MINIMUM_3D:
+    if x.size > STENCIL_PARALLEL_MINIMUM_3D:
         return _sweep_parallel(x, b, inverse, weights_x, weights_y, weights_z, weight, first,
                                from_zero, chunks, box)
     return _sweep_serial(x, b, inverse, weights_x, weights_y, weights_z, weight, first,
@@ -953,7 +959,7 @@ def restrict_residual_uniform_kernel_3d(x, b, total, weight, coarse_b, weights_x
                                         weights_z, box):
     """`restrict_residual_kernel_3d` for an operator whose weights all equal ``weight``
     outside ``box`` (`NO_BOX`: everywhere)."""
-    if x.size > PARALLEL_MINIMUM_3D:
+    if x.size > STENCIL_PARALLEL_MINIMUM_3D:
         return _restrict_uniform_parallel(x, b, total, weight, coarse_b, weights_x, weights_y,
                                           weights_z, box)
     return _restrict_uniform_serial(x, b, total, weight, coarse_b, weights_x, weights_y,
@@ -1001,7 +1007,7 @@ def apply_dot_uniform_kernel_3d(total, weight, p, q, diagonal, weights_x, weight
                                 weights_z, box):
     """`apply_dot_kernel_3d` for an operator whose weights all equal ``weight`` outside
     ``box`` (`NO_BOX`: everywhere), with its ``total = diagonal + sum of weights``."""
-    if p.size > PARALLEL_MINIMUM_3D:
+    if p.size > STENCIL_PARALLEL_MINIMUM_3D:
         return _apply_dot_uniform_parallel(total, weight, p, q, diagonal, weights_x,
                                            weights_y, weights_z, box)
     return _apply_dot_uniform_serial(total, weight, p, q, diagonal, weights_x, weights_y,
