@@ -43,6 +43,7 @@ from elastoflow.linalg._kernels3d import (
     residual_uniform_kernel_3d,
     restrict_residual_kernel_3d,
     restrict_residual_uniform_kernel_3d,
+    same_positive_pattern_kernel_3d,
     sweep_kernel_3d,
     step_jacobi_kernel_3d,
     step_kernel_3d,
@@ -175,6 +176,17 @@ class _Level:
                                         self.weights_z, coarse_b)
 
 
+def _same_pattern(old: Operator7Point, new: Operator7Point) -> bool:
+    """Whether two operators of one shape are positive at the same points, diagonal and
+    weights (arrays shared between them, rewritten in place, cannot be compared: no)."""
+    pairs = [(getattr(old, name), getattr(new, name))
+             for name in ("diagonal", "weights_x", "weights_y", "weights_z")]
+    if any(a is b or a.shape != b.shape for a, b in pairs):
+        return False
+    return all(bool(same_positive_pattern_kernel_3d(a, b)) if a.size else True
+               for a, b in pairs)
+
+
 def _level_shapes(shape: Shape3) -> list[Shape3]:
     """Halve every dimension (rounding up) until at most `_COARSEST_SIZE` points remain."""
     shapes = [shape]
@@ -225,7 +237,14 @@ class _Hierarchy3D:
         self.coarse = len(self.levels) == 1 or dominance < _SMOOTHER_ONLY_DOMINANCE
         if self.coarse:
             self._build()
-        self.null_space = self._analyse(operator, active, bool(all_have_diagonal))
+        previous, kept = self.operator, self.null_space
+        if (not all_have_diagonal and kept is not None and kept.labels is not None
+                and previous is not None and _same_pattern(previous, operator)):
+            # The same components as the last operator's (a body that moved within its
+            # cells: the open fractions changed, no face opened or closed): its labels hold.
+            self.null_space = _NullSpace3D(active, kept.labels, kept.singular, kept.count)
+        else:
+            self.null_space = self._analyse(operator, active, bool(all_have_diagonal))
         self.operator = operator
         return self.null_space
 

@@ -386,3 +386,32 @@ def test_an_assembled_operator_is_the_checked_one_and_wrong_shapes_are_refused()
     with pytest.raises(ValueError, match="values must be finite"):
         Operator7Point.assembled(arrays[0].astype(np.float32), arrays[1], arrays[2],
                                  np.full_like(arrays[3], np.nan))
+
+
+def test_the_components_are_kept_while_the_positive_pattern_holds() -> None:
+    # A body moving within its cells changes the open fractions, not which faces are open:
+    # the components (and the singular ones) of the last operator are reused; a face that
+    # closes makes them labelled afresh. The answers are those of a fresh solver.
+    shape = (10, 8, 9)
+    first = body_operator(shape, 6, (3, 7, 2, 6, 3, 7))
+    arrays = [first.diagonal, first.weights_x, first.weights_y, first.weights_z]
+    scaled = Operator7Point(*[a * 1.5 for a in arrays])
+    closed_weights = first.weights_y.copy()
+    closed_weights[4, 3, 4] = 0.0
+    closed = Operator7Point(first.diagonal.copy(), first.weights_x.copy(), closed_weights,
+                            first.weights_z.copy())
+    assert first.weights_y[4, 3, 4] > 0.0
+    rhs = np.random.default_rng(9).standard_normal(shape)
+    solver = PoissonSolverMGPCG3D(rtol=1e-10)
+    solver.solve(first, rhs)
+    hierarchy = solver._hierarchy(shape)
+    labels = hierarchy.null_space.labels
+    assert labels is not None  # not every point has a diagonal: the components were labelled
+    x, report = solver.solve(scaled, rhs)
+    assert report.converged and hierarchy.null_space.labels is labels
+    y, _ = PoissonSolverMGPCG3D(rtol=1e-10).solve(scaled, rhs)
+    np.testing.assert_allclose(x, y, rtol=0, atol=1e-9 * np.abs(y).max())
+    x, report = solver.solve(closed, rhs)
+    assert report.converged and hierarchy.null_space.labels is not labels
+    y, _ = PoissonSolverMGPCG3D(rtol=1e-10).solve(closed, rhs)
+    np.testing.assert_allclose(x, y, rtol=0, atol=1e-9 * np.abs(y).max())
