@@ -63,21 +63,9 @@ def _field_value(f, i, j, modes, values):
 
 @njit(cache=True, inline="always")
 def _sample(f, fx, fy, modes, values):
-    """Bilinear sample of ``f`` at index coordinates ``(fx, fy)`` with side ghosts."""
-    i0 = int(math.floor(fx))
-    j0 = int(math.floor(fy))
-    a = fx - i0
-    b = fy - j0
-    m, n = f.shape
-    if 0 <= i0 < m - 1 and 0 <= j0 < n - 1:
-        return _lerp(
-            _lerp(f[i0, j0], f[i0 + 1, j0], a), _lerp(f[i0, j0 + 1], f[i0 + 1, j0 + 1], a), b
-        )
-    c00 = _field_value(f, i0, j0, modes, values)
-    c10 = _field_value(f, i0 + 1, j0, modes, values)
-    c01 = _field_value(f, i0, j0 + 1, modes, values)
-    c11 = _field_value(f, i0 + 1, j0 + 1, modes, values)
-    return _lerp(_lerp(c00, c10, a), _lerp(c01, c11, a), b)
+    """Bilinear sample of ``f`` at index coordinates ``(fx, fy)`` with side ghosts: the
+    value of `_sample_and_range` (inlined, its unused range is compiled away)."""
+    return _sample_and_range(f, fx, fy, modes, values)[0]
 
 
 @njit(cache=True)

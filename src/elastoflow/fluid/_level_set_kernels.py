@@ -388,6 +388,18 @@ def _face_departure(u, v, i, j, axis, dt, h, inv_h, lx, ly, modes_u, values_u, m
     return xb * inv_h - 0.5, yb * inv_h
 
 
+@njit(cache=True)
+def _component(u, v, axis, h, modes_u, values_u, modes_v, values_v):
+    """Component ``axis`` (0: u, 1: v) with its side ghosts, and the constants
+    `_face_departure` takes: ``(f, modes, values, 1 / h, lx, ly)``."""
+    inv_h = 1.0 / h
+    lx = (u.shape[0] - 1) * h
+    ly = u.shape[1] * h
+    if axis == 0:
+        return u, modes_u, values_u, inv_h, lx, ly
+    return v, modes_v, values_v, inv_h, lx, ly
+
+
 # Beyond the nonzero values' hull of a row, this many rows and columns: the back-trace of a
 # face whose surroundings hold zeros stays on the face (nothing moves it) and reads the
 # values within one index of it; two keep a margin.
@@ -461,13 +473,9 @@ def advect_faces_forward_range(u, v, axis, dt, h, modes_u, values_u, modes_v, va
     of a dam break's air is still: the velocity is extrapolated 5 faces into it and zero
     beyond.
     """
-    f = u if axis == 0 else v
-    modes = modes_u if axis == 0 else modes_v
-    values = values_u if axis == 0 else values_v
+    f, modes, values, inv_h, lx, ly = _component(u, v, axis, h, modes_u, values_u, modes_v,
+                                                 values_v)
     m, n = f.shape
-    inv_h = 1.0 / h
-    lx = (u.shape[0] - 1) * h
-    ly = u.shape[1] * h
     for i in prange(m):
         still_row = air and _STILL_MARGIN <= i < m - _STILL_MARGIN
         begin, end = _moving_columns(low_u, high_u, low_v, high_v, i)
@@ -502,13 +510,9 @@ def maccormack_faces_backward_correct(u, v, axis, dt, h, modes_u, values_u, mode
     pass and a correction pass (the three-pass form before 2026-12-03), with one back-trace
     per point fewer and none at the fallback points. ``out`` may be ``low`` or ``high``
     (each point reads its own bounds first), not ``u``, ``v`` or ``forward``."""
-    f = u if axis == 0 else v
-    modes = modes_u if axis == 0 else modes_v
-    values = values_u if axis == 0 else values_v
+    f, modes, values, inv_h, lx, ly = _component(u, v, axis, h, modes_u, values_u, modes_v,
+                                                 values_v)
     m, n = f.shape
-    inv_h = 1.0 / h
-    lx = (u.shape[0] - 1) * h
-    ly = u.shape[1] * h
     for i in prange(m):
         for j in range(n):
             first = forward[i, j]

@@ -193,34 +193,6 @@ def _union(parent, a, b):
         parent[max(ra, rb)] = min(ra, rb)
 
 
-def _make_pattern_changes(loop):
-    def kernel(old, new):
-        m, n, l = old.shape
-        changes = 0
-        for i in loop(m):
-            plane = 0
-            for j in range(n):
-                for k in range(l):
-                    if (old[i, j, k] > 0.0) != (new[i, j, k] > 0.0):
-                        plane += 1
-            changes += plane
-        return changes
-    return kernel
-
-
-_pattern_changes_serial, _pattern_changes_parallel = serial_and_parallel(_make_pattern_changes)
-
-
-@njit(cache=True)
-def same_positive_pattern_kernel_3d(old, new):
-    """Whether ``old`` and ``new`` (same shape) are positive at the same points: two
-    operators whose diagonals and weights agree so have the same connected components and
-    the same singular ones (`label_components_kernel_3d`)."""
-    if old.size > PARALLEL_MINIMUM_3D:
-        return _pattern_changes_parallel(old, new) == 0
-    return _pattern_changes_serial(old, new) == 0
-
-
 @njit(cache=True)
 def label_components_kernel_3d(diagonal, weights_x, weights_y, weights_z, active, labels):
     """Label the connected components (through positive weights) of the active points.
