@@ -243,6 +243,7 @@ def build_simulation_3d(scene: Scene3D, *, steps: int | None = None,
     """
     from elastoflow.scenes._build import _monolithic, step_count, time_step
     from elastoflow.simulation import Simulation
+    from elastoflow.solid import WallContact
 
     available = _checks.available_memory()
     need = memory_estimate_3d(scene)
@@ -295,6 +296,8 @@ def build_simulation_3d(scene: Scene3D, *, steps: int | None = None,
                           force_relaxation=scene.coupling.force_relaxation,
                           coupling=(_monolithic(scene.coupling)
                                     if scene.coupling.scheme == "monolithic" else "explicit"),
-                          cfl_limit=scene.time.cfl_limit)
+                          cfl_limit=scene.time.cfl_limit,
+                          contact=(WallContact(friction=scene.coupling.wall_friction)
+                                   if scene.coupling.wall_contact else None))
     except (ValueError, ArithmeticError) as error:
         raise SceneError([f"time or coupling: {error}"], scene.source) from None

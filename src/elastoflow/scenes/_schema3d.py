@@ -313,12 +313,21 @@ class Coupling3DSpec(_Spec):
     """Monolithic scheme, "energy_momentum": objective numerical damping in units of dt."""
     newmark_gamma: Annotated[float, Field(ge=0.5, le=1.0)] = 0.55
     """Monolithic scheme, "newmark": Newmark's gamma."""
+    wall_contact: bool = True
+    """Bodies touching the domain's wall sides stop there, as the 2D key: nothing passes
+    through a wall (inflow and outflow sides have no contact). false: bodies pass through
+    the walls."""
+    wall_friction: Annotated[float, Field(ge=0.0, allow_inf_nan=False)] = 0.3
+    """Coulomb friction coefficient between bodies and walls (0: frictionless)."""
 
     @model_validator(mode="after")
     def _scheme_keys(self) -> Coupling3DSpec:
         if self.scheme == "monolithic" and self.force_relaxation != 1.0:
             raise ValueError("force_relaxation stabilises the explicit scheme only; with "
                              "scheme = \"monolithic\" leave it out")
+        if not self.wall_contact and "wall_friction" in self.model_fields_set:
+            raise ValueError("wall_friction needs wall_contact = true (friction acts only "
+                             "where a body touches a wall)")
         return self
 
 

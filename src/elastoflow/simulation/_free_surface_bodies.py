@@ -45,12 +45,15 @@ from elastoflow.solid import MidpointFem, NewmarkFem
 
 def level_set_at(grid: Grid2D, level_set: np.ndarray, points: np.ndarray) -> np.ndarray:
     """The cell-centred ``level_set`` [m] (nx, ny) interpolated bilinearly at ``points`` [m]
-    (P, 2); points beyond the outer cell centres take the nearest edge's values."""
+    (P, 2); between the outer cell centres and the domain's sides, extrapolated linearly
+    from the last two centres (a body lying on the floor is half a cell deeper than the
+    lowest centres: held at their value, its buoyancy came out 10 % short); points
+    outside the domain take its sides' values."""
     nx, ny = level_set.shape
-    x = np.clip(points[:, 0] / grid.h - 0.5, 0.0, nx - 1.0)
-    y = np.clip(points[:, 1] / grid.h - 0.5, 0.0, ny - 1.0)
-    i = np.minimum(np.floor(x).astype(np.int64), nx - 2)
-    j = np.minimum(np.floor(y).astype(np.int64), ny - 2)
+    x = np.clip((points[:, 0] - grid.origin[0]) / grid.h - 0.5, -0.5, nx - 0.5)
+    y = np.clip((points[:, 1] - grid.origin[1]) / grid.h - 0.5, -0.5, ny - 0.5)
+    i = np.clip(np.floor(x).astype(np.int64), 0, nx - 2)
+    j = np.clip(np.floor(y).astype(np.int64), 0, ny - 2)
     fx, fy = x - i, y - j
     return ((1 - fx) * (1 - fy) * level_set[i, j] + fx * (1 - fy) * level_set[i + 1, j]
             + (1 - fx) * fy * level_set[i, j + 1] + fx * fy * level_set[i + 1, j + 1])

@@ -376,7 +376,7 @@ def implicit_integrator(gamma: float | None, integrator: MidpointFem | NewmarkFe
     return EnergyMomentumFem(DEFAULT_NUMERICAL_DAMPING) if gamma is None else NewmarkFem(gamma)
 
 
-def wall_holds(model: CoupledModel, state_in: CoupledState, dt: float
+def wall_holds(model: CoupledModel | CoupledModel3D, state_in: CoupledState, dt: float
                ) -> list[WallHold | None]:
     """Per body, the node components resting on a wall and pressing on it at the step's start
     (`elastoflow.solid.wall_hold`), or None (no contact, or no node on a wall). The press is
@@ -422,7 +422,7 @@ def implicit_predictor(fem: MidpointFem | NewmarkFem, model: CoupledModel,
     return responses, [1] * len(model.bodies)
 
 
-def project_onto_walls(model: CoupledModel, state_out: CoupledState,
+def project_onto_walls(model: CoupledModel | CoupledModel3D, state_out: CoupledState,
                        holds: Sequence[WallHold | None]) -> None:
     """Put the bodies' nodes that ended the step beyond a wall back onto it (inelastic, with
     the model's Coulomb friction, also on the held components). Friction changes the

@@ -6,6 +6,11 @@ classification (`interior_boundary_3d`) from the bodies' current state, the 3D f
 in the order of `FluidSolver3D.step`, the traction on the surface triangles
 (`force_traction_3d`) and `ExplicitFem` substeps of each body under that force.
 
+Both take the model's wall contact (`CoupledModel3D.contact`) as the 2D schemes do: the
+explicit substeps put nodes beyond a wall back onto it; the monolithic step holds the node
+components resting on a wall inside the bodies' implicit step (so the coupled pressure solve
+sees a body that cannot move into the wall) and projects after it.
+
 `MonolithicCoupling3D` is `MonolithicCoupling` on the same parts: the pressure solve sees the
 bodies' inertia through the 3D interface flux (`interface_flux_3d`), so that bodies lighter
 than the fluid they displace are stable.
@@ -14,7 +19,7 @@ than the fluid they displace are stable.
 from __future__ import annotations
 
 import time as _time
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from typing import TYPE_CHECKING, Literal
 
@@ -28,14 +33,23 @@ from elastoflow.simulation._state import CoupledModel3D, CoupledState, StepBound
 from elastoflow.simulation._schemes import (
     finish_step,
     implicit_integrator,
+    project_onto_walls,
     take_pressure_answer,
+    wall_holds,
 )
-from elastoflow.solid import ElasticBody3D, ExplicitFem, MidpointFem, NewmarkFem
+from elastoflow.solid import (
+    ElasticBody3D,
+    ExplicitFem,
+    MidpointFem,
+    NewmarkFem,
+    WallHold,
+    hold_response,
+)
 
 if TYPE_CHECKING:
     from elastoflow.coupling import InterfaceFlux3D
     from elastoflow.fluid import CoupledBodies, InteriorBoundary3D
-    from elastoflow.solid import StepResponse
+    from elastoflow.solid import HeldResponse, StepResponse
 
 State3D = CoupledState[FluidState3D, StepBoundary3D]
 
@@ -208,6 +222,8 @@ class ExplicitCoupling3D:
         substeps: list[int] = []
         with run.timed("solid"):
             offsets = run.offsets
+            walls = None if model.contact is None else model.wall_box()
+            friction = 0.0 if model.contact is None else model.contact.friction
             for index, body in enumerate(model.bodies):
                 body_in, body_out = state_in.bodies[index], state_out.bodies[index]
                 force = nodal_force[offsets[index]:offsets[index + 1]]
@@ -218,7 +234,8 @@ class ExplicitCoupling3D:
                 state_out.previous_velocities[index][...] = body_in.velocities
                 with run.body_checked(index):
                     report = self.fem.advance(body, body_in, body_out, run.dt, force,
-                                              step=run.next_step)
+                                              step=run.next_step, walls=walls,
+                                              friction=friction)
                 substeps.append(int(report.substeps))
         return substeps
 
@@ -268,7 +285,8 @@ class MonolithicCoupling3D:
             held = _held_force(model, boundary, flux, run.out)
         run.fluid_phases(boundary.interior)
         with run.timed("solid"):
-            responses, predicted = self._predict(run, boundary, held)
+            holds = wall_holds(model, state_in, dt)
+            responses, predicted = self._predict(run, boundary, held, holds)
         with run.timed("pressure"):
             coupled = PressureCoupledBodies(
                 flux, predicted, responses, run.offsets[:len(model.bodies) + 1].tolist(),
@@ -278,29 +296,34 @@ class MonolithicCoupling3D:
         with run.timed("solid"):
             take_pressure_answer(model.bodies, state_out, run.offsets, predicted, coupled, held,
                                  dt, run.where)
+            project_onto_walls(model, state_out, holds)
         run.check_fluid()
         return run.finish(boundary, solve, [1] * len(model.bodies))
 
-    def _predict(self, run: _Step3D, boundary: StepBoundary3D, held: np.ndarray
-                 ) -> tuple[list[StepResponse], np.ndarray]:
+    def _predict(self, run: _Step3D, boundary: StepBoundary3D, held: np.ndarray,
+                 holds: Sequence[WallHold | None]
+                 ) -> tuple[list[StepResponse | HeldResponse], np.ndarray]:
         """Each body's implicit step under ``held`` without the pressure (into
-        ``state_out``); its response to a nodal force, and every surface point's velocity
-        over the step for the flux balance (the bodies' mean velocity, the obstacles'
-        prescribed one)."""
+        ``state_out``), its components in ``holds`` kept on their walls; its response to a
+        nodal force (held there too), and every surface point's velocity over the step for
+        the flux balance (the bodies' mean velocity, the obstacles' prescribed one)."""
         model, state_in, state_out, dt = run.model, run.state_in, run.state_out, run.dt
         fluid, grid, offsets = model.fluid, model.grid, run.offsets
         dampings = [_viscous_damping(body, body_state.positions,
                                      fluid.density * fluid.viscosity, grid.h)
                     if fluid.viscosity > 0.0 else None
                     for body, body_state in zip(model.bodies, state_in.bodies, strict=True)]
-        responses = [self.fem.response(body, body_state, dt, damping)
-                     for body, body_state, damping
-                     in zip(model.bodies, state_in.bodies, dampings, strict=True)]
+        responses = [hold_response(self.fem.response(body, body_state, dt, damping),
+                                   None if hold is None else hold.held)
+                     for body, body_state, damping, hold
+                     in zip(model.bodies, state_in.bodies, dampings, holds, strict=True)]
         for index, body in enumerate(model.bodies):
+            hold = holds[index]
             with run.body_checked(index):
                 self.fem.advance(body, state_in.bodies[index], state_out.bodies[index], dt,
                                  held[offsets[index]:offsets[index + 1]], responses[index],
-                                 step=run.next_step, nodal_damping=dampings[index])
+                                 step=run.next_step, nodal_damping=dampings[index],
+                                 hold=None if hold is None else hold.held)
         predicted = np.array(boundary.boundary_map.velocities)
         for index in range(len(model.bodies)):
             lo, hi = offsets[index], offsets[index + 1]

@@ -83,7 +83,7 @@ class Simulation:
             (nx, ny), liquid where negative (required then, refused otherwise).
         contact: The bodies' contact with the domain's wall sides
             (`elastoflow.solid.WallContact`, default: on, friction 0.3), or None for none
-            (2D; 3D bodies have no wall contact yet).
+            (2D and 3D).
     """
 
     def __init__(
@@ -120,7 +120,7 @@ class Simulation:
         if isinstance(grid, Grid3D):
             self._set_up_3d(grid, fluid_solver, state, bodies, obstacles, substeps,
                             force_model, force_relaxation, added_mass, coupling, boundary,
-                            level_set)
+                            level_set, contact)
             return
         if not isinstance(fluid_solver, FluidSolver):
             raise ValueError(f"fluid_solver = {type(fluid_solver).__name__}: a 2D grid needs "
@@ -172,7 +172,7 @@ class Simulation:
                    obstacles: Sequence[Obstacle | Obstacle3D],
                    substeps: int | Literal["auto"], force_model: str, force_relaxation: float,
                    added_mass: float, coupling: object, boundary: object,
-                   level_set: np.ndarray | None) -> None:
+                   level_set: np.ndarray | None, contact: WallContact | None) -> None:
         """The 3D model and scheme; what 3D does not have yet is refused in one line."""
         if not isinstance(fluid_solver, FluidSolver3D):
             raise ValueError(f"fluid_solver = {type(fluid_solver).__name__}: a 3D grid needs "
@@ -216,7 +216,8 @@ class Simulation:
                              "scheme needs none (it must be 1)")
         model = CoupledModel3D(grid, fluid_solver,
                                tuple(b for b in bodies if isinstance(b, ElasticBody3D)),
-                               tuple(o for o in obstacles if isinstance(o, Obstacle3D)))
+                               tuple(o for o in obstacles if isinstance(o, Obstacle3D)),
+                               contact)
         self.model = model
         self.scheme = scheme
         self.state = model.state(state)

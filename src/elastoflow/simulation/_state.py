@@ -15,7 +15,7 @@ names each array by its path (``fluid.velocity_x``, ``bodies.0.positions``), and
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from typing import Any, Generic, TypeVar
 
@@ -38,6 +38,7 @@ from elastoflow.fluid import (
     InteriorBoundary3D,
     WallFreeSlip,
     WallMoving,
+    WallMoving3D,
     WallNoSlip,
 )
 from elastoflow.grid import Grid2D, Grid3D
@@ -288,12 +289,7 @@ class CoupledModel:
         """The walls the bodies touch: the grid's box, the fluid's wall sides (`WallNoSlip`,
         `WallFreeSlip`, `WallMoving`; not `Inflow`, `Outflow`)."""
         grid = self.grid
-        lower = (float(grid.origin[0]), float(grid.origin[1]))
-        upper = (lower[0] + grid.lx, lower[1] + grid.ly)
-        sides = self.fluid.boundaries.sides()
-        walls = tuple(isinstance(side, WallNoSlip | WallFreeSlip | WallMoving)
-                      for side in sides)
-        return WallBox(lower, upper, (walls[0], walls[1], walls[2], walls[3]))
+        return _wall_box(grid.origin, (grid.lx, grid.ly), self.fluid.boundaries.sides())
 
     @property
     def has_boundaries(self) -> bool:
@@ -350,12 +346,22 @@ class CoupledModel3D:
         fluid: The 3D fluid solver.
         bodies: The elastic bodies' models (tetrahedral meshes).
         obstacles: Static or prescribed-motion obstacles (closed surfaces).
+        contact: The bodies' contact with the domain's walls, as `CoupledModel.contact`
+            (both 3D schemes apply it).
     """
 
     grid: Grid3D
     fluid: FluidSolver3D
     bodies: tuple[ElasticBody3D, ...] = ()
     obstacles: tuple[Obstacle3D, ...] = ()
+    contact: WallContact | None = WallContact()
+
+    def wall_box(self) -> WallBox:
+        """The walls the bodies touch: the grid's box, the fluid's wall sides (`WallNoSlip`,
+        `WallFreeSlip`, `WallMoving3D`; not `Inflow`, `Outflow`)."""
+        grid = self.grid
+        return _wall_box(grid.origin, (grid.lx, grid.ly, grid.lz),
+                         self.fluid.boundaries.sides())
 
     @property
     def has_boundaries(self) -> bool:
@@ -398,6 +404,17 @@ class CoupledModel3D:
             np.ascontiguousarray(np.concatenate(triangles), dtype=np.int64),
             np.concatenate(owner),
         )
+
+
+def _wall_box(origin: Sequence[float], lengths: Sequence[float], sides: Sequence[object]
+              ) -> WallBox:
+    """The box from ``origin`` with side ``lengths`` [m] whose wall ``sides`` (two per axis,
+    the fluid's side conditions) bodies touch."""
+    lower = tuple(float(c) for c in origin)
+    upper = tuple(lo + float(length) for lo, length in zip(lower, lengths, strict=True))
+    walls = tuple(isinstance(side, WallNoSlip | WallFreeSlip | WallMoving | WallMoving3D)
+                  for side in sides)
+    return WallBox(lower, upper, walls)
 
 
 def _initial_state(fluid: FluidT, bodies: list[BodyState]) -> CoupledState[FluidT, Any]:

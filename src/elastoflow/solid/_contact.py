@@ -1,4 +1,4 @@
-"""Contact of 2D bodies with the domain's walls: nothing passes through the box.
+"""Contact of bodies (2D and 3D) with the domain's walls: nothing passes through the box.
 
 Two parts, both per node (`elastoflow.solid._contact_kernels`):
 
@@ -14,7 +14,8 @@ Two parts, both per node (`elastoflow.solid._contact_kernels`):
 * **Projection** (Bridson, Fedkiw & Anderson 2002's inelastic collision impulse, per node,
   after the step): a node that ended the step beyond a wall is put back onto it and loses
   its velocity into the wall; its tangential velocity loses at most ``friction`` times the
-  normal velocity change (Coulomb), also on held components (by their reaction's impulse).
+  normal velocity change (Coulomb; in 3D the velocity in the wall's plane keeps its
+  direction), also on held components (by their reaction's impulse).
   The box is convex, so a node inside at both ends of a step never crossed a wall.
 
 The explicit substeps (`ExplicitFem`) take the projection after every substep instead.
@@ -54,22 +55,36 @@ class WallContact:
 
 @dataclass(frozen=True)
 class WallBox:
-    """The walls a body may touch: sides of the box ``lower``..``upper`` [m].
+    """The walls a body may touch: sides of the box ``lower``..``upper`` [m], in 2D or 3D.
 
     Attributes:
-        lower: (x0, y0) [m].
-        upper: (x1, y1) [m].
-        sides: Which sides are walls: (left, right, bottom, top).
+        lower: (x0, y0[, z0]) [m].
+        upper: (x1, y1[, z1]) [m].
+        sides: Which sides are walls, two per axis: (left, right, bottom, top[, back,
+            front]).
     """
 
-    lower: tuple[float, float]
-    upper: tuple[float, float]
-    sides: tuple[bool, bool, bool, bool]
+    lower: tuple[float, ...]
+    upper: tuple[float, ...]
+    sides: tuple[bool, ...]
+
+    def __post_init__(self) -> None:
+        if len(self.lower) not in (2, 3) or len(self.upper) != len(self.lower):
+            raise ValueError(f"lower = {self.lower!r}, upper = {self.upper!r}: must be two "
+                             "or three coordinates each, as many in both")
+        if len(self.sides) != 2 * len(self.lower):
+            raise ValueError(f"sides = {self.sides!r}: must be {2 * len(self.lower)} "
+                             "flags, two per axis")
+
+    @property
+    def dimension(self) -> int:
+        """2 or 3."""
+        return len(self.lower)
 
     @property
     def size(self) -> float:
-        """The box's larger side [m]."""
-        return max(self.upper[0] - self.lower[0], self.upper[1] - self.lower[1])
+        """The box's largest side [m]."""
+        return max(hi - lo for lo, hi in zip(self.lower, self.upper, strict=True))
 
     @property
     def tolerance(self) -> float:
@@ -82,7 +97,7 @@ class WallBox:
                 np.array(self.sides, dtype=np.bool_))
 
     def near(self, positions: np.ndarray, margin: float = 0.0) -> bool:
-        """Whether a node of ``positions`` (n, 2) lies within ``margin`` [m] of a wall."""
+        """Whether a node of ``positions`` (n, d) lies within ``margin`` [m] of a wall."""
         lower, upper, sides = self.arrays()
         return bool(near_walls(np.ascontiguousarray(positions, dtype=np.float64), lower, upper,
                                sides, float(margin) + self.tolerance))
@@ -93,8 +108,8 @@ class WallHold:
     """The node components held on a wall over one step.
 
     Attributes:
-        held: (n, 2) bool, component a of node i held at its start position.
-        impulse: (n, 2) [m/s], the wall's reaction over the step per unit mass on held
+        held: (n, d) bool, component a of node i held at its start position.
+        impulse: (n, d) [m/s], the wall's reaction over the step per unit mass on held
             components (what friction is bounded by), 0 elsewhere.
         count: Number of held components.
     """
@@ -111,16 +126,18 @@ def wall_hold(box: WallBox, positions: np.ndarray, velocities: np.ndarray,
 
     Args:
         box: The walls.
-        positions, velocities: The body's state at the step's start, (n, 2).
-        forces: The nodes' total force estimate [N/m] (n, 2): internal, gravity and the
-            fluid's last force; its sign on a wall's normal decides press or release.
-        mass: Lumped nodal masses [kg/m] (n,).
+        positions, velocities: The body's state at the step's start, (n, d).
+        forces: The nodes' total force estimate [N/m; N in 3D] (n, d): internal, gravity
+            and the fluid's last force; its sign on a wall's normal decides press or release.
+        mass: Lumped nodal masses [kg/m; kg in 3D] (n,).
         fixed_mask: The body's fixed nodes (n,).
         dt: The step [s].
     """
-    n = positions.shape[0]
-    held = np.zeros((n, 2), dtype=np.bool_)
-    impulse = np.zeros((n, 2))
+    if positions.shape[1] != box.dimension:
+        raise ValueError(f"positions of shape {positions.shape}: the walls are "
+                         f"{box.dimension}D")
+    held = np.zeros(positions.shape, dtype=np.bool_)
+    impulse = np.zeros(positions.shape)
     lower, upper, sides = box.arrays()
     count = select_held(np.ascontiguousarray(positions, dtype=np.float64),
                         np.ascontiguousarray(velocities, dtype=np.float64),
@@ -135,6 +152,9 @@ def project_onto_box(box: WallBox, positions: np.ndarray, velocities: np.ndarray
                      impulse: np.ndarray | None = None) -> int:
     """Move the nodes beyond a wall onto it in place (`project_onto_walls`); returns how
     many components moved. ``impulse``: the held components' reaction (`WallHold`)."""
+    if positions.shape[1] != box.dimension:
+        raise ValueError(f"positions of shape {positions.shape}: the walls are "
+                         f"{box.dimension}D")
     lower, upper, sides = box.arrays()
     if impulse is None:
         impulse = np.zeros_like(positions)
@@ -154,8 +174,8 @@ class HeldResponse:
     block on the touched degrees of freedom).
 
     Args:
-        base: The unconstrained response.
-        held: (n, 2) bool, the held components.
+        base: The unconstrained response (2D or 3D).
+        held: (n, d) bool, the held components.
     """
 
     def __init__(self, base: StepResponse, held: np.ndarray) -> None:
@@ -165,6 +185,7 @@ class HeldResponse:
         self.held = np.intersect1d(flat_held, base.free).astype(np.int64)
         self.free = np.setdiff1d(base.free, self.held).astype(np.int64)
         self._size = held.size
+        self._dimension = held.shape[1]
         k = self.held.shape[0]
         # G = A^-1 P (full degrees of freedom x k) by k solves with the base factor.
         columns = np.zeros((self._size, k))
@@ -179,16 +200,16 @@ class HeldResponse:
         self._columns = columns
 
     def solve(self, values: np.ndarray) -> np.ndarray:
-        """``A_c^-1 values`` for nodal values (n, 2); 0 on held and fixed components."""
+        """``A_c^-1 values`` for nodal values (n, d); 0 on held and fixed components."""
         result = self.base.solve(values).reshape(-1)
         if self.held.size:
             result -= self._columns @ linalg.cho_solve(self._schur, result[self.held],
                                                        check_finite=False)
             result[self.held] = 0.0
-        return result.reshape(-1, 2)
+        return result.reshape(-1, self._dimension)
 
     def velocity_change(self, forces: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
-        """``dv`` [m/s], shape (n, 2), answering nodal ``forces`` [N/m] held over ``dt``."""
+        """``dv`` [m/s], shape (n, d), answering nodal ``forces`` held over ``dt``."""
         change = self.dt * self.solve(forces)
         if out is None:
             return change
@@ -196,7 +217,7 @@ class HeldResponse:
         return out
 
     def compliance(self, dofs: np.ndarray) -> np.ndarray:
-        """``dt A_c^-1`` on ``dofs`` (``2 node + component``), dense, symmetric."""
+        """``dt A_c^-1`` on ``dofs`` (``d node + component``), dense, symmetric."""
         dofs = np.asarray(dofs, dtype=np.int64)
         if not self.held.size:
             return self.base.compliance(dofs)
@@ -222,7 +243,7 @@ class HeldResponse:
 
 def hold_response(response: StepResponse, held: np.ndarray | None
                   ) -> StepResponse | HeldResponse:
-    """``response`` with the components ``held`` (n, 2) held, or itself when none are."""
+    """``response`` with the components ``held`` (n, d) held, or itself when none are."""
     if held is None or not held.any():
         return response
     return HeldResponse(response, held)

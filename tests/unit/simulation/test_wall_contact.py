@@ -95,9 +95,29 @@ def test_free_surface_box_on_the_floor_rests_under_the_water():
                             level_set=fluid.level_set_below(grid, 0.16))
     speeds = _rest_on_the_floor(simulation)
     assert speeds[-1] < 1e-3
+    # The water's force on it is its buoyancy, rho g V = 196.2 N/m, the bottom edge's depth
+    # read down to the floor (read at the lowest cell centres, half a cell higher, it was
+    # 176.3 N/m).
+    force = simulation.state.body_forces[0].sum(axis=0)
+    assert abs(force[0]) < 0.01
+    assert force[1] == pytest.approx(1000.0 * 9.81 * 0.2 * 0.1, rel=0.005)
 
 
 @pytest.mark.parametrize("friction", [-1.0, float("nan")])
 def test_simulation_refuses_bad_friction(friction):
     with pytest.raises(ValueError, match="friction"):
         solid.WallContact(friction=friction)
+
+
+def test_level_set_is_read_linearly_out_to_the_domain_sides():
+    """A linear level set is read exactly anywhere in the domain, up to its sides and with the
+    grid's origin away from zero; beyond the sides it takes the sides' values."""
+    from elastoflow.simulation._free_surface_bodies import level_set_at
+
+    grid = Grid2D(nx=6, ny=4, h=0.1, origin=(-0.3, 1.0))
+    x, y = grid.cell_centers()
+    phi = 0.3 * x - (y - 1.25)
+    points = np.array([[-0.3, 1.0], [0.3, 1.4], [0.0, 1.2], [-0.25, 1.05], [0.5, 0.8]])
+    exact = 0.3 * points[:, 0] - (points[:, 1] - 1.25)
+    exact[-1] = 0.3 * 0.3 - (1.0 - 1.25)  # outside: the corner's value
+    assert level_set_at(grid, phi, points) == pytest.approx(exact, abs=1e-12)

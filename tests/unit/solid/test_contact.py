@@ -136,3 +136,68 @@ def test_body_on_the_floor_held_by_the_implicit_step_stays_on_it_at_rest():
     assert np.all(np.diff(energies) <= 1e-13 * abs(energies[0]))
     assert energies[-1] < energies[0]
     assert state.positions[:, 1].min() == 0.0
+
+
+# -- 3D: the same kernels on (n, 3) nodal arrays ----------------------------------------------
+
+BOX_3D = WallBox((0.0, 0.0, 0.0), (1.0, 2.0, 1.5), (True,) * 6)
+
+
+def test_3d_node_beyond_each_side_is_put_back_and_loses_its_normal_velocity():
+    positions = np.array([[-0.1, 1.0, 0.5], [1.1, 1.0, 0.5], [0.5, -0.1, 0.5],
+                          [0.5, 2.1, 0.5], [0.5, 1.0, -0.1], [0.5, 1.0, 1.6],
+                          [1.2, -0.3, 1.7], [0.5, 1.0, 0.7]])
+    velocities = np.array([[-1.0, 0.2, 0.3], [1.0, 0.2, 0.3], [0.2, -1.0, 0.3],
+                           [0.2, 1.0, 0.3], [0.2, 0.3, -1.0], [0.2, 0.3, 1.0],
+                           [1.0, -1.0, 1.0], [0.4, -0.5, 0.6]])
+    moved = project_onto_box(BOX_3D, positions, velocities, np.zeros(8, bool), 0.0, 0.5)
+    assert moved == 9  # the corner node counts once per wall
+    assert positions.tolist() == [[0.0, 1.0, 0.5], [1.0, 1.0, 0.5], [0.5, 0.0, 0.5],
+                                  [0.5, 2.0, 0.5], [0.5, 1.0, 0.0], [0.5, 1.0, 1.5],
+                                  [1.0, 0.0, 1.5], [0.5, 1.0, 0.7]]
+    assert velocities.tolist() == [[0.0, 0.2, 0.3], [0.0, 0.2, 0.3], [0.2, 0.0, 0.3],
+                                   [0.2, 0.0, 0.3], [0.2, 0.3, 0.0], [0.2, 0.3, 0.0],
+                                   [0.0, 0.0, 0.0], [0.4, -0.5, 0.6]]
+
+
+def test_3d_friction_shortens_the_velocity_in_the_walls_plane_keeping_its_direction():
+    # Floor: normal change 1; friction 0.3 takes 0.3 off the length 0.5 of (0.3, 0, -0.4).
+    positions = np.array([[0.5, -0.01, 0.5], [0.5, -0.01, 0.5]])
+    velocities = np.array([[0.3, -1.0, -0.4], [0.03, -1.0, 0.04]])
+    project_onto_box(BOX_3D, positions, velocities, np.zeros(2, bool), 0.3, 0.5)
+    assert velocities[0] == pytest.approx([0.12, 0.0, -0.16], abs=1e-15)
+    assert positions[0] == pytest.approx([0.5 - 0.5 * 0.18, 0.0, 0.5 + 0.5 * 0.24], abs=1e-15)
+    assert velocities[1].tolist() == [0.0, 0.0, 0.0]  # stuck: friction exceeds |v_t|
+    # The held reaction counts too, on a node that did not cross.
+    positions = np.array([[0.5, 0.0, 0.5]])
+    velocities = np.array([[0.0, 0.0, 0.5]])
+    impulse = np.array([[0.0, 1.0, 0.0]])
+    project_onto_box(BOX_3D, positions, velocities, np.zeros(1, bool), 0.3, 0.0, impulse)
+    assert velocities[0] == pytest.approx([0.0, 0.0, 0.2], abs=1e-15)
+
+
+def test_3d_hold_marks_pressing_components_on_any_wall():
+    positions = np.array([[0.5, 0.0, 0.5], [0.5, 0.0, 0.5], [0.5, 1.0, 1.5],
+                          [0.5, 1.0, 0.7]])
+    velocities = np.zeros((4, 3))
+    forces = np.array([[1.0, -2.0, 0.0], [0.0, 2.0, 0.0], [0.0, 0.0, 3.0],
+                       [0.0, -1.0, 0.0]])
+    mass = np.array([1.0, 1.0, 2.0, 1.0])
+    hold = wall_hold(BOX_3D, positions, velocities, forces, mass, np.zeros(4, bool), 0.1)
+    assert hold.count == 2
+    assert hold.held.tolist() == [[False, True, False], [False, False, False],
+                                  [False, False, True], [False, False, False]]
+    assert hold.impulse[0, 1] == pytest.approx(0.2) and hold.impulse[2, 2] == pytest.approx(0.15)
+
+
+def test_2d_walls_refuse_3d_nodes_and_boxes_check_their_sizes():
+    with pytest.raises(ValueError, match="3D"):
+        wall_hold(BOX_3D, np.zeros((1, 2)), np.zeros((1, 2)), np.zeros((1, 2)), np.ones(1),
+                  np.zeros(1, bool), 0.1)
+    with pytest.raises(ValueError, match="2D"):
+        project_onto_box(BOX, np.zeros((1, 3)), np.zeros((1, 3)), np.zeros(1, bool), 0.0, 0.0)
+    with pytest.raises(ValueError, match="sides"):
+        WallBox((0.0, 0.0, 0.0), (1.0, 1.0, 1.0), (True,) * 4)
+    assert BOX_3D.size == 2.0 and BOX_3D.dimension == 3
+    assert BOX_3D.near(np.array([[0.5, 1.0, 1.49]]), 0.02)
+    assert not BOX_3D.near(np.array([[0.5, 1.0, 1.4]]), 0.02)
