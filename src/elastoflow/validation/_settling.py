@@ -146,7 +146,7 @@ def plot_settling(runs: list[SettlingRun], path: Path) -> None:
         left.plot(run.times, run.speeds, label=label)
         right.plot(run.times, run.gaps / DIAMETER, label=label)
     left.axhline(U_MAX_MEASURED, color="k", linestyle="--", label="ten Cate u_max (0.036)")
-    left.set_ylim(0.0, 0.08)
+    left.set_ylim(-0.06, 0.08)  # negative: upwards (a sphere chattering on the floor)
     left.axhline(U_INFINITE, color="grey", linestyle=":", label="u_inf (Abraham, 0.038)")
     left.set_xlabel("t [s]")
     left.set_ylabel("settling speed [m/s]")
