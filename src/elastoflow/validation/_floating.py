@@ -216,22 +216,20 @@ holds water on one side). The sinking box's start, 2.6-2.7 m/s^2, means an added
 about 31 kg/m, that of a flat plate of the box's width (pi rho (W/2)^2 = 31.4 kg/m); it then
 rests on the floor (wall contact, docs/method_notes.md item 15).
 
-A known fault: a box of density 0.3 released 5 cm under the surface (H/h = 10) rises through
-it and bobs, but keeps a film of water about one cell thick on its top (still there at
-1.4 s, where it should drain off in a few tenths of a second): the film hardly drains at
-this resolution. Reading the values beside the box held constant across it (the extension
-now used) instead of the harmonic one changed nothing (64 against 73 liquid cells inside the
-box above the surface at 1.4 s), so the cells above the box are not refilled from inside it.
-At 1.0 s (rerun 2026-12-03) the film is 1.4 cells thick and uniform across the box, which
-still rises at 0.08-0.11 m/s; it spreads outwards at up to 0.1 m/s (nu = 1e-3) or 0.16 m/s
-(nu = 1e-6) at the box's edges and thins by about 2 cm/s: it drains, if slower than a
-free gravity current would. At 1.4 s the film over the box's
-middle is two cells (1.5 cm) thick, active in the pressure solve and hydrostatic there (131 Pa
-at 1.3 cm depth) and spreads outwards at up to 0.04 m/s 5 cells from the middle: it drains,
-slowly. Not the viscosity: with water's (1e-6 m^2/s instead of 1e-3) the film is the same
-(70 liquid cells inside the box above the surface at 1.4 s). Cause not found.
-A box dropped in from above stays dry on top (the tests); the `floating` scene's disc, which
-plunges under before it comes back up, may carry such a film."""
+A box of density 0.3 released 5 cm under the surface rises through it and carries a layer of
+water on its top, which then runs off both edges. Earlier pages called the layer a fault
+("should drain off in a few tenths of a second"). Measured (2026-12-03, H/h = 10, area of
+the layer over the box per metre of depth; `/tmp` script, not a library command): 5.3e-3 m^2
+(2.6 cm deep) when the top clears the surface at 0.4 s, 3.0e-3 m^2 at 0.9 s, 0.9e-3 m^2
+(4 mm) at 1.3 s, before the bobbing box dips and wets its top again. Over 0.4-0.9 s that is
+4.5e-3 m^2/s off the two edges (nu = 1e-6 instead of 1e-3: 4.8e-3; H/h = 20: 3.7e-3). A
+layer ending at an edge drains as a dam break over a dry bed: the flow at the edge is
+critical, depth 4/9 h0 at speed 2/3 sqrt(g h0), flux (8/27) sqrt(g) h0^(3/2) per edge
+(Ritter); with the layer's mean depth over that half second, 2.0 cm, that is 5.3e-3
+m^2/s for the two edges, and the layer would take about 1.7 s to thin from 2.6 cm to 5 mm
+at that flux. The layer here drains at 70-90 % of that flux and thins to 4 mm in 0.9 s (the
+box's bobbing helps): its slow drainage is the physics of a thin layer on a flat top, not a
+fault. A box dropped in from above stays dry on top (the tests)."""
 
 
 def sinking_acceleration(run: FloatingRun, duration: float = 0.05) -> float:
