@@ -52,9 +52,18 @@ class TipRun:
 
     @property
     def peak(self) -> tuple[float, float]:
-        """The largest x displacement [m] and its time [s]."""
-        index = int(np.argmax(self.displacements[:, 0]))
-        return float(self.displacements[index, 0]), float(self.times[index])
+        """The first swing's largest x displacement [m] and its time [s]. The first swing
+        ends where the displacement falls below half its largest value so far, once that
+        value is a fifth of the run's largest (before the surge arrives the body only
+        quivers): later swings, driven by the splash thrown back from the far wall (which
+        differs from grid to grid), can be larger and would otherwise take the peak's
+        place."""
+        x = self.displacements[:, 0]
+        highest = np.maximum.accumulate(x)
+        fallen = np.flatnonzero((highest >= 0.2 * x.max()) & (x < 0.5 * highest))
+        end = int(fallen[0]) if fallen.size else x.shape[0]
+        index = int(np.argmax(x[:end]))
+        return float(x[index]), float(self.times[index])
 
     @property
     def area_change(self) -> float:
@@ -181,8 +190,12 @@ the two finest grids (peak 36.9 and 37.1 mm at 0.11-0.12 s, the tip 10.9 mm up),
 first bending under the surge converges the same way (peak 46.0-47.2 mm at 0.23-0.24 s,
 within 1.1 mm of the finest run over the first swing); after about 0.45 s the water thrown
 back from the far wall falls onto it, and that splash differs from grid to grid, so the
-runs part (36-39 mm apart over the whole second): no pointwise convergence is to be
-expected there, only of the first swing. The published curves being withheld, the set-up
+runs part (53-67 mm apart over the whole second; the finest run swings to 58 mm at 0.81 s
+and back to -38 mm at 0.91 s): no pointwise convergence is to be expected there, only of
+the first swing. That phase is sensitive: a change in how the level set is read at the
+floor (half a cell deep, where the obstacle's clamped base meets it; 2026-12-03) left
+every number up to the first swing as it was and moved the finest run's later swings,
+which were 36-39 mm from the coarser runs before. The published curves being withheld, the set-up
 choices on which codes differ are stated instead: the gate's Poisson ratio (0.4 here; 0.47
 and 0.49 elsewhere), its Young's modulus (10 MPa, as CoCoNuT; SPHinXsys' code units suggest
 7.8 MPa), plane strain, and the 2.5 mm clearance under it (SPHinXsys has none); the
@@ -205,7 +218,9 @@ def block(runs: list[TipRun], machine: str) -> str:
              "published curves (Antoci's measured gate tip; the reference curves of Walhorn's "
              "obstacle) are withheld from this project, so the error stated is against the "
              "finest run: the largest difference of the x displacement over the first swing "
-             "(to 0.1 s after the finest run's peak) and over the whole run. "
+             "(to 0.1 s after the finest run's first peak; the first swing ends where the "
+             "displacement falls below half its largest value so far) and over the whole "
+             "run. "
              "The liquid's area (weighted by the cells' open fractions) changes from the first "
              "step to the end by the amount in the table; the level set's global volume "
              "correction is on, as in every free-surface scene.", ""]
@@ -215,7 +230,7 @@ def block(runs: list[TipRun], machine: str) -> str:
             continue
         finest = min(mine, key=lambda run: run.cell_size)
         lines += [SETUPS[case], "",
-                  "| cells across the column | h [mm] | grid | elements | steps | peak x [mm] "
+                  "| cells across the column | h [mm] | grid | elements | steps | first peak x [mm] "
                   "| at t [s] | max abs(x - finest) [mm]: first swing | whole run | "
                   "liquid area change | run time [s] |",
                   "|---|---|---|---|---|---|---|---|---|---|---|"]
