@@ -102,13 +102,15 @@ def force_traction_3d(
     piece's centroid ``x_w``; a piece's force is split between the triangle's vertices by
     the barycentric weights of ``x_w``. At ``x_w``:
 
-    * pressure: sampled at ``x_w + 1.5 h n`` trilinearly over fluid cells only (solid and
-      out-of-domain cells dropped, weights renormalised; 2.5 h, then 4 h when no cell is
-      fluid), carried to the wall at constant ``p - rho g.x``;
+    * pressure: ``p - rho g.x`` sampled at ``x_w + 1.5 h n`` and ``x_w + 2.5 h n``
+      trilinearly over fluid cells only (solid and out-of-domain cells dropped, weights
+      renormalised), taken to the wall by the quadratic through both with zero normal
+      derivative there; where one sample has no fluid cell the other is carried at constant
+      value;
     * viscous stress: ``grad u = L + g_n n^T`` with ``L`` the wall velocity's surface
       gradient (linear over the triangle) and ``g_n`` the one-sided second-order normal
-      derivative through the wall velocity and u, v, w sampled over fluid points at 1.5 h and
-      2.5 h along n (first order from the first sample alone when the second has no fluid);
+      derivative through the wall velocity and u, v, w sampled at h and 2 h along n
+      (corners inside bodies replaced by the advection's cut-distance ghosts);
       with ``g_n.n`` replaced by ``-tr L`` (continuity), ``(grad u + grad u^T) n = g_t +
       L^T n - 2 tr(L) n``, ``g_t`` the tangential part of ``g_n``.
 
@@ -143,12 +145,16 @@ def force_traction_3d(
         interior.check(grid)
     force = np.zeros((bmap.points.shape[0], 3))
     origin = [float(c) for c in grid.origin]
+    distances = [distance * grid.h for distance in _SAMPLE_DISTANCES]
+    pressure_distances = [distance * grid.h for distance in _PRESSURE_DISTANCES]
+    settings = (*origin, grid.h, float(density), float(density * viscosity),
+                *(float(g) for g in gravity), *distances, *pressure_distances)
     _kernels3d.traction_triangles(
-        bmap.points, bmap.velocities, bmap.triangles, velocity_x, velocity_y, velocity_z,
-        pressure, interior.solid_faces_x, interior.solid_faces_y, interior.solid_faces_z,
-        interior.cut_theta_x, interior.cut_theta_y, interior.cut_theta_z,
-        interior.cut_velocity_x, interior.cut_velocity_y, interior.cut_velocity_z,
-        interior.solid_cells, origin[0], origin[1], origin[2], grid.h, float(density),
-        float(density * viscosity), float(gravity[0]), float(gravity[1]), float(gravity[2]),
-        np.asarray(_SAMPLE_DISTANCES) * grid.h, np.asarray(_PRESSURE_DISTANCES) * grid.h, force)
+        (bmap.points, bmap.velocities, bmap.triangles),
+        (velocity_x, velocity_y, velocity_z, pressure),
+        ((interior.solid_faces_x, interior.solid_faces_y, interior.solid_faces_z),
+         (interior.cut_theta_x, interior.cut_theta_y, interior.cut_theta_z),
+         (interior.cut_velocity_x, interior.cut_velocity_y, interior.cut_velocity_z),
+         interior.solid_cells),
+        settings, force)
     return force

@@ -16,9 +16,12 @@ crossed an even number of times, entering and leaving alternately.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numba import njit
 
+from elastoflow._numba import serial_and_parallel
 from elastoflow.coupling._area import segment_areas
 from elastoflow.fluid._kernels3d import _sample_bodies
 
@@ -332,7 +335,7 @@ def _sample_fluid(f, fx, fy, fz, solid):
     return total / weight_sum, weight_sum
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _velocity_sample(u, v, w, solid_u, solid_v, solid_w, theta_u, theta_v, theta_w, cut_u,
                      cut_v, cut_w, x, y, z, inv_h, modes, values):
     """The three velocity components at ``(x, y, z)`` (relative to the grid origin), corners
@@ -344,117 +347,198 @@ def _velocity_sample(u, v, w, solid_u, solid_v, solid_w, theta_u, theta_v, theta
                               solid_v, theta_v, cut_v, _EVERYWHERE, 0, False, False)
     sw, _, _ = _sample_bodies(w, x * inv_h - 0.5, y * inv_h - 0.5, z * inv_h, modes, values, 0,
                               solid_w, theta_w, cut_w, _EVERYWHERE, 0, False, False)
-    return np.array((su, sv, sw))
+    return su, sv, sw
+
+
+@njit(cache=True, inline="always")
+def _piece_position(piece, s):
+    """Barycentric ``(beta, gamma)`` of the centroid of piece ``piece`` of a triangle cut
+    into ``s^2`` similar pieces: upward ones (i + 1/3, j + 1/3) / s for i + j <= s - 1, then
+    downward ones (i + 2/3, j + 2/3) / s for i + j <= s - 2, row by row."""
+    up_count = s * (s + 1) // 2
+    if piece < up_count:
+        index = piece
+        offset = 1.0 / 3.0
+        rows = s
+    else:
+        index = piece - up_count
+        offset = 2.0 / 3.0
+        rows = s - 1
+    i = 0
+    while index >= rows - i:
+        index -= rows - i
+        i += 1
+    return (i + offset) / s, (index + offset) / s
+
+
+def _make_traction(loop):
+    def kernel(surface, fluid, bodies, settings, out):
+        points, velocities, triangles = surface
+        u, v, w, p = fluid
+        solid_u, solid_v, solid_w = bodies[0]
+        theta_u, theta_v, theta_w = bodies[1]
+        cut_u, cut_v, cut_w = bodies[2]
+        solid_cells = bodies[3]
+        (origin_x, origin_y, origin_z, h, density, mu, gravity_x, gravity_y, gravity_z, d0, d1,
+         pressure_d0, pressure_d1) = settings
+        inv_h = 1.0 / h
+        # Beyond the domain's sides the velocity samples copy the nearest inside value.
+        modes = np.zeros((1, 6), dtype=np.int64)
+        values = np.zeros((1, 6))
+        for t in loop(triangles.shape[0]):
+            for r in range(3):
+                for q in range(3):
+                    out[t, r, q] = 0.0
+            ia = triangles[t, 0]
+            ib = triangles[t, 1]
+            ic = triangles[t, 2]
+            ax, ay, az = points[ia, 0], points[ia, 1], points[ia, 2]
+            e1x, e1y, e1z = points[ib, 0] - ax, points[ib, 1] - ay, points[ib, 2] - az
+            e2x, e2y, e2z = points[ic, 0] - ax, points[ic, 1] - ay, points[ic, 2] - az
+            # The edge from b to c.
+            e3x, e3y, e3z = e2x - e1x, e2y - e1y, e2z - e1z
+            nx_, ny_, nz_ = _cross(e1x, e1y, e1z, e2x, e2y, e2z)
+            twice_area = math.sqrt(nx_ * nx_ + ny_ * ny_ + nz_ * nz_)
+            if twice_area == 0.0:
+                continue
+            nx_ /= twice_area
+            ny_ /= twice_area
+            nz_ /= twice_area
+            # Surface gradient of the wall velocity, L_rq = sum over vertices v_r dphi/dx_q,
+            # with grad phi_a = n x (c - b) / 2A and cyclically.
+            gax, gay, gaz = _cross(nx_, ny_, nz_, e3x, e3y, e3z)
+            gbx, gby, gbz = _cross(nx_, ny_, nz_, -e2x, -e2y, -e2z)
+            gcx, gcy, gcz = _cross(nx_, ny_, nz_, e1x, e1y, e1z)
+            trace = 0.0
+            tnx = 0.0
+            tny = 0.0
+            tnz = 0.0
+            for r in range(3):
+                va = velocities[ia, r]
+                vb = velocities[ib, r]
+                vc = velocities[ic, r]
+                lx = (va * gax + vb * gbx + vc * gcx) / twice_area
+                ly = (va * gay + vb * gby + vc * gcy) / twice_area
+                lz = (va * gaz + vb * gbz + vc * gcz) / twice_area
+                trace += lx if r == 0 else (ly if r == 1 else lz)
+                normal_r = nx_ if r == 0 else (ny_ if r == 1 else nz_)
+                # (L^T n)_q = sum_r L_rq n_r.
+                tnx += lx * normal_r
+                tny += ly * normal_r
+                tnz += lz * normal_r
+            longest = max(math.sqrt(e1x * e1x + e1y * e1y + e1z * e1z),
+                          math.sqrt(e2x * e2x + e2y * e2y + e2z * e2z),
+                          math.sqrt(e3x * e3x + e3y * e3y + e3z * e3z))
+            s = max(1, int(math.ceil(longest * inv_h - 1e-9)))
+            piece_area = 0.5 * twice_area / (s * s)
+            hydrostatic = density * (gravity_x * nx_ + gravity_y * ny_ + gravity_z * nz_)
+            for piece in range(s * s):
+                beta, gamma = _piece_position(piece, s)
+                alpha = 1.0 - beta - gamma
+                rx = ax + beta * e1x + gamma * e2x - origin_x
+                ry = ay + beta * e1y + gamma * e2y - origin_y
+                rz = az + beta * e1z + gamma * e2z - origin_z
+                # Pressure over fluid cells at two distances, minus its hydrostatic part
+                # rho g.x, then the quadratic with zero normal derivative at the wall
+                # through them; one sample alone is carried at constant value.
+                near, near_weight = _sample_fluid(
+                    p, (rx + pressure_d0 * nx_) * inv_h - 0.5,
+                    (ry + pressure_d0 * ny_) * inv_h - 0.5,
+                    (rz + pressure_d0 * nz_) * inv_h - 0.5, solid_cells)
+                far, far_weight = _sample_fluid(
+                    p, (rx + pressure_d1 * nx_) * inv_h - 0.5,
+                    (ry + pressure_d1 * ny_) * inv_h - 0.5,
+                    (rz + pressure_d1 * nz_) * inv_h - 0.5, solid_cells)
+                near -= pressure_d0 * hydrostatic
+                far -= pressure_d1 * hydrostatic
+                wall_pressure = 0.0
+                if near_weight > 0.0 and far_weight > 0.0:
+                    wall_pressure = ((pressure_d1 ** 2 * near - pressure_d0 ** 2 * far)
+                                     / (pressure_d1 ** 2 - pressure_d0 ** 2))
+                elif near_weight > 0.0:
+                    wall_pressure = near
+                elif far_weight > 0.0:
+                    wall_pressure = far
+                fx = -wall_pressure * nx_
+                fy = -wall_pressure * ny_
+                fz = -wall_pressure * nz_
+                if mu > 0.0:
+                    wx = (alpha * velocities[ia, 0] + beta * velocities[ib, 0]
+                          + gamma * velocities[ic, 0])
+                    wy = (alpha * velocities[ia, 1] + beta * velocities[ib, 1]
+                          + gamma * velocities[ic, 1])
+                    wz = (alpha * velocities[ia, 2] + beta * velocities[ib, 2]
+                          + gamma * velocities[ic, 2])
+                    f1x, f1y, f1z = _velocity_sample(
+                        u, v, w, solid_u, solid_v, solid_w, theta_u, theta_v, theta_w, cut_u,
+                        cut_v, cut_w, rx + d0 * nx_, ry + d0 * ny_, rz + d0 * nz_, inv_h, modes,
+                        values)
+                    f2x, f2y, f2z = _velocity_sample(
+                        u, v, w, solid_u, solid_v, solid_w, theta_u, theta_v, theta_w, cut_u,
+                        cut_v, cut_w, rx + d1 * nx_, ry + d1 * ny_, rz + d1 * nz_, inv_h, modes,
+                        values)
+                    # One-sided second order through the wall value: u = g d + c d^2.
+                    scale = 1.0 / (d0 * d1 * (d1 - d0))
+                    gx = (d1 * d1 * (f1x - wx) - d0 * d0 * (f2x - wx)) * scale
+                    gy = (d1 * d1 * (f1y - wy) - d0 * d0 * (f2y - wy)) * scale
+                    gz = (d1 * d1 * (f1z - wz) - d0 * d0 * (f2z - wz)) * scale
+                    along = gx * nx_ + gy * ny_ + gz * nz_
+                    # (grad u + grad u^T) n with grad u = L + g_n n^T and g_n.n = -tr L.
+                    fx += mu * (gx - along * nx_ + tnx - 2.0 * trace * nx_)
+                    fy += mu * (gy - along * ny_ + tny - 2.0 * trace * ny_)
+                    fz += mu * (gz - along * nz_ + tnz - 2.0 * trace * nz_)
+                fx *= piece_area
+                fy *= piece_area
+                fz *= piece_area
+                for vertex in range(3):
+                    weight = alpha if vertex == 0 else (beta if vertex == 1 else gamma)
+                    out[t, vertex, 0] += weight * fx
+                    out[t, vertex, 1] += weight * fy
+                    out[t, vertex, 2] += weight * fz
+    return kernel
+
+
+_traction_serial, _traction_parallel = serial_and_parallel(_make_traction)
+
+# Fewer triangles than this: one thread (the per-triangle work is a few microseconds).
+TRACTION_PARALLEL_MINIMUM = 64
+
+
+@njit(cache=True, inline="always")
+def _cross(ax, ay, az, bx, by, bz):
+    return ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
 
 
 @njit(cache=True)
-def traction_triangles(points, velocities, triangles, u, v, w, p, solid_u, solid_v, solid_w,
-                       theta_u, theta_v, theta_w, cut_u, cut_v, cut_w, solid_cells, origin_x, origin_y, origin_z, h, density, mu, gravity_x,
-                       gravity_y, gravity_z, distances, pressure_distances, force):
+def traction_triangles(surface, fluid, bodies, settings, force):
     """Add the fluid's traction force on every triangle to its three vertices' rows of
     ``force`` (P, 3): see `elastoflow.coupling.force_traction_3d` for the formula. Each
     triangle is cut into ``s^2`` similar pieces (``s`` its longest edge over h, rounded
-    up), one sample at each piece's centroid, its force split by barycentric weights."""
-    inv_h = 1.0 / h
-    d0 = distances[0]
-    d1 = distances[1]
-    pressure_d0 = pressure_distances[0]
-    pressure_d1 = pressure_distances[1]
-    # Beyond the domain's sides the velocity samples copy the nearest inside value.
-    modes = np.zeros((1, 6), dtype=np.int64)
-    values = np.zeros((1, 6))
+    up), one sample at each piece's centroid, its force split by barycentric weights.
+
+    Args:
+        surface: ``(points (P, 3), velocities (P, 3), triangles (T, 3))`` of the map.
+        fluid: ``(u, v, w, p)``: face velocities and cell pressure.
+        bodies: ``((solid_u, solid_v, solid_w), (theta_u, theta_v, theta_w), (cut_u, cut_v,
+            cut_w), solid_cells)``: the interior's flags, cut fractions and cut velocities.
+        settings: ``(origin_x, origin_y, origin_z, h, density, mu, gravity_x, gravity_y,
+            gravity_z, d0, d1, pressure_d0, pressure_d1)``: the grid, the fluid, and the
+            velocity and pressure sample distances [m] along the normal.
+        force: (P, 3), added to.
+    """
+    triangles = surface[2]
+    per_triangle = np.empty((triangles.shape[0], 3, 3))
+    # Each triangle's vertex forces in parallel, summed to the vertices in triangle order
+    # afterwards (the same sum whatever the thread count).
+    if triangles.shape[0] >= TRACTION_PARALLEL_MINIMUM:
+        _traction_parallel(surface, fluid, bodies, settings, per_triangle)
+    else:
+        _traction_serial(surface, fluid, bodies, settings, per_triangle)
     for t in range(triangles.shape[0]):
-        ia = triangles[t, 0]
-        ib = triangles[t, 1]
-        ic = triangles[t, 2]
-        e1 = points[ib] - points[ia]
-        e2 = points[ic] - points[ia]
-        normal = np.cross(e1, e2)
-        twice_area = np.sqrt(normal[0] ** 2 + normal[1] ** 2 + normal[2] ** 2)
-        if twice_area == 0.0:
-            continue
-        n = normal / twice_area
-        # Surface gradient of the wall velocity, L_ij = sum over vertices v_i dphi/dx_j, with
-        # grad phi_a = n x (c - b) / 2A and cyclically.
-        grad_a = np.cross(n, points[ic] - points[ib]) / twice_area
-        grad_b = np.cross(n, points[ia] - points[ic]) / twice_area
-        grad_c = np.cross(n, points[ib] - points[ia]) / twice_area
-        surface = np.zeros((3, 3))
-        for r in range(3):
-            for q in range(3):
-                surface[r, q] = (velocities[ia, r] * grad_a[q] + velocities[ib, r] * grad_b[q]
-                                 + velocities[ic, r] * grad_c[q])
-        trace = surface[0, 0] + surface[1, 1] + surface[2, 2]
-        transposed_n = surface.T @ n
-        longest = max(np.sqrt(e1 @ e1), np.sqrt(e2 @ e2),
-                      np.sqrt((points[ic] - points[ib]) @ (points[ic] - points[ib])))
-        s = max(1, int(np.ceil(longest * inv_h - 1e-9)))
-        piece_area = 0.5 * twice_area / (s * s)
-        for piece in range(s * s):
-            # Pieces: upward (i + 1/3, j + 1/3) for i + j <= s - 1, then downward
-            # (i + 2/3, j + 2/3) for i + j <= s - 2, enumerated row by row.
-            up_count = s * (s + 1) // 2
-            if piece < up_count:
-                index = piece
-                offset = 1.0 / 3.0
-                rows = s
-            else:
-                index = piece - up_count
-                offset = 2.0 / 3.0
-                rows = s - 1
-            i = 0
-            while index >= rows - i:
-                index -= rows - i
-                i += 1
-            j = index
-            beta = (i + offset) / s
-            gamma = (j + offset) / s
-            alpha = 1.0 - beta - gamma
-            x = points[ia] + beta * e1 + gamma * e2
-            wall = alpha * velocities[ia] + beta * velocities[ib] + gamma * velocities[ic]
-            rx = x[0] - origin_x
-            ry = x[1] - origin_y
-            rz = x[2] - origin_z
-            traction = np.zeros(3)
-            # Pressure over fluid cells at two distances, minus its hydrostatic part
-            # rho g.x, then the quadratic with zero normal derivative at the wall through
-            # them; one sample alone is carried at constant value.
-            hydrostatic = density * (gravity_x * n[0] + gravity_y * n[1] + gravity_z * n[2])
-            near, near_weight = _sample_fluid(
-                p, (rx + pressure_d0 * n[0]) * inv_h - 0.5, (ry + pressure_d0 * n[1]) * inv_h
-                - 0.5, (rz + pressure_d0 * n[2]) * inv_h - 0.5, solid_cells)
-            far, far_weight = _sample_fluid(
-                p, (rx + pressure_d1 * n[0]) * inv_h - 0.5, (ry + pressure_d1 * n[1]) * inv_h
-                - 0.5, (rz + pressure_d1 * n[2]) * inv_h - 0.5, solid_cells)
-            near -= pressure_d0 * hydrostatic
-            far -= pressure_d1 * hydrostatic
-            if near_weight > 0.0 and far_weight > 0.0:
-                traction -= ((pressure_d1 ** 2 * near - pressure_d0 ** 2 * far)
-                             / (pressure_d1 ** 2 - pressure_d0 ** 2)) * n
-            elif near_weight > 0.0:
-                traction -= near * n
-            elif far_weight > 0.0:
-                traction -= far * n
-            if mu > 0.0:
-                first = _velocity_sample(u, v, w, solid_u, solid_v, solid_w, theta_u, theta_v,
-                                         theta_w, cut_u, cut_v, cut_w, rx + d0 * n[0],
-                                         ry + d0 * n[1], rz + d0 * n[2], inv_h, modes,
-                                         values) - wall
-                second = _velocity_sample(u, v, w, solid_u, solid_v, solid_w, theta_u, theta_v,
-                                          theta_w, cut_u, cut_v, cut_w, rx + d1 * n[0],
-                                          ry + d1 * n[1], rz + d1 * n[2], inv_h, modes,
-                                          values) - wall
-                # One-sided second order through the wall value: u = g d + c d^2.
-                normal_gradient = ((d1 * d1 * first - d0 * d0 * second)
-                                   / (d0 * d1 * (d1 - d0)))
-                tangential = normal_gradient - (normal_gradient @ n) * n
-                # (grad u + grad u^T) n with grad u = L + g_n n^T and g_n.n = -tr L.
-                traction += mu * (tangential + transposed_n - 2.0 * trace * n)
-            piece_force = traction * piece_area
+        for vertex in range(3):
+            row = triangles[t, vertex]
             for r in range(3):
-                force[ia, r] += alpha * piece_force[r]
-                force[ib, r] += beta * piece_force[r]
-                force[ic, r] += gamma * piece_force[r]
+                force[row, r] += per_triangle[t, vertex, r]
 
 
 @njit(cache=True, inline="always")

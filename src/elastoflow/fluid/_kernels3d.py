@@ -1025,6 +1025,35 @@ def copy_into_3d(source, target):
     return _copy_serial(source, target)
 
 
+def _make_update(loop):
+    def kernel(source, target):
+        m, n, l = source.shape
+        changed = 0
+        for i in loop(m):
+            plane = 0
+            for j in range(n):
+                for k in range(l):
+                    value = source[i, j, k]
+                    if target[i, j, k] != value:
+                        plane += 1
+                        target[i, j, k] = value
+            changed += plane
+        return changed
+    return kernel
+
+
+_update_serial, _update_parallel = serial_and_parallel(_make_update)
+
+
+@njit(cache=True)
+def update_into_3d(source, target):
+    """``target[...] = source``; returns how many values differed before (one pass, where
+    a comparison and then a copy take three)."""
+    if source.size > PARALLEL_MINIMUM_3D:
+        return _update_parallel(source, target)
+    return _update_serial(source, target)
+
+
 def _make_add(loop):
     def kernel(target, value):
         m, n, l = target.shape

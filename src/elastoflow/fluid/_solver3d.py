@@ -129,6 +129,9 @@ class FluidSolver3D:
             rest under gravity next to no-slip walls gets currents of order nu dt g / h.
     """
 
+    # The fields `advect` writes every value of (from a ``source`` state, none read).
+    ADVECTED_FIELDS = ("velocity_x", "velocity_y", "velocity_z", "dye")
+
     def __init__(
         self,
         grid: Grid3D,
@@ -322,12 +325,15 @@ class FluidSolver3D:
     def _pressure_operator_bodies(self, interior: InteriorBoundary3D) -> Operator7Point:
         fractions = (interior.open_fraction_x, interior.open_fraction_y,
                      interior.open_fraction_z)
-        if self._bodies_operator is not None and all(
-                np.array_equal(new, old)
-                for new, old in zip(fractions, self._bodies_fractions, strict=True)):
-            return self._bodies_operator
+        if self._bodies_operator is None:
+            self._bodies_fractions = tuple(fraction.copy() for fraction in fractions)
+        else:
+            # Every array is brought up to date, whether or not an earlier one differed.
+            changed = [kernels.update_into_3d(new, old)
+                       for new, old in zip(fractions, self._bodies_fractions, strict=True)]
+            if not any(changed):
+                return self._bodies_operator
         self._bodies_operator = self._assemble_pressure_operator(fractions)
-        self._bodies_fractions = tuple(fraction.copy() for fraction in fractions)
         return self._bodies_operator
 
     def _solid_face_velocities(self, interior: InteriorBoundary3D) -> tuple[Array, Array, Array]:
@@ -423,17 +429,32 @@ class FluidSolver3D:
             interior.check(self.grid)
 
     def advect(self, state: FluidState3D, dt: float,
-               interior: InteriorBoundary3D | None = None) -> None:
-        """Transport velocity and dye by the current velocity over ``dt`` [s], in place.
+               interior: InteriorBoundary3D | None = None,
+               source: FluidState3D | None = None) -> None:
+        """Transport velocity and dye by the current velocity over ``dt`` [s], in place, or
+        from ``source`` into ``state``.
 
         With bodies (``interior``): velocity points inside them take the body velocity, dye
         there 0; samples whose corners lie inside a body use cut-distance ghosts (velocity)
-        or the fluid corners only (dye), in the trace as in the transported field."""
+        or the fluid corners only (dye), in the trace as in the transported field.
+
+        Args:
+            source: The state whose velocity and dye are transported (read only); every
+                value of ``state``'s velocity and dye is then written, none read. None:
+                ``state`` itself (copied to buffers first).
+        """
         self._check(state, dt, interior)
         fields = (*state.velocity(), state.dye)
-        for field, source in zip(fields, self._sources, strict=True):
-            kernels.copy_into_3d(field, source)
-        velocity = self._sources[:3]
+        if source is None or source is state:
+            for field, buffer in zip(fields, self._sources, strict=True):
+                kernels.copy_into_3d(field, buffer)
+            sources = self._sources
+        else:
+            if not isinstance(source, FluidState3D):
+                raise ValueError(f"source = {source!r}: must be a FluidState3D")
+            source.check(self.grid)
+            sources = (*source.velocity(), source.dye)
+        velocity = sources[:3]
         h = self.grid.h
         if interior is None:
             bodies = self._no_bodies
@@ -448,7 +469,7 @@ class FluidSolver3D:
                       (interior.cut_theta_x, interior.cut_theta_y, interior.cut_theta_z),
                       (interior.cut_velocity_x, interior.cut_velocity_y,
                        interior.cut_velocity_z), boxes)
-        for index, (field, source) in enumerate(zip(fields, self._sources, strict=True)):
+        for index, (field, before) in enumerate(zip(fields, sources, strict=True)):
             is_dye = index == kernels.FIELD_CELLS
             if is_dye:
                 modes, values = self._dye_modes, self._dye_values
@@ -467,16 +488,16 @@ class FluidSolver3D:
             ghosts = (self._velocity_modes, self._velocity_values, modes, values)
             common = (index, dt, h, ghosts, interior is not None, bodies, own)
             if self.advection == "semi_lagrangian":
-                kernels.advect_3d(velocity, source, field, (source, source), *common,
+                kernels.advect_3d(velocity, before, field, (before, before), *common,
                                   kernels.PASS_TRACE)
                 continue
             forward, backward = self._forward[index], self._backward[index]
-            kernels.advect_3d(velocity, source, forward, (source, source), *common,
+            kernels.advect_3d(velocity, before, forward, (before, before), *common,
                               kernels.PASS_TRACE)
             backwards = (index, -dt, *common[2:])
-            kernels.advect_3d(velocity, forward, backward, (source, source), *backwards,
+            kernels.advect_3d(velocity, forward, backward, (before, before), *backwards,
                               kernels.PASS_TRACE)
-            kernels.advect_3d(velocity, source, field, (forward, backward), *common,
+            kernels.advect_3d(velocity, before, field, (forward, backward), *common,
                               kernels.PASS_CORRECT)
 
     def diffuse(self, state: FluidState3D, dt: float,

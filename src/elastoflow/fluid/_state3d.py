@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Collection
 from dataclasses import dataclass, fields
 
 import numpy as np
@@ -53,10 +54,12 @@ class FluidState3D:
         return FluidState3D(**{item.name: getattr(self, item.name).copy()
                                for item in fields(self)})
 
-    def assign(self, other: FluidState3D) -> None:
-        """Copy ``other``'s values into this state's arrays (same shapes)."""
+    def assign(self, other: FluidState3D, names: Collection[str] | None = None) -> None:
+        """Copy ``other``'s values into this state's arrays (same shapes): all, or the
+        fields ``names``."""
         for item in fields(self):
-            getattr(self, item.name)[...] = getattr(other, item.name)
+            if names is None or item.name in names:
+                getattr(self, item.name)[...] = getattr(other, item.name)
 
     def check(self, grid: Grid3D) -> None:
         """Raise ValueError if an array is not a C-contiguous float64 array of the shape

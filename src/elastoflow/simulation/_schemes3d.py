@@ -19,13 +19,14 @@ than the fluid they displace are stable.
 from __future__ import annotations
 
 import time as _time
+from dataclasses import fields as dataclass_fields
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 
-from elastoflow.fluid import FluidState3D
+from elastoflow.fluid import FluidSolver3D, FluidState3D
 from elastoflow.linalg import SolveReport
 from elastoflow.simulation._checks import check_fluid_finite
 from elastoflow.simulation._report import SimulationBlowUp, StepReport
@@ -82,7 +83,12 @@ class _Step3D:
         self.next_step = state_in.step_index + 1
         self.now = state_in.time + dt
         self.where = f"step {self.next_step}, t = {self.now:.6g} s"
-        state_out.assign(state_in)
+        # `fluid_phases` transports velocity and dye from ``state_in`` into ``state_out``,
+        # writing every value: copied here, they would be a wasted pass over four grids.
+        state_out.assign(state_in, fluid=False)
+        state_out.fluid.assign(state_in.fluid, [
+            item.name for item in dataclass_fields(FluidState3D)
+            if item.name not in FluidSolver3D.ADVECTED_FIELDS])
         self.out = state_out.fluid
         self.offsets = model.object_offsets()
 
@@ -133,7 +139,7 @@ class _Step3D:
         fluid, dt = self.model.fluid, self.dt
         with self._fluid_checked():
             with self.timed("advection"):
-                fluid.advect(self.out, dt, interior)
+                fluid.advect(self.out, dt, interior, source=self.state_in.fluid)
             with self.timed("forces"):
                 fluid.apply_forces(self.out, dt, self.state_in.time)
             with self.timed("viscosity"):
@@ -282,7 +288,7 @@ class MonolithicCoupling3D:
         with run.timed("map"):
             flux = _interface_flux(model, boundary, run.offsets)
         with run.timed("coupling_force"):
-            held = _held_force(model, boundary, flux, run.out)
+            held = _held_force(model, boundary, flux, state_in.fluid)
         run.fluid_phases(boundary.interior)
         with run.timed("solid"):
             holds = wall_holds(model, state_in, dt)

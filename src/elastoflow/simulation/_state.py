@@ -117,10 +117,12 @@ class CoupledState(Generic[FluidT, BoundaryT]):
             boundary=self.boundary,
         )
 
-    def assign(self, other: CoupledState[FluidT, BoundaryT]) -> None:
+    def assign(self, other: CoupledState[FluidT, BoundaryT], fluid: bool = True) -> None:
         """Copy ``other``'s saved values into this state's arrays; the derived boundary
-        geometry stays (a scheme replaces it, and reuses its arrays)."""
-        self.fluid.assign(other.fluid)
+        geometry stays (a scheme replaces it, and reuses its arrays). ``fluid`` False
+        leaves the fluid state to the caller."""
+        if fluid:
+            self.fluid.assign(other.fluid)
         for body, source_body in zip(self.bodies, other.bodies):
             body.assign(source_body)
         for target, source in zip(self.body_forces, other.body_forces):
