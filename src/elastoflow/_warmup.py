@@ -133,7 +133,8 @@ def _bodies_3d() -> None:
     bmap = build_boundary_map_3d(Grid3D(nx=16, ny=16, nz=16, h=1.0 / 16), points,
                                  np.zeros_like(points), surface)
     solid_cells_3d(bmap)
-    face_open_fractions_3d(bmap)
+    # Twice: the second refills the first's arrays in the box (as the coupled steps do).
+    face_open_fractions_3d(bmap, out=face_open_fractions_3d(bmap), out_box=(0, 0, 0, 4, 4, 4))
     cut_distances_3d(bmap)
 
 

@@ -48,7 +48,8 @@ def interior_boundary_3d(bmap: BoundaryMap3D, out: InteriorBoundary3D | None = N
     §5.4), the faces' exact open fractions and the cut distances of every velocity point.
 
     ``out``: an earlier interior of the same grid that is no longer read; its cut-distance
-    arrays are refilled instead of allocated, only inside its ``box`` when it has one.
+    and open-fraction arrays are refilled instead of allocated, only inside its ``box``
+    when it has one.
     The result's ``box`` is the map's `bodies_box_3d`."""
     solid_faces = []
     velocity_faces = []
@@ -56,7 +57,10 @@ def interior_boundary_3d(bmap: BoundaryMap3D, out: InteriorBoundary3D | None = N
         solid, velocity = _points_inside(bmap, component)
         solid_faces.append(solid)
         velocity_faces.append(velocity)
-    open_x, open_y, open_z = face_open_fractions_3d(bmap)
+    open_x, open_y, open_z = face_open_fractions_3d(
+        bmap, out=None if out is None else (out.open_fraction_x, out.open_fraction_y,
+                                            out.open_fraction_z),
+        out_box=None if out is None else out.box)
     reuse = None if out is None else CutDistances3D(
         (out.cut_theta_x, out.cut_theta_y, out.cut_theta_z),
         (out.cut_velocity_x, out.cut_velocity_y, out.cut_velocity_z), out.box)

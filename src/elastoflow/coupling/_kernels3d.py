@@ -277,21 +277,36 @@ def section_areas(segments, offsets, origin_u, origin_v, h, out):
 
 
 @njit(cache=True)
-def open_fractions_from_areas(solid, area, axis, out):
-    """``out[x, y, z] = clip(1 - solid[p, u, v] / area, 0, 1)``: the open fraction of each
-    face normal to ``axis``, from the solid area of its square (`section_areas`, indexed
-    (plane, u, v) with u, v the axes after ``axis`` in cyclic order), in (x, y, z) order."""
-    m, n, l = out.shape
-    for i in range(m):
-        for j in range(n):
-            for k in range(l):
+def open_fractions_from_areas(solid, area, axis, start, out):
+    """``out[x, y, z] = clip(1 - solid[p, u, v] / area, 0, 1)`` over the region of ``out``
+    that ``solid`` covers: the open fraction of each face normal to ``axis``, from the
+    solid area of its square (`section_areas`, indexed (plane, u, v) from ``start``'s
+    (x, y, z) corner, u, v the axes after ``axis`` in cyclic order), in (x, y, z) order."""
+    sizes = [0, 0, 0]
+    sizes[axis] = solid.shape[0]
+    sizes[(axis + 1) % 3] = solid.shape[1]
+    sizes[(axis + 2) % 3] = solid.shape[2]
+    for i in range(sizes[0]):
+        for j in range(sizes[1]):
+            for k in range(sizes[2]):
                 if axis == 0:
                     s = solid[i, j, k]
                 elif axis == 1:
                     s = solid[j, k, i]
                 else:
                     s = solid[k, i, j]
-                out[i, j, k] = min(max(1.0 - s / area, 0.0), 1.0)
+                out[start[0] + i, start[1] + j, start[2] + k] = min(max(1.0 - s / area, 0.0),
+                                                                    1.0)
+
+
+@njit(cache=True)
+def fill_box(out, box, value):
+    """``out[i0:i1, j0:j1, k0:k1] = value`` for ``box = (i0, j0, k0, i1, j1, k1)``, the ends
+    clipped to the array."""
+    for i in range(box[0], min(box[3], out.shape[0])):
+        for j in range(box[1], min(box[4], out.shape[1])):
+            for k in range(box[2], min(box[5], out.shape[2])):
+                out[i, j, k] = value
 
 
 # Smallest cut distance [fraction of h] reported: a crossing exactly at a point is at

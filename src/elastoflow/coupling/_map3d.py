@@ -182,24 +182,54 @@ def solid_cells_3d(bmap: BoundaryMap3D) -> np.ndarray:
     return winding > 0
 
 
-def face_open_fractions_3d(bmap: BoundaryMap3D
-                           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def face_open_fractions_3d(
+    bmap: BoundaryMap3D,
+    out: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
+    out_box: tuple[int, int, int, int, int, int] | None = None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The fluid share of every face's square, exactly: ``1 - area(section n square) / h^2``
     with the section the bodies' cross-section in the face's plane (`elastoflow.coupling._area`).
 
     Continuous in the bodies' positions (a body edge sliding across a face changes it
     linearly), in [0, 1], so the pressure operator weighted by it stays SPD. Overlapping
-    bodies count their overlap twice (clipped at 0).
+    bodies count their overlap twice (clipped at 0). Only the faces inside the map's
+    `bodies_box_3d` are computed; every other one is 1.
+
+    Args:
+        out: An earlier map's fractions of the same grid, no longer read, to refill instead
+            of allocating; they are 1 outside ``out_box`` (their map's `bodies_box_3d`; None:
+            not known, the whole arrays are reset).
 
     Returns:
         ``(x faces (nx+1, ny, nz), y faces (nx, ny+1, nz), z faces (nx, ny, nz+1))``.
     """
     grid = bmap.grid
     counts = (grid.nx, grid.ny, grid.nz)
+    box = bodies_box_3d(bmap)
     fractions = []
     for axis in range(3):
         u, v = (axis + 1) % 3, (axis + 2) % 3
         planes = counts[axis] + 1
+        shape = [counts[0], counts[1], counts[2]]
+        shape[axis] = planes
+        if out is None:
+            open_fraction = np.ones(shape)
+        else:
+            open_fraction = out[axis]
+            if open_fraction.shape != tuple(shape):
+                raise ValueError(f"out[{axis}] shape {open_fraction.shape}: must be "
+                                 f"{tuple(shape)} for this grid")
+            if out_box is None:
+                open_fraction[...] = 1.0
+            else:
+                _kernels3d.fill_box(open_fraction, np.asarray(out_box, dtype=np.int64), 1.0)
+        # The faces of the box: the sections lie inside it (it holds every surface point).
+        start = np.array(box[:3], dtype=np.int64)
+        stop = [min(box[3 + a], shape[a]) for a in range(3)]
+        sizes = [max(stop[a] - int(start[a]), 0) for a in range(3)]
+        if min(sizes) == 0:
+            fractions.append(open_fraction)
+            continue
         per_plane = np.zeros(planes, dtype=np.int64)
         no_slots = np.zeros(planes, dtype=np.int64)
         no_segments = np.zeros((0, 4))
@@ -212,14 +242,12 @@ def face_open_fractions_3d(bmap: BoundaryMap3D
         per_plane[:] = 0
         _kernels3d.plane_sections(bmap.points, bmap.triangles, axis, float(grid.origin[axis]),
                                   grid.h, planes, True, per_plane, next_slot, segments)
-        solid = np.zeros((planes, counts[u], counts[v]))
-        _kernels3d.section_areas(segments, offsets, float(grid.origin[u]),
-                                 float(grid.origin[v]), grid.h, solid)
-        # (plane, u, v) -> (x, y, z) order, in one pass.
-        shape = [counts[0], counts[1], counts[2]]
-        shape[axis] = planes
-        open_fraction = np.empty(shape)
-        _kernels3d.open_fractions_from_areas(solid, grid.h**2, axis, open_fraction)
+        solid = np.zeros((sizes[axis], sizes[u], sizes[v]))
+        _kernels3d.section_areas(
+            segments, offsets[start[axis]:stop[axis] + 1],
+            float(grid.origin[u]) + int(start[u]) * grid.h,
+            float(grid.origin[v]) + int(start[v]) * grid.h, grid.h, solid)
+        _kernels3d.open_fractions_from_areas(solid, grid.h**2, axis, start, open_fraction)
         fractions.append(open_fraction)
     return fractions[0], fractions[1], fractions[2]
 

@@ -239,6 +239,29 @@ def test_face_fractions_move_continuously_with_the_body() -> None:
     assert abs(solid - np.pi * 0.09) < 0.02 * np.pi * 0.09
 
 
+def test_face_fractions_refilled_in_the_boxes_equal_fresh_ones() -> None:
+    # The interior reuses an earlier map's fraction arrays: reset inside that map's box,
+    # computed inside the new one. Off-origin grid, the sphere moved by several cells.
+    from elastoflow.coupling import face_open_fractions_3d
+    from elastoflow.coupling._map3d import bodies_box_3d
+
+    points, triangles = icosphere(3)
+    grid = Grid3D(nx=16, ny=12, nz=14, h=0.1, origin=(-0.3, 0.2, 0.1))
+    maps = [build_boundary_map_3d(grid, centre + 0.25 * points, np.zeros_like(points),
+                                  triangles)
+            for centre in (np.array([0.2, 0.7, 0.6]), np.array([0.9, 0.9, 0.85]))]
+    first = face_open_fractions_3d(maps[0])
+    fresh = face_open_fractions_3d(maps[1])
+    refilled = face_open_fractions_3d(maps[1], out=first, out_box=bodies_box_3d(maps[0]))
+    for fresh_one, refilled_one in zip(fresh, refilled, strict=True):
+        np.testing.assert_array_equal(refilled_one, fresh_one)
+        assert fresh_one.min() < 0.5
+    i0, j0, k0, i1, j1, k1 = bodies_box_3d(maps[1])
+    outside = np.ones(fresh[0].shape, dtype=bool)
+    outside[i0:i1, j0:j1, k0:k1] = False
+    assert np.all(fresh[0][outside] == 1.0)
+
+
 def test_cut_distances_of_a_box_are_exact_and_carry_its_rigid_velocity() -> None:
     """Velocity points next to an off-grid box: the distance to its faces along each axis,
     and the surface velocity of a rigid motion there."""
