@@ -4,14 +4,12 @@ state from before the step."""
 
 from __future__ import annotations
 
-import math
 from typing import Protocol
 
 import numpy as np
 
 from elastoflow.fluid import FluidState, FluidState3D
 from elastoflow.grid import Grid2D, Grid3D
-from elastoflow.simulation._kernels import survey
 from elastoflow.simulation._report import SimulationBlowUp, StepReport
 from elastoflow.simulation._state import CoupledModel, CoupledModel3D, CoupledState
 
@@ -33,13 +31,14 @@ def _velocity_names(fluid: AnyFluidState) -> tuple[str, ...]:
 
 
 def max_speed(fluid: AnyFluidState) -> float:
-    """The largest face-velocity component [m/s] (2D or 3D); NaN when one is not finite."""
+    """The largest face-velocity component [m/s] (2D or 3D); NaN when one is NaN."""
     largest = 0.0
     for name in _velocity_names(fluid):
-        high, nans = survey(np.ravel(getattr(fluid, name)))
-        if nans:
-            return float("nan")
-        largest = max(largest, float(high))
+        values = getattr(fluid, name)
+        if values.size:
+            # Two reductions without a temporary (np.abs(values).max() makes one: 2.5x the
+            # time at 64^3); np.maximum keeps a NaN.
+            largest = float(np.maximum(largest, np.maximum(values.max(), -values.min())))
     return largest
 
 
@@ -52,8 +51,7 @@ def check_fluid_finite(fluid: AnyFluidState, step: int, time: float) -> None:
     """Raise `SimulationBlowUp` naming the first non-finite fluid value."""
     for name in (*_velocity_names(fluid), "pressure"):
         values = getattr(fluid, name)
-        high, nans = survey(np.ravel(values))
-        if nans or not math.isfinite(high):
+        if not np.isfinite(values).all():
             bad = np.argwhere(~np.isfinite(values))[0]
             raise SimulationBlowUp(
                 f"step {step}, t = {time:.6g} s: fluid {name} is not finite "
