@@ -120,11 +120,14 @@ def apply_operator_kernel_3d(diagonal, weights_x, weights_y, weights_z, x, out):
 
 
 def _make_load(loop):
-    def kernel(diagonal, weights_x, weights_y, weights_z, total, inverse, active, dominance):
+    def kernel(diagonal, weights_x, weights_y, weights_z, total, inverse, active, dominance,
+               missing):
         m, n, l = diagonal.shape
         for i in loop(m):
             # A minimum per plane: no min-reduction across threads.
             smallest = np.inf
+            # Active points without a positive diagonal (a pure-Neumann component's).
+            without = 0
             for j in range(n):
                 for k in range(l):
                     d = diagonal[i, j, k]
@@ -148,7 +151,10 @@ def _make_load(loop):
                     inverse[i, j, k] = 1.0 / t if is_active else 0.0
                     if is_active:
                         smallest = min(smallest, d / off if off > 0.0 else np.inf)
+                        if d <= 0.0:
+                            without += 1
             dominance[i] = smallest
+            missing[i] = without
     return kernel
 
 
@@ -162,18 +168,14 @@ def load_operator_kernel_3d(diagonal, weights_x, weights_y, weights_z, total, in
     smallest ratio diagonal / sum of weights over active points)``."""
     m = diagonal.shape[0]
     dominance = np.empty(m)
+    missing = np.empty(m, dtype=np.int64)
     if diagonal.size > PARALLEL_MINIMUM_3D:
         _load_parallel(diagonal, weights_x, weights_y, weights_z, total, inverse, active,
-                       dominance)
+                       dominance, missing)
     else:
         _load_serial(diagonal, weights_x, weights_y, weights_z, total, inverse, active,
-                     dominance)
-    all_have_diagonal = True
-    for i in range(m):
-        for j in range(diagonal.shape[1]):
-            for k in range(diagonal.shape[2]):
-                if active[i, j, k] and diagonal[i, j, k] <= 0.0:
-                    all_have_diagonal = False
+                     dominance, missing)
+    all_have_diagonal = missing.sum() == 0
     return all_have_diagonal, dominance.min()
 
 
