@@ -179,6 +179,32 @@ def load_operator_kernel_3d(diagonal, weights_x, weights_y, weights_z, total, in
     return all_have_diagonal, dominance.min()
 
 
+def _make_same_sign(loop):
+    def kernel(a, b):
+        m, n, l = a.shape
+        differing = 0
+        for i in loop(m):
+            plane = 0
+            for j in range(n):
+                for k in range(l):
+                    if (a[i, j, k] > 0.0) != (b[i, j, k] > 0.0):
+                        plane += 1
+            differing += plane
+        return differing
+    return kernel
+
+
+_same_sign_serial, _same_sign_parallel = serial_and_parallel(_make_same_sign)
+
+
+@njit(cache=True)
+def positive_differences_kernel_3d(a, b):
+    """How many points of two arrays of one shape are positive in one and not the other."""
+    if a.size > PARALLEL_MINIMUM_3D:
+        return _same_sign_parallel(a, b)
+    return _same_sign_serial(a, b)
+
+
 @njit(cache=True, inline="always")
 def _find(parent, k):
     while parent[k] != k:
