@@ -58,8 +58,11 @@ State3D = CoupledState[FluidState3D, StepBoundary3D]
 class _Step3D:
     """The bookkeeping of one 3D step that both schemes share.
 
-    Opening it copies ``state_in`` into ``state_out``, whose fluid (`out`) the phases then
-    change in place; each phase it runs is timed into `seconds` (a phase that runs in parts
+    Opening it copies ``state_in`` into ``state_out``, except the fluid fields that
+    `fluid_phases`' advection writes from ``state_in`` (`FluidSolver3D.ADVECTED_FIELDS`);
+    the phases then change ``state_out``'s fluid (`out`) in place (a scheme must run
+    `fluid_phases` before it reads `out`'s velocity or dye). Each phase it runs is timed
+    into `seconds` (a phase that runs in parts
     adds them up), and an error in it names the step. `finish` commits time, step index and
     the step's boundary to ``state_out`` and gives the report.
 
