@@ -22,16 +22,29 @@ _SAMPLE_DISTANCES = (1.0, 2.0)
 _PRESSURE_DISTANCES = (1.5, 2.5)
 
 
-def _points_inside(bmap: BoundaryMap3D, component: int) -> tuple[np.ndarray, np.ndarray]:
+def _points_inside(bmap: BoundaryMap3D, component: int,
+                   out: InteriorBoundary3D | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Solid flags and body velocity component of the u (0), v (1) or w (2) points, from the
-    lines along the component's own axis."""
+    lines along the component's own axis; into ``out``'s arrays (reset inside its box, all
+    when it has none) when given."""
     grid = bmap.grid
     counts = (grid.nx, grid.ny, grid.nz)
     shape = tuple(counts[a] + (1 if a == component else 0) for a in range(3))
     u, v = (component + 1) % 3, (component + 2) % 3
     crossings = bmap.lines[component]
-    solid = np.zeros(shape, dtype=np.bool_)
-    velocity = np.zeros(shape)
+    if out is None:
+        solid = np.zeros(shape, dtype=np.bool_)
+        velocity = np.zeros(shape)
+    else:
+        solid, velocity = out.solid_faces(component), out.velocity_faces(component)
+        if out.box is None:
+            solid[...] = False
+            velocity[...] = 0.0
+        else:
+            # Outside its box nothing was inside a body: False and 0 already.
+            box = np.asarray(out.box, dtype=np.int64)
+            _kernels3d.fill_box(solid, box, False)
+            _kernels3d.fill_box(velocity, box, 0.0)
     _kernels3d.inside_along_lines(
         crossings.offsets, crossings.coordinate, crossings.sign, crossings.triangle,
         crossings.weights, bmap.triangles, bmap.velocities, component, component,
@@ -47,14 +60,14 @@ def interior_boundary_3d(bmap: BoundaryMap3D, out: InteriorBoundary3D | None = N
     velocity at the points inside (linear between the crossings that bound them, METHOD.md
     §5.4), the faces' exact open fractions and the cut distances of every velocity point.
 
-    ``out``: an earlier interior of the same grid that is no longer read; its cut-distance
-    and open-fraction arrays are refilled instead of allocated, only inside its ``box``
-    when it has one.
+    ``out``: an earlier interior of the same grid that is no longer read; its solid-flag,
+    body-velocity, open-fraction and cut-distance arrays are refilled instead of allocated,
+    only inside its ``box`` when it has one.
     The result's ``box`` is the map's `bodies_box_3d`."""
     solid_faces = []
     velocity_faces = []
     for component in range(3):
-        solid, velocity = _points_inside(bmap, component)
+        solid, velocity = _points_inside(bmap, component, out)
         solid_faces.append(solid)
         velocity_faces.append(velocity)
     open_x, open_y, open_z = face_open_fractions_3d(
