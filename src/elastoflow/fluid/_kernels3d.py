@@ -627,26 +627,33 @@ def _make_viscosity(loop):
         size = f.shape[axis]
         for i in loop(m):
             for j in range(n):
+                # The line's points [plain_from, plain_to) touch no side and no held face:
+                # their right-hand side is the value itself and, outside the region, the
+                # operator is already in place (nearly every point). Found once a line, not
+                # tested point by point.
+                plain_from, plain_to = l, l
+                if (0 < i < m - 1 and 0 < j < n - 1 and (axis != 0 or 1 < i < size - 2)
+                        and (axis != 1 or 1 < j < size - 2)):
+                    plain_from = 2 if axis == 2 else 1
+                    plain_to = max(l - 2 if axis == 2 else l - 1, plain_from)
+                region_from, region_to = plain_to, plain_to
+                if assemble_operator and i0 <= i < i1 and j0 <= j < j1:
+                    region_from = min(max(k0, plain_from), plain_to)
+                    region_to = min(max(k1, region_from), plain_to)
                 for k in range(l):
-                    own = i if axis == 0 else (j if axis == 1 else k)
-                    if assemble_operator and not (i0 <= i < i1 and j0 <= j < j1
-                                                  and k0 <= k < k1) and (
-                            0 < i < m - 1 and 0 < j < n - 1 and 0 < k < l - 1
-                            and 1 < own < size - 2):
-                        # Outside the region the operator is already in place; away from
-                        # the sides the right-hand side is the value itself (no term adds).
+                    if plain_from <= k < region_from or region_to <= k < plain_to:
                         rhs[i, j, k] = f[i, j, k]
                         continue
-                    if not assemble_operator:
-                        if (0 < i < m - 1 and 0 < j < n - 1 and 0 < k < l - 1
-                                and 1 < own < size - 2):
-                            # No side and no held face next to it (nearly every point).
-                            rhs[i, j, k] = f[i, j, k]
-                        else:
-                            rhs[i, j, k] = _known_operator_rhs(
-                                f, c, axis, fixed_low, fixed_high, tangential_modes,
-                                tangential_values, i, j, k)
+                    if not (assemble_operator and i0 <= i < i1 and j0 <= j < j1
+                            and k0 <= k < k1):
+                        # Next to a side, outside the region: the operator is in place (or
+                        # not asked for) and no body is near, so the right-hand side is the
+                        # sides' closed form.
+                        rhs[i, j, k] = _known_operator_rhs(
+                            f, c, axis, fixed_low, fixed_high, tangential_modes,
+                            tangential_values, i, j, k)
                         continue
+                    own = i if axis == 0 else (j if axis == 1 else k)
                     if i + 1 < m:
                         weights_x[i, j, k] = 0.0
                     if j + 1 < n:
@@ -740,10 +747,10 @@ def build_viscosity_system_3d(f, c, axis, sides, has_interior, body, assemble_op
         operator: ``(diagonal, weights_x, weights_y, weights_z)``: outputs.
         rhs: Output.
         region: ``(i0, j0, k0, i1, j1, k1)`` int64 (ends exclusive): with
-            ``assemble_operator``, the operator is written only inside this box and next to
-            the sides (the right-hand side everywhere): the caller's ``operator`` already
-            holds the right values elsewhere (the same ``c``, sides and bodies there);
-            `WHOLE_REGION`: everywhere.
+            ``assemble_operator``, the operator is written only inside this box (the
+            right-hand side everywhere): the caller's ``operator`` already holds the right
+            values elsewhere (the same ``c`` and sides, and no body there, so that the
+            right-hand side there takes the sides' terms only); `WHOLE_REGION`: everywhere.
     """
     if f.size > PARALLEL_MINIMUM_3D:
         return _viscosity_parallel(f, c, axis, sides, has_interior, body, assemble_operator,
