@@ -60,9 +60,9 @@ def interior_boundary_3d(bmap: BoundaryMap3D, out: InteriorBoundary3D | None = N
     velocity at the points inside (linear between the crossings that bound them, METHOD.md
     §5.4), the faces' exact open fractions and the cut distances of every velocity point.
 
-    ``out``: an earlier interior of the same grid that is no longer read; its solid-flag,
-    body-velocity, open-fraction and cut-distance arrays are refilled instead of allocated,
-    only inside its ``box`` when it has one.
+    ``out``: an earlier interior of the same grid that is no longer read; its solid-flag
+    (cells and faces), body-velocity, open-fraction and cut-distance arrays are refilled
+    instead of allocated, only inside its ``box`` when it has one.
     The result's ``box`` is the map's `bodies_box_3d`."""
     solid_faces = []
     velocity_faces = []
@@ -79,7 +79,8 @@ def interior_boundary_3d(bmap: BoundaryMap3D, out: InteriorBoundary3D | None = N
         (out.cut_velocity_x, out.cut_velocity_y, out.cut_velocity_z), out.box)
     cuts = cut_distances_3d(bmap, out=reuse)
     return InteriorBoundary3D(
-        solid_cells=solid_cells_3d(bmap),
+        solid_cells=solid_cells_3d(bmap, out=None if out is None else out.solid_cells,
+                                   out_box=None if out is None else out.box),
         solid_faces_x=solid_faces[0], solid_faces_y=solid_faces[1],
         solid_faces_z=solid_faces[2],
         velocity_faces_x=velocity_faces[0], velocity_faces_y=velocity_faces[1],

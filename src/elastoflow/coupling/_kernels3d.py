@@ -163,11 +163,12 @@ def sort_lines(offsets, coordinate, triangle_of, weights, sign):
 
 
 @njit(cache=True)
-def winding_along_lines(offsets, coordinate, sign, lines_v, line_u0, line_v0, count_u,
-                        count_v, origin, h, count, out):
-    """``out[i, j, k]`` = winding number at the points ``origin + (i + 1/2) h`` along the
-    axis on the lines ``(line_u0 + 2 j, line_v0 + 2 k)``: the sum of the signs of the
-    crossings before the point (a point exactly on a crossing counts it as passed).
+def solid_along_lines(offsets, coordinate, sign, lines_v, line_u0, line_v0, count_u,
+                      count_v, origin, h, count, out):
+    """``out[i, j, k]`` = True where the point ``origin + (i + 1/2) h`` along the axis on the
+    line ``(line_u0 + 2 j, line_v0 + 2 k)`` lies inside a body: winding number (the sum of
+    the signs of the crossings before it; a point exactly on a crossing counts it as passed)
+    > 0.
 
     Args:
         offsets: Line offsets of the map (lines ``U * lines_v + V``).
@@ -178,7 +179,9 @@ def winding_along_lines(offsets, coordinate, sign, lines_v, line_u0, line_v0, co
         origin: Grid origin along the axis [m].
         h: Cell side [m].
         count: Number of points along the axis.
-        out: Winding numbers, int32, shape (count, count_u, count_v).
+        out: bool, shape (count, count_u, count_v), filled with False: lines without
+            crossings are skipped (all their points are outside), and a line is left once
+            its last crossing is passed.
     """
     for j in range(count_u):
         for k in range(count_v):
@@ -187,11 +190,14 @@ def winding_along_lines(offsets, coordinate, sign, lines_v, line_u0, line_v0, co
             end = offsets[line + 1]
             winding = 0
             for i in range(count):
+                if entry == end and winding <= 0:
+                    break
                 position = origin + (i + 0.5) * h
                 while entry < end and coordinate[entry] <= position:
                     winding += sign[entry]
                     entry += 1
-                out[i, j, k] = winding
+                if winding > 0:
+                    out[i, j, k] = True
 
 
 @njit(cache=True, inline="always")

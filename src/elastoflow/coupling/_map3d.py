@@ -170,16 +170,32 @@ def build_boundary_map_3d(grid: Grid3D, points: np.ndarray, velocities: np.ndarr
     return BoundaryMap3D(grid, points, velocities, triangles, triangle_body, lines)
 
 
-def solid_cells_3d(bmap: BoundaryMap3D) -> np.ndarray:
+def solid_cells_3d(bmap: BoundaryMap3D, out: np.ndarray | None = None,
+                   out_box: tuple[int, ...] | None = None) -> np.ndarray:
     """Cells whose centre lies inside a body (winding number along x > 0), bool,
-    (nx, ny, nz)."""
+    (nx, ny, nz).
+
+    ``out``: an earlier result of the same grid that is no longer read, refilled instead of
+    allocated: reset inside ``out_box`` (the `bodies_box_3d` of the map it came from,
+    outside which it is all False) or everywhere when that is None."""
     grid = bmap.grid
     crossings = bmap.lines[0]
-    winding = np.zeros((grid.nx, grid.ny, grid.nz), dtype=np.int32)
-    _kernels3d.winding_along_lines(crossings.offsets, crossings.coordinate, crossings.sign,
-                                   crossings.lines_v, 1, 1, grid.ny, grid.nz,
-                                   float(grid.origin[0]), grid.h, grid.nx, winding)
-    return winding > 0
+    shape = (grid.nx, grid.ny, grid.nz)
+    if out is None:
+        solid = np.zeros(shape, dtype=np.bool_)
+    else:
+        if out.shape != shape or out.dtype != np.bool_:
+            raise ValueError(f"out: {out.dtype} array of shape {out.shape} is not allowed; "
+                             f"expected bool {shape}")
+        solid = out
+        if out_box is None:
+            solid[...] = False
+        else:
+            _kernels3d.fill_box(solid, np.asarray(out_box, dtype=np.int64), False)
+    _kernels3d.solid_along_lines(crossings.offsets, crossings.coordinate, crossings.sign,
+                                 crossings.lines_v, 1, 1, grid.ny, grid.nz,
+                                 float(grid.origin[0]), grid.h, grid.nx, solid)
+    return solid
 
 
 def face_open_fractions_3d(

@@ -96,6 +96,16 @@ def test_cells_inside_a_random_closed_surface_match_brute_force(seed: int,
     assert np.array_equal(inside.reshape(-1), expected)
     assert inside.any()
     _check_lines_pair_up(bmap)
+    # Refilled into an earlier answer: reset everywhere, or in a box that holds its True
+    # cells (here: the whole array's box).
+    stale = np.ones(grid.shape_cells, dtype=np.bool_)
+    assert solid_cells_3d(bmap, out=stale) is stale
+    assert np.array_equal(stale, inside)
+    stale[...] = True
+    solid_cells_3d(bmap, out=stale, out_box=(0, 0, 0) + grid.shape_cells)
+    assert np.array_equal(stale, inside)
+    with pytest.raises(ValueError, match="out: float64 array of shape"):
+        solid_cells_3d(bmap, out=np.zeros(grid.shape_cells))
 
 
 def test_box_on_grid_lines_is_crossed_consistently() -> None:
