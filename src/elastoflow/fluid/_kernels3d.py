@@ -236,8 +236,11 @@ def _corner_with_bodies(f, i0, j0, k0, corner, modes, values, row, solid, theta,
     ii = i0 + (corner & 1)
     jj = j0 + ((corner >> 1) & 1)
     kk = k0 + (corner >> 2)
-    value = _field_value(f, ii, jj, kk, modes, values, row)
-    if not (_inside(ii, jj, kk, m, n, l) and solid[ii, jj, kk]):
+    if not _inside(ii, jj, kk, m, n, l):
+        # Beyond a side: a side ghost, never solid.
+        return _field_value(f, ii, jj, kk, modes, values, row)
+    value = f[ii, jj, kk]
+    if not solid[ii, jj, kk]:
         return value
     total = 0.0
     count = 0
@@ -364,9 +367,12 @@ def _sample_bodies_near(f, fx, fy, fz, modes, values, row, solid, theta, cut_vel
         weight = ((a if corner & 1 else 1.0 - a) * (b if (corner >> 1) & 1 else 1.0 - b)
                   * (c if corner >> 2 else 1.0 - c))
         if is_dye:
-            if _inside(ii, jj, kk, m, n, l) and solid[ii, jj, kk]:
+            if not _inside(ii, jj, kk, m, n, l):
+                value = _field_value(f, ii, jj, kk, modes, values, row)
+            elif solid[ii, jj, kk]:
                 continue
-            value = _field_value(f, ii, jj, kk, modes, values, row)
+            else:
+                value = f[ii, jj, kk]
         else:
             value = _corner_with_bodies(f, i0, j0, k0, corner, modes, values, row, solid,
                                         theta, cut_velocity)
