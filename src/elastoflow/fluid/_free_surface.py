@@ -650,10 +650,11 @@ class FreeSurfaceSolver:
             # The fluid's advection kernel without bodies (the free surface has none yet).
             none = (fluid._no_solid, fluid._no_theta, fluid._no_cut)
             dye = state.fluid.dye
-            fluid_kernels.advect_cells(
-                u, v, dye, self.workspace.dye, dt, h, *ghosts, fluid._modes_dye,
-                fluid._values_dye, False, *none, *none, fluid._near_everywhere,
-                fluid._no_solid, 0, dye, fluid._no_values, fluid._no_values)
+            fluid_kernels.advect(
+                (u, v), dye, self.workspace.dye, fluid_kernels.FIELD_CELLS, dt, h, ghosts,
+                False, (*none, *none, fluid._near_everywhere),
+                (fluid._no_solid, fluid._no_values, fluid._modes_dye, fluid._values_dye),
+                fluid_kernels.PASS_TRACE, (dye, fluid._no_values, fluid._no_values))
             fluid_kernels.copy_into(self.workspace.dye, dye)
         fluid_kernels.copy_into(low_u, u)
         fluid_kernels.copy_into(low_v, v)

@@ -28,6 +28,16 @@ OPEN_MIN = 1e-2
 # algebra's limit, `elastoflow.linalg._kernels.PARALLEL_MINIMUM`).
 PARALLEL_MINIMUM = 96 * 96
 
+# Which field an advection pass transports (`advect`).
+FIELD_X = 0      # the x faces (nx+1, ny)
+FIELD_Y = 1      # the y faces (nx, ny+1)
+FIELD_CELLS = 2  # a cell-centred scalar (nx, ny): the dye
+# What an advection pass writes (`advect`).
+PASS_TRACE = 0              # the semi-Lagrangian sample at the departure point
+PASS_TRACE_RANGE = 1        # the same, and the range of the four values around it
+PASS_CORRECT = 2            # MacCormack's correction, clamped to that range
+PASS_CORRECT_UNCLAMPED = 3  # the same correction, unclamped
+
 
 @njit(cache=True, inline="always")
 def _lerp(a: float, b: float, t: float) -> float:
@@ -209,7 +219,7 @@ def _sample_dye_with_bodies(f, fx, fy, modes, values, solid, near):
     """Bilinear sample over the fluid corners only (dye does not enter bodies).
 
     Corners away from every region (``near``, see `near_regions`) are fluid without reading
-    ``solid``. Inlined (one caller): as a call it cost advect_cells ~30 % over the plain
+    ``solid``. Inlined (one caller): as a call it cost `_advect_cells` ~30 % over the plain
     sampling.
     """
     m, n = f.shape
@@ -335,54 +345,46 @@ def _sample_and_range(f, fx, fy, modes, values):
 
 @njit(cache=True, inline="always")
 def _write_advected(source, sampled, forward, out, low, high, i, j, fx, fy, modes, values,
-                    mode, sample, have_sample):
-    """What ``mode`` (see `advect_field_x`) makes of the departure point (fx, fy) of point
-    (i, j), written into ``out`` (and on the first pass the clamp's range into ``low`` /
-    ``high``); ``sample``: the value there read across bodies, when ``have_sample``."""
+                    pass_kind, sample, have_sample):
+    """What ``pass_kind`` (see `advect`) makes of the departure point (fx, fy) of point
+    (i, j), written into ``out`` (and with `PASS_TRACE_RANGE` the clamp's range into ``low``
+    / ``high``); ``sample``: the value there read across bodies, when ``have_sample``."""
     if have_sample:
         value = sample
-    elif mode == 1:
+    elif pass_kind == PASS_TRACE_RANGE:
         value, low[i, j], high[i, j] = _sample_and_range(source, fx, fy, modes, values)
         out[i, j] = value
         return
     else:
         value = _sample(sampled, fx, fy, modes, values)
-    if mode >= 2:
+    if pass_kind >= PASS_CORRECT:
         corrected = forward[i, j] + 0.5 * (source[i, j] - value)
-        out[i, j] = _clamp(corrected, low[i, j], high[i, j]) if mode == 2 else corrected
+        out[i, j] = (_clamp(corrected, low[i, j], high[i, j]) if pass_kind == PASS_CORRECT
+                     else corrected)
     else:
         out[i, j] = value
-        if mode == 1:
+        if pass_kind == PASS_TRACE_RANGE:
             low[i, j], high[i, j] = _corner_range(source, fx, fy, modes, values)
 
 
-@njit(cache=True, parallel=True)
-def advect_field_x(
-    u, v, source, out, dt, h, modes_u, values_u, modes_v, values_v, has_interior,
-    solid_x, theta_x, cut_x, solid_y, theta_y, cut_y, near, body_velocity, mode, forward, low,
-    high,
-):
-    """Transport the x-face field ``source`` by (u, v) over ``dt`` into ``out`` (nx+1, ny).
+# The three fields' kernels take their arrays bundled (`advect`'s arguments) and unpack them
+# before the loop: a parallel loop's body cannot hold a tuple of arrays, so the inlined
+# samplers below take them one by one.
 
-    The body arrays (solid flags, cut fractions and cut velocities of the x- and y-faces) are
-    read only with ``has_interior``, and only for samples whose stencil is marked in ``near``
-    (`near_regions`; all True when bodies may be anywhere). ``mode`` 0 samples ``source`` at
-    the departure points; 1 (MacCormack's first pass) does the same and stores the range of
-    the four ``source`` values around each departure point in ``low`` / ``high``; 2
-    (MacCormack's second pass, given ``-dt``) samples ``forward``, the first pass's result,
-    at the departure points (the backward step's value ``backward``) and writes the
-    correction ``forward + (source - backward) / 2`` clamped to ``[low, high]`` (Selle et al.
-    2008), so that no new extrema appear; 3 writes the same correction unclamped. Modes 1
-    then 2 give bitwise the values of a forward pass, a backward pass and a correction
-    pass, with one back-trace fewer per point and no second read of the departure stencil.
-    ``out`` must not be ``source`` or ``forward``; in modes 2 and 3 it may be ``low`` or
-    ``high`` (each point reads its own bounds before writing).
-    """
+
+@njit(cache=True, parallel=True)
+def _advect_x(velocity, source, out, dt, h, ghosts, has_interior, bodies, own, pass_kind,
+              buffers):
+    u, v = velocity
+    modes_u, values_u, modes_v, values_v = ghosts
+    solid_x, theta_x, cut_x, solid_y, theta_y, cut_y, near = bodies
+    body_velocity = own[1]
+    forward, low, high = buffers
     nx1, ny = u.shape
     inv_h = 1.0 / h
     lx = (nx1 - 1) * h
     ly = ny * h
-    sampled = forward if mode >= 2 else source
+    sampled = forward if pass_kind >= PASS_CORRECT else source
     for i in prange(nx1):
         for j in range(ny):
             if has_interior and solid_x[i, j]:
@@ -411,24 +413,22 @@ def advect_field_x(
                     sampled, fx, fy, modes_u, values_u, solid_x, theta_x, cut_x, near
                 )
             _write_advected(source, sampled, forward, out, low, high, i, j, fx, fy, modes_u,
-                            values_u, mode, value, has_interior)
+                            values_u, pass_kind, value, has_interior)
 
 
 @njit(cache=True, parallel=True)
-def advect_field_y(
-    u, v, source, out, dt, h, modes_u, values_u, modes_v, values_v, has_interior,
-    solid_x, theta_x, cut_x, solid_y, theta_y, cut_y, near, body_velocity, mode, forward, low,
-    high,
-):
-    """Transport the y-face field ``source`` by (u, v) over ``dt`` into ``out`` (nx, ny+1).
-
-    ``mode``, ``forward``, ``low`` and ``high`` as in `advect_field_x`.
-    """
+def _advect_y(velocity, source, out, dt, h, ghosts, has_interior, bodies, own, pass_kind,
+              buffers):
+    u, v = velocity
+    modes_u, values_u, modes_v, values_v = ghosts
+    solid_x, theta_x, cut_x, solid_y, theta_y, cut_y, near = bodies
+    body_velocity = own[1]
+    forward, low, high = buffers
     nx, ny1 = v.shape
     inv_h = 1.0 / h
     lx = nx * h
     ly = (ny1 - 1) * h
-    sampled = forward if mode >= 2 else source
+    sampled = forward if pass_kind >= PASS_CORRECT else source
     for i in prange(nx):
         for j in range(ny1):
             if has_interior and solid_y[i, j]:
@@ -457,24 +457,22 @@ def advect_field_y(
                     sampled, fx, fy, modes_v, values_v, solid_y, theta_y, cut_y, near
                 )
             _write_advected(source, sampled, forward, out, low, high, i, j, fx, fy, modes_v,
-                            values_v, mode, value, has_interior)
+                            values_v, pass_kind, value, has_interior)
 
 
 @njit(cache=True, parallel=True)
-def advect_cells(
-    u, v, source, out, dt, h, modes_u, values_u, modes_v, values_v, modes_c, values_c,
-    has_interior, solid_x, theta_x, cut_x, solid_y, theta_y, cut_y, near, solid_cells,
-    mode, forward, low, high,
-):
-    """Transport a cell-centred scalar by (u, v) over ``dt`` into ``out`` (nx, ny).
-
-    ``mode``, ``forward``, ``low`` and ``high`` as in `advect_field_x`.
-    """
+def _advect_cells(velocity, source, out, dt, h, ghosts, has_interior, bodies, own, pass_kind,
+                  buffers):
+    u, v = velocity
+    modes_u, values_u, modes_v, values_v = ghosts
+    solid_x, theta_x, cut_x, solid_y, theta_y, cut_y, near = bodies
+    solid_cells, modes_c, values_c = own[0], own[2], own[3]
+    forward, low, high = buffers
     nx, ny = source.shape
     inv_h = 1.0 / h
     lx = nx * h
     ly = ny * h
-    sampled = forward if mode >= 2 else source
+    sampled = forward if pass_kind >= PASS_CORRECT else source
     for i in prange(nx):
         for j in range(ny):
             if has_interior and solid_cells[i, j]:
@@ -504,7 +502,59 @@ def advect_cells(
                     sampled, fx, fy, modes_c, values_c, solid_cells, near
                 )
             _write_advected(source, sampled, forward, out, low, high, i, j, fx, fy, modes_c,
-                            values_c, mode, value, has_interior)
+                            values_c, pass_kind, value, has_interior)
+
+
+@njit(cache=True)
+def advect(velocity, source, out, field, dt, h, ghosts, has_interior, bodies, own, pass_kind,
+           buffers):
+    """Semi-Lagrangian transport of ``source`` by ``velocity`` = (u, v) over ``dt`` [s] into
+    ``out``, with or without bodies inside: midpoint back-trace, bilinear sampling with side
+    ghosts.
+
+    Args:
+        source, out: The transported field before and after, of the same shape. ``out``
+            must not be ``source`` or ``buffers``' forward; with `PASS_CORRECT` and
+            `PASS_CORRECT_UNCLAMPED` it may be ``buffers``' low or high (each point reads
+            its own bounds before writing).
+        field: Which field is transported: `FIELD_X` (x faces, (nx+1, ny)), `FIELD_Y` (y
+            faces, (nx, ny+1)) or `FIELD_CELLS` (a cell-centred scalar, the dye).
+        dt: The time step [s]; a negative one traces forwards (MacCormack's backward pass).
+        h: Grid spacing [m].
+        ghosts: ``(modes_u, values_u, modes_v, values_v)``: the side ghosts of u and v (each
+            (4,): mode and value per side, module docstring).
+        has_interior: Whether the body arrays are read.
+        bodies: ``(solid_x, theta_x, cut_x, solid_y, theta_y, cut_y, near)``: the solid
+            flags, cut fractions and cut velocities of the x- and y-faces, read only for
+            samples whose stencil is marked in ``near`` (`near_regions`; all True when
+            bodies may be anywhere).
+        own: The transported field's own ``(solid, body_velocity, modes, values)``: points
+            inside a body take ``body_velocity`` (dye: 0, across bodies it is averaged over
+            its fluid corners only); ``modes`` / ``values`` its side ghosts, read for the
+            dye only (a velocity component's are in ``ghosts``).
+        pass_kind: `PASS_TRACE` samples ``source`` at the departure points;
+            `PASS_TRACE_RANGE` (MacCormack's first pass) does the same and stores the range
+            of the four ``source`` values around each departure point in ``buffers``' low /
+            high; `PASS_CORRECT` (MacCormack's second pass, given ``-dt``) samples
+            ``buffers``' forward, the first pass's result, at the departure points (the
+            backward step's value ``backward``) and writes the correction ``forward +
+            (source - backward) / 2`` clamped to ``[low, high]`` (Selle et al. 2008), so
+            that no new extrema appear; `PASS_CORRECT_UNCLAMPED` writes the same correction
+            unclamped. `PASS_TRACE_RANGE` then `PASS_CORRECT` give bitwise the values of a
+            forward pass, a backward pass and a correction pass, with one back-trace fewer
+            per point and no second read of the departure stencil.
+        buffers: ``(forward, low, high)``, shaped like ``source``; not read with
+            `PASS_TRACE`.
+    """
+    if field == FIELD_X:
+        _advect_x(velocity, source, out, dt, h, ghosts, has_interior, bodies, own, pass_kind,
+                  buffers)
+    elif field == FIELD_Y:
+        _advect_y(velocity, source, out, dt, h, ghosts, has_interior, bodies, own, pass_kind,
+                  buffers)
+    else:
+        _advect_cells(velocity, source, out, dt, h, ghosts, has_interior, bodies, own,
+                      pass_kind, buffers)
 
 
 def _make_copy_into(loop):

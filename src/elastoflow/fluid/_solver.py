@@ -450,33 +450,26 @@ class FluidSolver:
         self, state: FluidState, sources: tuple[np.ndarray, np.ndarray, np.ndarray],
         outs: tuple[np.ndarray, np.ndarray, np.ndarray], dt: float,
         interior: InteriorBoundary | None, velocity: tuple[np.ndarray, np.ndarray],
-        mode: int = 0, forwards: tuple[np.ndarray, ...] | None = None, dye: bool = True,
+        pass_kind: int = kernels.PASS_TRACE, forwards: tuple[np.ndarray, ...] | None = None,
+        dye: bool = True,
     ) -> None:
         h = self.grid.h
-        u, v = velocity
         has, solid_x, theta_x, cut_x, body_x = self._interior_arrays(interior, 0)
         _, solid_y, theta_y, cut_y, body_y = self._interior_arrays(interior, 1)
         forwards = forwards if forwards is not None else sources
-        near = self._near_regions(interior)
+        bodies = (solid_x, theta_x, cut_x, solid_y, theta_y, cut_y,
+                  self._near_regions(interior))
+        ghosts = (self._modes_u, self._values_u, self._modes_v, self._values_v)
         ranges = self._ranges
-        kernels.advect_field_x(
-            u, v, sources[0], outs[0], dt, h, self._modes_u, self._values_u, self._modes_v,
-            self._values_v, has, solid_x, theta_x, cut_x, solid_y, theta_y, cut_y, near,
-            body_x, mode, forwards[0], ranges[0], ranges[1],
-        )
-        kernels.advect_field_y(
-            u, v, sources[1], outs[1], dt, h, self._modes_u, self._values_u, self._modes_v,
-            self._values_v, has, solid_x, theta_x, cut_x, solid_y, theta_y, cut_y, near,
-            body_y, mode, forwards[1], ranges[2], ranges[3],
-        )
-        if not dye:
-            return
         solid_cells = interior.solid_cells if interior is not None else self._no_solid
-        kernels.advect_cells(
-            u, v, sources[2], outs[2], dt, h, self._modes_u, self._values_u, self._modes_v,
-            self._values_v, self._modes_dye, self._values_dye, has, solid_x, theta_x, cut_x,
-            solid_y, theta_y, cut_y, near, solid_cells, mode, forwards[2], ranges[4], ranges[5],
-        )
+        owns = ((solid_x, body_x, self._modes_u, self._values_u),
+                (solid_y, body_y, self._modes_v, self._values_v),
+                (solid_cells, self._no_values, self._modes_dye, self._values_dye))
+        fields = (kernels.FIELD_X, kernels.FIELD_Y, kernels.FIELD_CELLS)
+        for index in range(3 if dye else 2):
+            kernels.advect(velocity, sources[index], outs[index], fields[index], dt, h, ghosts,
+                           has, bodies, owns[index], pass_kind,
+                           (forwards[index], ranges[2 * index], ranges[2 * index + 1]))
 
     def advect(
         self, state: FluidState, dt: float, interior: InteriorBoundary | None = None
@@ -514,14 +507,17 @@ class FluidSolver:
         forward = (self._buffer_u, self._buffer_v, self._buffer_dye)
         if self.advection == "maccormack":
             # Two passes, one back-trace each: forward with the clamp's ranges, then backward
-            # and corrected (the kernels' modes 1 and 2), written over the lows.
+            # and corrected (`PASS_TRACE_RANGE`, `PASS_CORRECT`), written over the lows.
             limited = self.maccormack_limiter
             self._advect_once(state, fields, forward, dt, interior, velocity,
-                              mode=1 if limited else 0, dye=dye)
+                              kernels.PASS_TRACE_RANGE if limited else kernels.PASS_TRACE,
+                              dye=dye)
             ranges = self._ranges
             result = (ranges[0], ranges[2], ranges[4])
-            self._advect_once(state, fields, result, -dt, interior, velocity,
-                              mode=2 if limited else 3, forwards=forward, dye=dye)
+            self._advect_once(
+                state, fields, result, -dt, interior, velocity,
+                kernels.PASS_CORRECT if limited else kernels.PASS_CORRECT_UNCLAMPED,
+                forwards=forward, dye=dye)
         else:
             self._advect_once(state, fields, forward, dt, interior, velocity, dye=dye)
             result = forward

@@ -251,18 +251,16 @@ class ElasticBody:
         the kernel's status convention (`elastoflow.solid._kernels`). `ExplicitFem` calls
         this, so that it advances 2D and 3D bodies alike."""
         m = self.material
-        arguments = (
-            positions, velocities, self.mesh.triangles, self.dm_inverse, self.rest_area,
-            inverse_mass, self.fixed_mask, external_forces, m.lame_lambda, m.lame_mu,
-            m.damping_lambda, m.damping_mu, self.velocity_damping, dt, substeps, status,
-            determinant,
+        _kernels.advance(
+            (positions, velocities),
+            (self.mesh.triangles, self.dm_inverse, self.rest_area, inverse_mass,
+             self.fixed_mask),
+            (float(m.lame_lambda), float(m.lame_mu), float(m.damping_lambda),
+             float(m.damping_mu), float(self.velocity_damping)),
+            external_forces, dt, substeps,
+            (self.node_offsets, self.node_elements, self.node_corners), self.parallel,
+            (status, determinant),
         )
-        if self.parallel:
-            _kernels.advance_parallel(
-                *arguments, self.node_offsets, self.node_elements, self.node_corners
-            )
-        else:
-            _kernels.advance_serial(*arguments)
 
     def response_at(self, positions: np.ndarray, dt: float,
                     stiffness_step: float | None = None,

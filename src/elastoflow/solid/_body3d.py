@@ -182,18 +182,16 @@ class ElasticBody3D:
         the kernel's status convention (`elastoflow.solid._kernels3d`). `ExplicitFem` calls
         this."""
         m = self.material
-        arguments = (
-            positions, velocities, self.mesh.tetrahedra, self.dm_inverse, self.rest_volume,
-            inverse_mass, self.fixed_mask, external_forces, m.lame_lambda, m.lame_mu,
-            m.damping_lambda, m.damping_mu, self.velocity_damping, float(dt), int(substeps),
-            status, determinant,
+        _kernels3d.advance_3d(
+            (positions, velocities),
+            (self.mesh.tetrahedra, self.dm_inverse, self.rest_volume, inverse_mass,
+             self.fixed_mask),
+            (float(m.lame_lambda), float(m.lame_mu), float(m.damping_lambda),
+             float(m.damping_mu), float(self.velocity_damping)),
+            external_forces, float(dt), int(substeps),
+            (self.node_offsets, self.node_elements, self.node_corners), self.parallel,
+            (status, determinant),
         )
-        if self.parallel:
-            _kernels3d.advance_parallel_3d(
-                *arguments, self.node_offsets, self.node_elements, self.node_corners
-            )
-        else:
-            _kernels3d.advance_serial_3d(*arguments)
 
     def forces_at(self, positions: np.ndarray, velocities: np.ndarray,
                   rate_strain: float = 0.0) -> np.ndarray:

@@ -296,23 +296,12 @@ def element_determinants(
 
 
 @njit(cache=True)
-def advance_serial(
-    positions: np.ndarray, velocities: np.ndarray, triangles: np.ndarray,
-    dm_inverse: np.ndarray, rest_area: np.ndarray, inverse_mass: np.ndarray,
-    fixed: np.ndarray, external_forces: np.ndarray, lame_lambda: float, lame_mu: float,
-    damping_lambda: float, damping_mu: float,
-    velocity_damping: float, dt: float, substeps: int, status: np.ndarray,
-    determinant: np.ndarray,
-) -> None:
-    """``substeps`` symplectic Euler substeps of size ``dt`` [s], in place; serial scatter.
-
-    ``external_forces`` (n, 2) [N/m] holds every force but the internal ones (gravity included);
-    ``inverse_mass`` (n,) is 1 / (the inertia of each node).
-
-    A substep whose result holds an element with det F <= 0 or not finite stops the loop and
-    sets ``status = (1, substeps completed, element)``; the positions are then those after that
-    substep.
-    """
+def _advance_serial(state, mesh, material, external_forces, dt, substeps, outcome):
+    """`advance` with the forces scattered to the nodes element by element."""
+    positions, velocities = state
+    triangles, dm_inverse, rest_area, inverse_mass, fixed = mesh
+    lame_lambda, lame_mu, damping_lambda, damping_mu, velocity_damping = material
+    status, determinant = outcome
     forces = np.empty_like(positions)
     determinants = np.empty(triangles.shape[0])
     drag_factor = 1.0 / (1.0 + velocity_damping * dt)
@@ -342,21 +331,19 @@ def advance_serial(
 
 
 @njit(cache=True, parallel=True)
-def advance_parallel(
-    positions: np.ndarray, velocities: np.ndarray, triangles: np.ndarray,
-    dm_inverse: np.ndarray, rest_area: np.ndarray, inverse_mass: np.ndarray,
-    fixed: np.ndarray, external_forces: np.ndarray, lame_lambda: float, lame_mu: float,
-    damping_lambda: float, damping_mu: float,
-    velocity_damping: float, dt: float, substeps: int, status: np.ndarray,
-    determinant: np.ndarray, node_offsets: np.ndarray, node_elements: np.ndarray,
-    node_corners: np.ndarray,
-) -> None:
-    """Same as :func:`advance_serial`, threaded over elements and then over nodes.
+def _advance_parallel(state, mesh, material, external_forces, dt, substeps, adjacency,
+                      outcome):
+    """`advance` threaded over elements and then over nodes.
 
-    Element forces go to a per-element buffer and each node gathers its own (``node_offsets``,
-    ``node_elements``, ``node_corners``: CSR of the elements around each node and the corner
-    the node is in them), so no two threads write the same node.
+    Element forces go to a per-element buffer and each node gathers its own (``adjacency``:
+    CSR of the elements around each node and the corner the node is in them), so no two
+    threads write the same node.
     """
+    positions, velocities = state
+    triangles, dm_inverse, rest_area, inverse_mass, fixed = mesh
+    lame_lambda, lame_mu, damping_lambda, damping_mu, velocity_damping = material
+    node_offsets, node_elements, node_corners = adjacency
+    status, determinant = outcome
     element_count = triangles.shape[0]
     node_count = positions.shape[0]
     element_forces = np.empty((element_count, 3, 2))
@@ -400,3 +387,29 @@ def advance_parallel(
         status[1] = substeps
         status[2] = bad
         determinant[0] = determinants[bad]
+
+
+@njit(cache=True)
+def advance(state, mesh, material, external_forces, dt, substeps, adjacency, parallel,
+            outcome):
+    """``substeps`` symplectic Euler substeps of size ``dt`` [s], in place.
+
+    Args:
+        state: ``(positions, velocities)`` (n, 2), advanced in place.
+        mesh: ``(triangles, dm_inverse, rest_area, inverse_mass, fixed)``: ``inverse_mass``
+            (n,) is 1 / (the inertia of each node); fixed nodes keep their place.
+        material: ``(lame_lambda, lame_mu, damping_lambda, damping_mu, velocity_damping)``.
+        external_forces: (n, 2) [N/m], every force but the internal ones (gravity included).
+        adjacency: ``(node_offsets, node_elements, node_corners)``, the elements around each
+            node (CSR) and the node's corner in them; read only with ``parallel``.
+        parallel: Threaded over elements and nodes (else the forces are scattered serially).
+        outcome: ``(status, determinant)``: a substep whose result holds an element with
+            det F <= 0 or not finite stops the loop and sets ``status = (1, substeps
+            completed, element)`` and ``determinant[0]`` to that det F; the positions are
+            then those after that substep.
+    """
+    if parallel:
+        _advance_parallel(state, mesh, material, external_forces, dt, substeps, adjacency,
+                          outcome)
+    else:
+        _advance_serial(state, mesh, material, external_forces, dt, substeps, outcome)

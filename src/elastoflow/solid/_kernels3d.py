@@ -229,19 +229,12 @@ def _report_bad(determinants: np.ndarray, substep: int, status: np.ndarray,
 
 
 @njit(cache=True)
-def advance_serial_3d(
-    positions: np.ndarray, velocities: np.ndarray, tetrahedra: np.ndarray,
-    dm_inverse: np.ndarray, rest_volume: np.ndarray, inverse_mass: np.ndarray,
-    fixed: np.ndarray, external_forces: np.ndarray, lame_lambda: float, lame_mu: float,
-    damping_lambda: float, damping_mu: float, velocity_damping: float, dt: float,
-    substeps: int, status: np.ndarray, determinant: np.ndarray,
-) -> None:
-    """``substeps`` symplectic Euler substeps of size ``dt`` [s], in place; serial scatter.
-
-    ``external_forces`` (n, 3) [N] holds every force but the internal ones (gravity included).
-    A substep whose result holds an element with det F <= 0 or not finite stops the loop and
-    sets the status (module docstring).
-    """
+def _advance_serial_3d(state, mesh, material, external_forces, dt, substeps, outcome):
+    """`advance_3d` with the forces scattered to the nodes element by element."""
+    positions, velocities = state
+    tetrahedra, dm_inverse, rest_volume, inverse_mass, fixed = mesh
+    lame_lambda, lame_mu, damping_lambda, damping_mu, velocity_damping = material
+    status, determinant = outcome
     forces = np.empty_like(positions)
     determinants = np.empty(tetrahedra.shape[0])
     drag_factor = 1.0 / (1.0 + velocity_damping * dt)
@@ -267,20 +260,19 @@ def advance_serial_3d(
 
 
 @njit(cache=True, parallel=True)
-def advance_parallel_3d(
-    positions: np.ndarray, velocities: np.ndarray, tetrahedra: np.ndarray,
-    dm_inverse: np.ndarray, rest_volume: np.ndarray, inverse_mass: np.ndarray,
-    fixed: np.ndarray, external_forces: np.ndarray, lame_lambda: float, lame_mu: float,
-    damping_lambda: float, damping_mu: float, velocity_damping: float, dt: float,
-    substeps: int, status: np.ndarray, determinant: np.ndarray, node_offsets: np.ndarray,
-    node_elements: np.ndarray, node_corners: np.ndarray,
-) -> None:
-    """Same as :func:`advance_serial_3d`, threaded over elements, then over nodes.
+def _advance_parallel_3d(state, mesh, material, external_forces, dt, substeps, adjacency,
+                         outcome):
+    """`advance_3d` threaded over elements, then over nodes.
 
-    Element forces go to a per-element buffer and each node gathers its own (CSR
-    ``node_offsets``, ``node_elements``, ``node_corners``: the elements around each node and
-    the node's corner in them), so no two threads write the same node.
+    Element forces go to a per-element buffer and each node gathers its own (``adjacency``:
+    the elements around each node and the node's corner in them, CSR), so no two threads
+    write the same node.
     """
+    positions, velocities = state
+    tetrahedra, dm_inverse, rest_volume, inverse_mass, fixed = mesh
+    lame_lambda, lame_mu, damping_lambda, damping_mu, velocity_damping = material
+    node_offsets, node_elements, node_corners = adjacency
+    status, determinant = outcome
     element_count = tetrahedra.shape[0]
     node_count = positions.shape[0]
     element_forces = np.empty((element_count, 4, 3))
@@ -310,6 +302,21 @@ def advance_parallel_3d(
                          drag_factor)
     element_determinants_3d(positions, tetrahedra, dm_inverse, determinants)
     _report_bad(determinants, substeps, status, determinant)
+
+
+@njit(cache=True)
+def advance_3d(state, mesh, material, external_forces, dt, substeps, adjacency, parallel,
+               outcome):
+    """``substeps`` symplectic Euler substeps of size ``dt`` [s], in place: the 3D twin of
+    `elastoflow.solid._kernels.advance` (``mesh``: ``(tetrahedra, dm_inverse, rest_volume,
+    inverse_mass, fixed)``; ``state`` and ``external_forces`` (n, 3), the forces in N). A
+    substep whose result holds an element with det F <= 0 or not finite stops the loop and
+    sets the status (module docstring)."""
+    if parallel:
+        _advance_parallel_3d(state, mesh, material, external_forces, dt, substeps, adjacency,
+                             outcome)
+    else:
+        _advance_serial_3d(state, mesh, material, external_forces, dt, substeps, outcome)
 
 
 # Triplets per element of the step matrix: a 12 x 12 block (4 nodes x 3 components).

@@ -94,19 +94,25 @@ def _velocity(nx: int, ny: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
 
 @pytest.mark.parametrize("limited", [True, False])
 def test_the_fluid_kernels_two_passes_equal_the_three(limited: bool) -> None:
-    """`advect_field_x` / `advect_field_y` in modes 1 then 2 (3 unclamped)."""
+    """`advect` of the x and y faces with `PASS_TRACE_RANGE` then `PASS_CORRECT`
+    (`PASS_TRACE` then `PASS_CORRECT_UNCLAMPED` without the limiter)."""
     nx, ny, h, dt = 11, 9, 0.1, 0.13
     u, v = _velocity(nx, ny, 5)
     no_solid, no_theta = np.zeros((1, 1), dtype=np.bool_), np.full((4, 1, 1), np.inf)
     no_cut, no_values = np.zeros((4, 1, 1)), np.zeros((1, 1))
     near = np.ones((nx + 2, ny + 2), dtype=np.bool_)
-    common = (_MODES_U, _VALUES_U, _MODES_V, _VALUES_V, False, no_solid, no_theta, no_cut,
-              no_solid, no_theta, no_cut, near, no_values)
-    for axis, advect in enumerate((fluid_kernels.advect_field_x, fluid_kernels.advect_field_y)):
+    ghosts = (_MODES_U, _VALUES_U, _MODES_V, _VALUES_V)
+    bodies = (no_solid, no_theta, no_cut, no_solid, no_theta, no_cut, near)
+    first, second = ((fluid_kernels.PASS_TRACE_RANGE, fluid_kernels.PASS_CORRECT) if limited
+                     else (fluid_kernels.PASS_TRACE, fluid_kernels.PASS_CORRECT_UNCLAMPED))
+    for axis, field in enumerate((fluid_kernels.FIELD_X, fluid_kernels.FIELD_Y)):
         f = u if axis == 0 else v
-        forward, low, high, out = (np.empty_like(f) for _ in range(4))
-        advect(u, v, f, forward, dt, h, *common, 1 if limited else 0, f, low, high)
-        advect(u, v, f, low, -dt, h, *common, 2 if limited else 3, forward, low, high)
+        own = (no_solid, no_values, ghosts[2 * axis], ghosts[2 * axis + 1])
+        forward, low, high = (np.empty_like(f) for _ in range(3))
+        fluid_kernels.advect((u, v), f, forward, field, dt, h, ghosts, False, bodies, own,
+                             first, (f, low, high))
+        fluid_kernels.advect((u, v), f, low, field, -dt, h, ghosts, False, bodies, own, second,
+                             (forward, low, high))
         expected_forward, expected = _three_passes(u, v, axis, dt, h, limited=limited)
         np.testing.assert_array_equal(forward, expected_forward)
         np.testing.assert_array_equal(low, expected)
