@@ -269,10 +269,12 @@ def _any_solid(solid, i0, j0, k0):
 
 
 @njit(cache=True)
-def solid_box(solid, out):
+def solid_box(solid, out, region):
     """Index bounds ``(i_low, i_high, j_low, j_high, k_low, k_high)`` (inclusive) of the
     True entries of ``solid`` into ``out`` (int64, (6,)); an empty box (low > high) when
-    there are none."""
+    there are none. Only ``region`` ``(i0, j0, k0, i1, j1, k1)`` (ends exclusive, clipped
+    to the array; `WHOLE_REGION`: all of it) is read: the caller knows ``solid`` False
+    outside it (an `InteriorBoundary3D`'s box)."""
     m, n, l = solid.shape
     out[0] = m
     out[1] = -1
@@ -280,9 +282,9 @@ def solid_box(solid, out):
     out[3] = -1
     out[4] = l
     out[5] = -1
-    for i in range(m):
-        for j in range(n):
-            for k in range(l):
+    for i in range(max(region[0], 0), min(region[3], m)):
+        for j in range(max(region[1], 0), min(region[4], n)):
+            for k in range(max(region[2], 0), min(region[5], l)):
                 if solid[i, j, k]:
                     out[0] = min(out[0], i)
                     out[1] = max(out[1], i)

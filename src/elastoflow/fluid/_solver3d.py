@@ -460,11 +460,14 @@ class FluidSolver3D:
             bodies = self._no_bodies
         else:
             # Where the solid points are: samples whose cell misses the box read no solid
-            # flag.
+            # flag. Only the interior's own box can hold one (0.2 -> ~0.01 ms an array at
+            # 64^3 with the bar).
             boxes = np.empty((4, 6), dtype=np.int64)
+            region = (kernels.WHOLE_REGION if interior.box is None
+                      else np.array(interior.box, dtype=np.int64))
             for index, solid in enumerate((interior.solid_faces_x, interior.solid_faces_y,
                                            interior.solid_faces_z, interior.solid_cells)):
-                kernels.solid_box(solid, boxes[index])
+                kernels.solid_box(solid, boxes[index], region)
             bodies = ((interior.solid_faces_x, interior.solid_faces_y, interior.solid_faces_z),
                       (interior.cut_theta_x, interior.cut_theta_y, interior.cut_theta_z),
                       (interior.cut_velocity_x, interior.cut_velocity_y,

@@ -284,3 +284,20 @@ def test_update_into_counts_the_changed_values() -> None:
     assert kernels.update_into_3d(new, old) == 2
     np.testing.assert_array_equal(old, new)
     assert kernels.update_into_3d(new[:2, :2, :2].copy(), old[:2, :2, :2].copy()) == 0
+
+
+def test_solid_box_bounds_the_solid_points_read_inside_a_region() -> None:
+    """`solid_box` finds the inclusive bounds of the True entries; read only inside a region
+    that holds them all, it finds the same; with none, an empty box."""
+    rng = np.random.default_rng(3)
+    solid = np.zeros((9, 7, 8), dtype=np.bool_)
+    solid[3:6, 2:5, 1:7] = rng.random((3, 3, 6)) < 0.5
+    solid[4, 3, 6] = solid[3, 2, 1] = solid[5, 4, 1] = True
+    expected = np.array([3, 5, 2, 4, 1, 6])
+    out = np.empty(6, dtype=np.int64)
+    kernels.solid_box(solid, out, kernels.WHOLE_REGION)
+    np.testing.assert_array_equal(out, expected)
+    kernels.solid_box(solid, out, np.array([3, 2, 1, 6, 5, 7], dtype=np.int64))
+    np.testing.assert_array_equal(out, expected)
+    kernels.solid_box(solid, out, np.array([0, 0, 0, 3, 7, 8], dtype=np.int64))
+    assert out[0] > out[1] and out[2] > out[3] and out[4] > out[5]
