@@ -46,10 +46,9 @@ def _points_inside(bmap: BoundaryMap3D, component: int,
             _kernels3d.fill_box(solid, box, False)
             _kernels3d.fill_box(velocity, box, 0.0)
     _kernels3d.inside_along_lines(
-        crossings.offsets, crossings.coordinate, crossings.sign, crossings.triangle,
-        crossings.weights, bmap.triangles, bmap.velocities, component, component,
-        crossings.lines_v, 1, 1, shape[u], shape[v], float(grid.origin[component]), 0.0,
-        grid.h, shape[component], solid, velocity)
+        crossings.arrays(), (bmap.triangles, bmap.velocities), component,
+        (component, crossings.lines_v, 1, 1, shape[u], shape[v]),
+        (float(grid.origin[component]), 0.0, grid.h, shape[component]), (solid, velocity))
     return solid, velocity
 
 

@@ -574,20 +574,33 @@ def _xyz(axis, i, p, q):
 
 
 @njit(cache=True)
-def nearest_crossings(offsets, coordinate, triangle_of, weights, triangles, velocities,
-                          component, axis, lines_v, line_u0, line_v0, count_u, count_v, origin,
-                          shift, h, count, theta_low, theta_high, velocity_low, velocity_high):
-    """For the points ``origin + (i + shift) h`` along the lines ``(line_u0 + 2 p, line_v0 +
-    2 q)`` along ``axis``: the distance (fraction of h) to the nearest crossing below
-    (strictly) and at or above each point within one spacing, and the ``component`` of the
-    surface velocity there (barycentric in the crossing's triangle).
+def nearest_crossings(crossings, surface, component, lines, points, out):
+    """For the points along a family of lines: the distance (fraction of h) to the nearest
+    crossing below (strictly) and at or above each point within one spacing, and the
+    ``component`` of the surface velocity there (barycentric in the crossing's triangle).
 
-    Outputs are (x, y, z)-indexed and must come filled with ``inf`` (distances) and 0
-    (velocities): only the points next to a crossing are written, so the cost follows the
-    crossings, not the grid. A point's nearest crossing below is the last one before it, so
-    the crossings are visited upwards for ``theta_low`` (a later one overwrites) and
-    downwards for ``theta_high``.
+    Args:
+        crossings: ``(offsets, coordinate, sign, triangle, weights)`` of the lines along
+            ``axis`` (`CrossingLines3D`'s arrays; ``sign`` is not read here).
+        surface: ``(triangles, velocities)`` of the map.
+        component: The velocity component sampled.
+        lines: ``(axis, lines_v, line_u0, line_v0, count_u, count_v)``: the lines ``(line_u0
+            + 2 p, line_v0 + 2 q)``, p < count_u, q < count_v, in half-grid units across
+            ``axis`` (``lines_v`` lines per row of the map's table).
+        points: ``(origin, shift, h, count)``: the points ``origin + (i + shift) h``, i <
+            count, along each line.
+        out: ``(theta_low, theta_high, velocity_low, velocity_high)``, (x, y, z)-indexed;
+            they must come filled with ``inf`` (distances) and 0 (velocities): only the
+            points next to a crossing are written, so the cost follows the crossings, not
+            the grid. A point's nearest crossing below is the last one before it, so the
+            crossings are visited upwards for ``theta_low`` (a later one overwrites) and
+            downwards for ``theta_high``.
     """
+    offsets, coordinate, _, triangle_of, weights = crossings
+    triangles, velocities = surface
+    axis, lines_v, line_u0, line_v0, count_u, count_v = lines
+    origin, shift, h, count = points
+    theta_low, theta_high, velocity_low, velocity_high = out
     for p in range(count_u):
         for q in range(count_v):
             line = (line_u0 + 2 * p) * lines_v + line_v0 + 2 * q
@@ -630,19 +643,22 @@ def nearest_crossings(offsets, coordinate, triangle_of, weights, triangles, velo
 
 
 @njit(cache=True)
-def inside_along_lines(offsets, coordinate, sign, triangle_of, weights, triangles,
-                           velocities, component, axis, lines_v, line_u0, line_v0, count_u,
-                           count_v, origin, shift, h, count, solid, velocity):
-    """For the points ``origin + (i + shift) h`` along the lines ``(line_u0 + 2 p, line_v0 +
-    2 q)`` along ``axis``: whether each lies inside a body (winding number > 0, a point
-    exactly on a crossing counting it as passed) and, inside, the ``component`` of the body
-    velocity interpolated linearly between the crossings before and after it on the line
-    (METHOD.md §5.4: exact for rigid motion along the line).
+def inside_along_lines(crossings, surface, component, lines, points, out):
+    """For the points along a family of lines: whether each lies inside a body (winding
+    number > 0, a point exactly on a crossing counting it as passed) and, inside, the
+    ``component`` of the body velocity interpolated linearly between the crossings before
+    and after it on the line (METHOD.md §5.4: exact for rigid motion along the line).
 
-    Outputs are (x, y, z)-indexed and must come filled with False and 0: lines without
-    crossings are skipped (all their points are outside), and a line is left once its last
-    crossing is passed.
+    ``crossings``, ``surface``, ``lines`` and ``points`` as in `nearest_crossings`; ``out``:
+    ``(solid, velocity)``, (x, y, z)-indexed, which must come filled with False and 0: lines
+    without crossings are skipped (all their points are outside), and a line is left once
+    its last crossing is passed.
     """
+    offsets, coordinate, sign, triangle_of, weights = crossings
+    triangles, velocities = surface
+    axis, lines_v, line_u0, line_v0, count_u, count_v = lines
+    origin, shift, h, count = points
+    solid, velocity = out
     for p in range(count_u):
         for q in range(count_v):
             line = (line_u0 + 2 * p) * lines_v + line_v0 + 2 * q

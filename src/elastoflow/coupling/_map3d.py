@@ -57,6 +57,11 @@ class LineCrossings:
     def count(self) -> int:
         return int(self.coordinate.shape[0])
 
+    def arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """``(offsets, coordinate, sign, triangle, weights)``: the bundle the line kernels
+        (`nearest_crossings`, `inside_along_lines`) take."""
+        return (self.offsets, self.coordinate, self.sign, self.triangle, self.weights)
+
     def line(self, position_u: int, position_v: int) -> slice:
         """The entries of the line at half-grid positions ``(U, V)``."""
         index = position_u * self.lines_v + position_v
@@ -346,11 +351,11 @@ def cut_distances_3d(bmap: BoundaryMap3D, out: CutDistances3D | None = None
             half_v = 0 if v == component else 1
             shift = 0.0 if axis == component else 0.5
             _kernels3d.nearest_crossings(
-                crossings.offsets, crossings.coordinate, crossings.triangle,
-                crossings.weights, bmap.triangles, bmap.velocities, component, axis,
-                crossings.lines_v, half_u, half_v, shape[u], shape[v],
-                float(grid.origin[axis]), shift, grid.h, shape[axis], theta[2 * axis],
-                theta[2 * axis + 1], velocity[2 * axis], velocity[2 * axis + 1])
+                crossings.arrays(), (bmap.triangles, bmap.velocities), component,
+                (axis, crossings.lines_v, half_u, half_v, shape[u], shape[v]),
+                (float(grid.origin[axis]), shift, grid.h, shape[axis]),
+                (theta[2 * axis], theta[2 * axis + 1], velocity[2 * axis],
+                 velocity[2 * axis + 1]))
         thetas.append(theta)
         speeds.append(velocity)
     return CutDistances3D((thetas[0], thetas[1], thetas[2]), (speeds[0], speeds[1], speeds[2]),
