@@ -79,14 +79,14 @@ def force_momentum_exchange(
     solid_x = nothing if interior is None else np.ascontiguousarray(interior.solid_faces_x)
     solid_y = nothing if interior is None else np.ascontiguousarray(interior.solid_faces_y)
     _kernels.momentum_exchange_lines(
-        bmap.x_offsets, bmap.x_coordinate, bmap.x_sign, bmap.x_edge, bmap.x_parameter,
-        bmap.x_velocity, bmap.edges, 0, 1, grid.ny, grid.nx + 1, grid.origin[0], h, velocity_x,
-        solid_x, True, coefficient, force,
+        (bmap.x_offsets, bmap.x_coordinate, bmap.x_sign, bmap.x_edge, bmap.x_parameter,
+         bmap.x_velocity), bmap.edges, (0, 1, grid.ny, grid.nx + 1, grid.origin[0], h, True),
+        velocity_x, solid_x, coefficient, force,
     )
     _kernels.momentum_exchange_lines(
-        bmap.y_offsets, bmap.y_coordinate, bmap.y_sign, bmap.y_edge, bmap.y_parameter,
-        bmap.y_velocity, bmap.edges, 1, 1, grid.nx, grid.ny + 1, grid.origin[1], h, velocity_y,
-        solid_y, False, coefficient, force,
+        (bmap.y_offsets, bmap.y_coordinate, bmap.y_sign, bmap.y_edge, bmap.y_parameter,
+         bmap.y_velocity), bmap.edges, (1, 1, grid.nx, grid.ny + 1, grid.origin[1], h, False),
+        velocity_y, solid_y, coefficient, force,
     )
     return force
 
@@ -157,10 +157,12 @@ def force_traction(
         interior.check(grid)
     force = np.zeros((bmap.point_count, 2))
     _kernels.traction_edges(
-        bmap.points, bmap.velocities, bmap.edges, velocity_x, velocity_y, pressure,
-        np.ascontiguousarray(interior.solid_faces_x), np.ascontiguousarray(interior.solid_faces_y),
-        np.ascontiguousarray(interior.solid_cells), grid.origin[0], grid.origin[1], grid.h,
-        float(density), float(density * viscosity), float(gravity[0]), float(gravity[1]),
+        (bmap.points, bmap.velocities, bmap.edges), (velocity_x, velocity_y, pressure),
+        (np.ascontiguousarray(interior.solid_faces_x),
+         np.ascontiguousarray(interior.solid_faces_y),
+         np.ascontiguousarray(interior.solid_cells)),
+        (float(grid.origin[0]), float(grid.origin[1]), float(grid.h)),
+        (float(density), float(density * viscosity), float(gravity[0]), float(gravity[1])),
         np.asarray(_SAMPLE_DISTANCES) * grid.h, force,
     )
     return force

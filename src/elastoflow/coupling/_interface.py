@@ -50,18 +50,29 @@ if TYPE_CHECKING:
 
 
 @njit(cache=True)
-def _solid_intervals(
-    offsets: np.ndarray, coordinate: np.ndarray, sign: np.ndarray, edge_index: np.ndarray,
-    edge_body: np.ndarray, line_count_out: int, point_count: int, origin_along: float,
-    origin_across: float, h: float, point_first: bool, stride: int, face_offset: int,
-    elastic_count: int, fill: bool, faces: np.ndarray, fractions: np.ndarray,
-    samples: np.ndarray, bodies: np.ndarray, start: int,
-) -> int:
-    """Every solid interval of every face along one family of lines (line ``l`` at
-    ``origin_across + l h``): its face, its length over h, its midpoint (x, y) and the body
-    that covers it. Where outlines overlap (a flag clamped inside a cylinder) an elastic body
+def _solid_intervals(crossings: tuple, edge_body: np.ndarray, family: tuple, h: float,
+                     elastic_count: int, fill: bool, out: tuple, start: int) -> int:
+    """Every solid interval of every face along one family of lines: its face, its length
+    over h, its midpoint (x, y) and the body that covers it, into ``out`` from slot
+    ``start``. Where outlines overlap (a flag clamped inside a cylinder) an elastic body
     (index below ``elastic_count``) wins over an obstacle. With ``fill`` False only counts;
-    returns the next free slot."""
+    returns the next free slot.
+
+    Args:
+        crossings: ``(offsets, coordinate, sign, edge_index)`` of the map's lines along the
+            family's direction.
+        edge_body: The body of each edge.
+        family: ``(line_count, point_count, origin_along, origin_across, point_first,
+            stride, face_offset)``: lines ``l < line_count`` at ``origin_across + l h``
+            (every other line of the map), faces ``k < point_count`` along each; face
+            ``face_offset + k stride + l`` (``point_first``) or ``face_offset + l stride +
+            k``.
+        out: ``(faces, fractions, samples, bodies)``, not written without ``fill``.
+    """
+    offsets, coordinate, sign, edge_index = crossings
+    (line_count_out, point_count, origin_along, origin_across, point_first, stride,
+     face_offset) = family
+    faces, fractions, samples, bodies = out
     extent = point_count * h
     slot = start
     body_total = 0
@@ -513,33 +524,24 @@ def interface_flux(grid: Grid2D, bmap: BoundaryMap, interior: InteriorBoundary,
     elastic_count = int(triangle_offsets.shape[0] - 1)
     families = (
         # u faces: columns I = 2i of the y-map (x = ox + i h), segments along y.
-        (bmap.y_offsets, bmap.y_coordinate, bmap.y_sign, bmap.y_edge, nx + 1, ny, oy, ox,
-         False, ny, 0),
+        ((bmap.y_offsets, bmap.y_coordinate, bmap.y_sign, bmap.y_edge),
+         (nx + 1, ny, oy, ox, False, ny, 0)),
         # v faces: rows J = 2j of the x-map (y = oy + j h), segments along x.
-        (bmap.x_offsets, bmap.x_coordinate, bmap.x_sign, bmap.x_edge, ny + 1, nx, ox, oy,
-         True, ny + 1, u_faces),
+        ((bmap.x_offsets, bmap.x_coordinate, bmap.x_sign, bmap.x_edge),
+         (ny + 1, nx, ox, oy, True, ny + 1, u_faces)),
     )
     empty_i = np.zeros(0, dtype=np.int64)
-    empty_f = np.zeros(0)
-    empty_s = np.zeros((0, 2))
-    counts = []
-    for (offsets, coordinate, sign, edge, lines, points, along, across, first, stride,
-         offset) in families:
-        counts.append(_solid_intervals(offsets, coordinate, sign, edge, bmap.edge_body, lines,
-                                       points, along, across, h, first, stride, offset,
-                                       elastic_count, False, empty_i, empty_f, empty_s,
-                                       empty_i, 0))
-    total = sum(counts)
+    nothing = (empty_i, np.zeros(0), np.zeros((0, 2)), empty_i)
+    total = sum(_solid_intervals(crossings, bmap.edge_body, family, h, elastic_count, False,
+                                 nothing, 0) for crossings, family in families)
     sample_faces = np.empty(total, dtype=np.int64)
     fractions = np.empty(total)
     samples = np.empty((total, 2))
     bodies = np.empty(total, dtype=np.int64)
     slot = 0
-    for (offsets, coordinate, sign, edge, lines, points, along, across, first, stride,
-         offset) in families:
-        slot = _solid_intervals(offsets, coordinate, sign, edge, bmap.edge_body, lines, points,
-                                along, across, h, first, stride, offset, elastic_count, True,
-                                sample_faces, fractions, samples, bodies, slot)
+    for crossings, family in families:
+        slot = _solid_intervals(crossings, bmap.edge_body, family, h, elastic_count, True,
+                                (sample_faces, fractions, samples, bodies), slot)
     # Only faces next to a cell the pressure equation has (one with an interior face open by
     # OPEN_MIN) enter it; the faces deep inside bodies are dropped before the point location.
     near = _next_to_active(sample_faces, interior.open_fraction_x, interior.open_fraction_y)

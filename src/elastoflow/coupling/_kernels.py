@@ -373,26 +373,7 @@ def open_fraction_lines(
 
 
 @njit(cache=True)
-def momentum_exchange_lines(
-    offsets: np.ndarray,
-    coordinate: np.ndarray,
-    sign: np.ndarray,
-    edge_index: np.ndarray,
-    parameter: np.ndarray,
-    velocity: np.ndarray,
-    edges: np.ndarray,
-    component: int,
-    line_start: int,
-    line_count_out: int,
-    face_count: int,
-    origin_along: float,
-    h: float,
-    field: np.ndarray,
-    solid: np.ndarray,
-    point_first: bool,
-    coefficient: float,
-    force_out: np.ndarray,
-) -> None:
+def momentum_exchange_lines(crossings, edges, family, field, solid, coefficient, force_out):
     """Paper eq. (8) along lines through velocity points of one component.
 
     For each crossing the first velocity point of that component on the fluid side (the side
@@ -402,7 +383,20 @@ def momentum_exchange_lines(
     inside, so the fluid point can lie a face further out. ``solid`` has the field's shape
     (or is empty: nothing solid). A crossing whose fluid point lies beyond another crossing (a
     sliver thinner than the point's distance) is skipped.
+
+    Args:
+        crossings: ``(offsets, coordinate, sign, edge_index, parameter, velocity)`` of the
+            map's lines along the component's axis.
+        edges: The map's edges.
+        family: ``(component, line_start, line_count, face_count, origin_along, h,
+            point_first)``: lines ``line_start + 2 l``, ``l < line_count``, through the
+            component's points, ``face_count`` of them along each; ``point_first``: the
+            field is indexed (point along the line, line).
+        field: The velocity component.
+        force_out: (P, 2) [N/m], added to.
     """
+    offsets, coordinate, sign, edge_index, parameter, velocity = crossings
+    component, line_start, line_count_out, face_count, origin_along, h, point_first = family
     check = solid.size > 0
     for l in range(line_count_out):
         line = line_start + 2 * l
@@ -505,28 +499,24 @@ def _sample_velocity(
 
 
 @njit(cache=True)
-def traction_edges(
-    points: np.ndarray,
-    velocities: np.ndarray,
-    edges: np.ndarray,
-    velocity_x: np.ndarray,
-    velocity_y: np.ndarray,
-    pressure: np.ndarray,
-    solid_faces_x: np.ndarray,
-    solid_faces_y: np.ndarray,
-    solid_cells: np.ndarray,
-    origin_x: float,
-    origin_y: float,
-    h: float,
-    density: float,
-    dynamic_viscosity: float,
-    gravity_x: float,
-    gravity_y: float,
-    distances: np.ndarray,
-    force_out: np.ndarray,
-) -> None:
+def traction_edges(boundary, fluid, solid, grid, constants, distances, force_out):
     """Traction integral (-p n + mu (grad u + grad u^T) n) ds along every edge, see
-    ``force_traction`` for the estimate. Sub-segments no longer than h, midpoint rule."""
+    ``force_traction`` for the estimate. Sub-segments no longer than h, midpoint rule.
+
+    Args:
+        boundary: ``(points, velocities, edges)`` of the map.
+        fluid: ``(velocity_x, velocity_y, pressure)``.
+        solid: ``(solid_faces_x, solid_faces_y, solid_cells)``: samples skip these points.
+        grid: ``(origin_x, origin_y, h)``.
+        constants: ``(density, dynamic_viscosity, gravity_x, gravity_y)``.
+        distances: Distances [m] along the normal of the velocity (and pressure) samples.
+        force_out: (P, 2) [N/m], added to.
+    """
+    points, velocities, edges = boundary
+    velocity_x, velocity_y, pressure = fluid
+    solid_faces_x, solid_faces_y, solid_cells = solid
+    origin_x, origin_y, h = grid
+    density, dynamic_viscosity, gravity_x, gravity_y = constants
     for e in range(edges.shape[0]):
         a = edges[e, 0]
         b = edges[e, 1]
