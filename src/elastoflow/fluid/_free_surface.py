@@ -636,14 +636,14 @@ class FreeSurfaceSolver:
         spans = self.workspace.nonzero_spans
         kernels.nonzero_spans(u, spans[0], spans[1])
         kernels.nonzero_spans(v, spans[2], spans[3])
-        kernels.advect_faces_forward_range(u, v, 0, dt, h, *ghosts, liquid_u, air, forward_u,
-                                           low_u, high_u, *spans)
-        kernels.advect_faces_forward_range(u, v, 1, dt, h, *ghosts, liquid_v, air, forward_v,
-                                           low_v, high_v, *spans)
-        kernels.maccormack_faces_backward_correct(u, v, 0, dt, h, *ghosts, forward_u, low_u,
-                                                  high_u, low_u)
-        kernels.maccormack_faces_backward_correct(u, v, 1, dt, h, *ghosts, forward_v, low_v,
-                                                  high_v, low_v)
+        kernels.advect_faces_forward_range((u, v), 0, dt, h, ghosts, liquid_u, air,
+                                           (forward_u, low_u, high_u), spans)
+        kernels.advect_faces_forward_range((u, v), 1, dt, h, ghosts, liquid_v, air,
+                                           (forward_v, low_v, high_v), spans)
+        kernels.maccormack_faces_backward_correct((u, v), 0, dt, h, ghosts,
+                                                  (forward_u, low_u, high_u), low_u)
+        kernels.maccormack_faces_backward_correct((u, v), 1, dt, h, ghosts,
+                                                  (forward_v, low_v, high_v), low_v)
         if fluid._carries_dye(state.fluid):
             if self.workspace.dye is None:
                 self.workspace.dye = np.zeros(self.grid.shape_cells)

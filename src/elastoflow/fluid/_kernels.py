@@ -665,9 +665,11 @@ def _viscosity_row(f, c, axis, fixed_low, fixed_high, tangential_modes, tangenti
 
 
 def _make_build_viscosity_system(loop):
-    def kernel(f, c, axis, fixed_low, fixed_high, tangential_modes, tangential_values, has_interior,
-               solid, theta, cut_velocity, near, assemble_operator, diagonal, weights_x, weights_y,
-               rhs):
+    def kernel(f, c, axis, sides, has_interior, body, assemble_operator, operator, rhs):
+        # Unpacked here: a parallel loop's body cannot hold a tuple of arrays.
+        fixed_low, fixed_high, tangential_modes, tangential_values = sides
+        solid, theta, cut_velocity, near = body
+        diagonal, weights_x, weights_y = operator
         for i in loop(f.shape[0]):
             _viscosity_row(f, c, axis, fixed_low, fixed_high, tangential_modes, tangential_values,
                            has_interior, solid, theta, cut_velocity, near, assemble_operator,
@@ -680,33 +682,33 @@ def _make_build_viscosity_system(loop):
 
 
 @njit(cache=True)
-def build_viscosity_system(f, c, axis, fixed_low, fixed_high, tangential_modes, tangential_values,
-                           has_interior, solid, theta, cut_velocity, near, assemble_operator,
-                           diagonal, weights_x, weights_y, rhs):
-    """Assemble ``(I - nu dt lap) f = f*`` for one velocity component as a 5-point operator.
+def build_viscosity_system(f, c, axis, sides, has_interior, body, assemble_operator, operator,
+                           rhs):
+    """Assemble ``(I - nu dt lap) f = f*`` for one velocity component as a 5-point operator
+    (the 2D twin of `elastoflow.fluid._kernels3d.build_viscosity_system_3d`).
 
     Args:
         f: The component after advection, shape (m, n); holds the boundary values.
         c: ``nu dt / h^2``.
         axis: The component's own axis (0 for u, 1 for v); its first and last lines are the
-            normal boundary faces, fixed when ``fixed_low`` / ``fixed_high``.
-        tangential_modes: Ghost modes (0 copy, 1 Dirichlet) of the two sides along the other
-            axis, low then high; ``tangential_values`` their wall velocities.
-        near: With ``has_interior``, the mask of `near_regions`
-            (one covering everything when bodies may be anywhere): points whose neighbours
-            all lie outside them take the no-body path.
+            normal boundary faces.
+        sides: ``(fixed_low, fixed_high, tangential_modes, tangential_values)``: whether
+            those lines are held; the ghost modes (0 copy, 1 Dirichlet) of the two sides
+            along the other axis, low then high, and their wall velocities.
+        has_interior: Whether ``body`` is read.
+        body: ``(solid, theta, cut_velocity, near)``: the component's solid flags, cut
+            fractions and cut velocities, and the mask of `near_regions` (one covering
+            everything when bodies may be anywhere): points whose neighbours all lie outside
+            them take the no-body path.
         assemble_operator: False writes only ``rhs`` (the operator is known unchanged).
+        operator: ``(diagonal, weights_x, weights_y)``: outputs.
+        rhs: Output.
     """
     if f.size > PARALLEL_MINIMUM:
-        return _build_viscosity_system_parallel(f, c, axis, fixed_low, fixed_high,
-                                                tangential_modes, tangential_values, has_interior,
-                                                solid, theta, cut_velocity, near,
-                                                assemble_operator, diagonal, weights_x, weights_y,
-                                                rhs)
-    return _build_viscosity_system_serial(f, c, axis, fixed_low, fixed_high, tangential_modes,
-                                          tangential_values, has_interior, solid, theta,
-                                          cut_velocity, near, assemble_operator, diagonal,
-                                          weights_x, weights_y, rhs)
+        return _build_viscosity_system_parallel(f, c, axis, sides, has_interior, body,
+                                                assemble_operator, operator, rhs)
+    return _build_viscosity_system_serial(f, c, axis, sides, has_interior, body,
+                                          assemble_operator, operator, rhs)
 
 
 @njit(cache=True)

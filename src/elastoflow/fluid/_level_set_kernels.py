@@ -371,7 +371,7 @@ def _face_departure(u, v, i, j, axis, dt, h, inv_h, lx, ly, modes_u, values_u, m
                     values_v):
     """Departure point of face ``(i, j)`` of ``axis`` (0: x-faces, 1: y-faces) over ``dt``,
     in index coordinates of that component's array: the expressions of
-    `elastoflow.fluid._kernels.advect_field_x` / `advect_field_y` without bodies, so that
+    `elastoflow.fluid._kernels.advect` (x and y faces) without bodies, so that
     the values are bitwise theirs."""
     if axis == 0:
         x = i * h
@@ -443,11 +443,10 @@ def _moving_columns(low_u, high_u, low_v, high_v, i):
 
 
 @njit(cache=True, parallel=True)
-def advect_faces_forward_range(u, v, axis, dt, h, modes_u, values_u, modes_v, values_v,
-                               liquid, air, forward, low, high, low_u, high_u, low_v, high_v):
+def advect_faces_forward_range(velocity, axis, dt, h, ghosts, liquid, air, out, spans):
     """MacCormack's first pass for the free surface's velocity (`FreeSurfaceSolver.advect`):
     the component ``axis`` (0: u, 1: v) carried by (u, v) over ``dt`` [s] into ``forward``
-    (the semi-Lagrangian step of `elastoflow.fluid._kernels.advect_field_x`, bitwise), and
+    (the semi-Lagrangian step of `elastoflow.fluid._kernels.advect`, bitwise), and
     into ``low`` / ``high`` the range of its four values around the departure point, which
     `maccormack_faces_backward_correct` clamps to.
 
@@ -465,14 +464,21 @@ def advect_faces_forward_range(u, v, axis, dt, h, modes_u, values_u, modes_v, va
       extrapolated afresh every step, not carried, so the two steps' difference there is not
       the transport's error (a drop falling into a pool gained energy from them).
 
-    ``modes_*``, ``values_*``: the components' side ghosts, as in `advect_field_x`.
-    ``low_u`` ... ``high_v``: `nonzero_spans` of u and v. With ``air``, an air face (whose
+    ``velocity``: ``(u, v)``; ``ghosts``: ``(modes_u, values_u, modes_v, values_v)``, the
+    components' side ghosts as in `elastoflow.fluid._kernels.advect`; ``out``: ``(forward,
+    low, high)``; ``spans``: ``(low_u, high_u, low_v, high_v)``, the `nonzero_spans` of u
+    and v. With ``air``, an air face (whose
     correction is dropped anyway) in still surroundings, beyond them by `_STILL_MARGIN` rows
     and columns and as far from the sides, is not traced: its semi-Lagrangian value is
     +0.0 (interpolating zeros gives +0.0 whatever their signs), which it gets directly. Most
     of a dam break's air is still: the velocity is extrapolated 5 faces into it and zero
     beyond.
     """
+    # Unpacked here: a parallel loop's body cannot hold a tuple of arrays.
+    u, v = velocity
+    modes_u, values_u, modes_v, values_v = ghosts
+    forward, low, high = out
+    low_u, high_u, low_v, high_v = spans
     f, modes, values, inv_h, lx, ly = _component(u, v, axis, h, modes_u, values_u, modes_v,
                                                  values_v)
     m, n = f.shape
@@ -499,8 +505,7 @@ def advect_faces_forward_range(u, v, axis, dt, h, modes_u, values_u, modes_v, va
 
 
 @njit(cache=True, parallel=True)
-def maccormack_faces_backward_correct(u, v, axis, dt, h, modes_u, values_u, modes_v, values_v,
-                                      forward, low, high, out):
+def maccormack_faces_backward_correct(velocity, axis, dt, h, ghosts, first_pass, out):
     """MacCormack's second pass for the free surface's velocity, after
     `advect_faces_forward_range` over the same ``dt`` [s]: ``backward`` = ``forward`` carried
     back over ``-dt``, and ``out = forward + (f - backward) / 2`` clamped to ``[low, high]``
@@ -508,8 +513,13 @@ def maccormack_faces_backward_correct(u, v, axis, dt, h, modes_u, values_u, mode
     range is empty (the first pass's fallback) or where the backward departure point's
     stencil reads a domain side's ghost. Bitwise the values of a backward semi-Lagrangian
     pass and a correction pass (the three-pass form before 2026-12-03), with one back-trace
-    per point fewer and none at the fallback points. ``out`` may be ``low`` or ``high``
-    (each point reads its own bounds first), not ``u``, ``v`` or ``forward``."""
+    per point fewer and none at the fallback points. ``velocity`` and ``ghosts`` as in
+    `advect_faces_forward_range`; ``first_pass``: its ``(forward, low, high)``. ``out`` may
+    be ``low`` or ``high`` (each point reads its own bounds first), not ``u``, ``v`` or
+    ``forward``."""
+    u, v = velocity
+    modes_u, values_u, modes_v, values_v = ghosts
+    forward, low, high = first_pass
     f, modes, values, inv_h, lx, ly = _component(u, v, axis, h, modes_u, values_u, modes_v,
                                                  values_v)
     m, n = f.shape

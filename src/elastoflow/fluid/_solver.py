@@ -584,8 +584,9 @@ class FluidSolver:
         # Without bodies the operator depends on dt only: keep it between steps.
         cached = self._viscosity_operators.get((axis, dt)) if interior is None else None
         kernels.build_viscosity_system(
-            f, c, axis, fixed_low, fixed_high, modes, values, has, solid, theta, cut,
-            self._near_regions(interior), cached is None, diagonal, weights_x, weights_y, rhs,
+            f, c, axis, (fixed_low, fixed_high, modes, values), has,
+            (solid, theta, cut, self._near_regions(interior)), cached is None,
+            (diagonal, weights_x, weights_y), rhs,
         )
         if interior is None:
             if cached is None:

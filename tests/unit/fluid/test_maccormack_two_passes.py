@@ -140,11 +140,11 @@ def test_the_free_surface_two_passes_equal_the_three(air: bool, still: bool) -> 
         liquid[:, f.shape[1] // 2:] = 0
         liquid[3, 1] = 0
         forward, low, high = (np.empty_like(f) for _ in range(3))
-        kernels.advect_faces_forward_range(u, v, axis, dt, h, _MODES_U, _VALUES_U, _MODES_V,
-                                           _VALUES_V, liquid, air, forward, low, high, *spans)
-        kernels.maccormack_faces_backward_correct(u, v, axis, dt, h, _MODES_U, _VALUES_U,
-                                                  _MODES_V, _VALUES_V, forward, low, high,
-                                                  low)
+        ghosts = (_MODES_U, _VALUES_U, _MODES_V, _VALUES_V)
+        kernels.advect_faces_forward_range((u, v), axis, dt, h, ghosts, liquid, air,
+                                           (forward, low, high), spans)
+        kernels.maccormack_faces_backward_correct((u, v), axis, dt, h, ghosts,
+                                                  (forward, low, high), low)
         expected_forward, expected = _three_passes(
             u, v, axis, dt, h, liquid=liquid if air else np.ones_like(liquid))
         np.testing.assert_array_equal(forward.view(np.uint64), expected_forward.view(np.uint64))
