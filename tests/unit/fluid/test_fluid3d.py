@@ -276,6 +276,40 @@ def test_advecting_from_a_source_state_equals_advecting_in_place(advection: str)
         np.testing.assert_array_equal(getattr(source, name), getattr(kept, name))
 
 
+@pytest.mark.parametrize("dyed", [False, True])
+def test_dye_that_is_zero_everywhere_stays_zero_without_a_pass(dyed: bool) -> None:
+    """Without dye and without a dyed inflow the advection leaves the dye 0 (the kernel is
+    not called for it), in place and into a target whose dye held anything; with one dyed
+    cell it is carried as before."""
+    solver = FluidSolver3D(GRID, density=1.0, viscosity=0.0, boundaries=OPEN_BOX)
+    source = random_state(GRID, seed=14)
+    source.dye[...] = 0.0
+    if dyed:
+        source.dye[3, 4, 5] = 1.0
+    calls: list[int] = []
+    original = kernels.advect_3d
+
+    def counted(*arguments):  # type: ignore[no-untyped-def]
+        calls.append(arguments[4])
+        return original(*arguments)
+
+    kernels.advect_3d = counted
+    try:
+        target = FluidState3D.zeros(GRID)
+        target.dye[...] = np.nan
+        solver.advect(target, 0.05, source=source)
+        in_place = source.copy()
+        solver.advect(in_place, 0.05)
+    finally:
+        kernels.advect_3d = original
+    assert (kernels.FIELD_CELLS in calls) == dyed
+    np.testing.assert_array_equal(target.dye, in_place.dye)
+    if dyed:
+        assert target.dye[3, 4, 5] > 0.0
+    else:
+        assert not np.any(target.dye) and not np.any(in_place.dye)
+
+
 def test_update_into_counts_the_changed_values() -> None:
     old = np.random.default_rng(13).random((20, 18, 17))
     new = old.copy()
