@@ -372,92 +372,67 @@ def _write_advected(source, sampled, forward, out, low, high, i, j, fx, fy, mode
 # samplers below take them one by one.
 
 
-@njit(cache=True, parallel=True)
-def _advect_x(velocity, source, out, dt, h, ghosts, has_interior, bodies, own, pass_kind,
-              buffers):
-    u, v = velocity
-    modes_u, values_u, modes_v, values_v = ghosts
-    solid_x, theta_x, cut_x, solid_y, theta_y, cut_y, near = bodies
-    body_velocity = own[1]
-    forward, low, high = buffers
-    nx1, ny = u.shape
-    inv_h = 1.0 / h
-    lx = (nx1 - 1) * h
-    ly = ny * h
-    sampled = forward if pass_kind >= PASS_CORRECT else source
-    for i in prange(nx1):
-        for j in range(ny):
-            if has_interior and solid_x[i, j]:
-                out[i, j] = body_velocity[i, j]
-                continue
-            x = i * h
-            y = (j + 0.5) * h
-            if has_interior:
-                uy = _sample_with_bodies(v, x * inv_h - 0.5, y * inv_h, modes_v, values_v,
-                                         solid_y, theta_y, cut_y, near)
-                xb, yb = _trace_back_bodies(
-                    u, v, x, y, u[i, j], uy, dt, inv_h, lx, ly, modes_u, values_u, modes_v,
-                    values_v, solid_x, theta_x, cut_x, solid_y, theta_y, cut_y, near,
-                )
-            else:
-                uy = _sample(v, x * inv_h - 0.5, y * inv_h, modes_v, values_v)
-                xb, yb = _trace_back(
-                    u, v, x, y, u[i, j], uy, dt, inv_h, lx, ly, modes_u, values_u, modes_v,
-                    values_v,
-                )
-            fx = xb * inv_h
-            fy = yb * inv_h - 0.5
-            value = 0.0
-            if has_interior:
-                value = _sample_with_bodies(
-                    sampled, fx, fy, modes_u, values_u, solid_x, theta_x, cut_x, near
-                )
-            _write_advected(source, sampled, forward, out, low, high, i, j, fx, fy, modes_u,
-                            values_u, pass_kind, value, has_interior)
+def _make_advect_faces(axis):
+    # x faces (axis 0) sit at (i h, (j + 1/2) h), y faces at ((i + 1/2) h, j h). With
+    # ``axis`` a constant of each compiled kernel, its branches fold away.
+    offset_x = 0.0 if axis == 0 else 0.5
+    offset_y = 0.5 if axis == 0 else 0.0
+
+    def kernel(velocity, source, out, dt, h, ghosts, has_interior, bodies, own, pass_kind,
+               buffers):
+        u, v = velocity
+        modes_u, values_u, modes_v, values_v = ghosts
+        solid_x, theta_x, cut_x, solid_y, theta_y, cut_y, near = bodies
+        solid, body_velocity, modes, values = own
+        theta, cut = (theta_x, cut_x) if axis == 0 else (theta_y, cut_y)
+        forward, low, high = buffers
+        inv_h = 1.0 / h
+        lx = (u.shape[0] - 1) * h
+        ly = (v.shape[1] - 1) * h
+        sampled = forward if pass_kind >= PASS_CORRECT else source
+        for i in prange(out.shape[0]):
+            for j in range(out.shape[1]):
+                if has_interior and solid[i, j]:
+                    out[i, j] = body_velocity[i, j]
+                    continue
+                x = (i + offset_x) * h
+                y = (j + offset_y) * h
+                # The point's own component is its value; the other one is sampled.
+                if axis == 0:
+                    ux = u[i, j]
+                    if has_interior:
+                        uy = _sample_with_bodies(v, x * inv_h - 0.5, y * inv_h, modes_v,
+                                                 values_v, solid_y, theta_y, cut_y, near)
+                    else:
+                        uy = _sample(v, x * inv_h - 0.5, y * inv_h, modes_v, values_v)
+                else:
+                    uy = v[i, j]
+                    if has_interior:
+                        ux = _sample_with_bodies(u, x * inv_h, y * inv_h - 0.5, modes_u,
+                                                 values_u, solid_x, theta_x, cut_x, near)
+                    else:
+                        ux = _sample(u, x * inv_h, y * inv_h - 0.5, modes_u, values_u)
+                if has_interior:
+                    xb, yb = _trace_back_bodies(
+                        u, v, x, y, ux, uy, dt, inv_h, lx, ly, modes_u, values_u, modes_v,
+                        values_v, solid_x, theta_x, cut_x, solid_y, theta_y, cut_y, near,
+                    )
+                else:
+                    xb, yb = _trace_back(u, v, x, y, ux, uy, dt, inv_h, lx, ly, modes_u,
+                                         values_u, modes_v, values_v)
+                fx = xb * inv_h - offset_x
+                fy = yb * inv_h - offset_y
+                value = 0.0
+                if has_interior:
+                    value = _sample_with_bodies(sampled, fx, fy, modes, values, solid, theta,
+                                                cut, near)
+                _write_advected(source, sampled, forward, out, low, high, i, j, fx, fy, modes,
+                                values, pass_kind, value, has_interior)
+    return kernel
 
 
-@njit(cache=True, parallel=True)
-def _advect_y(velocity, source, out, dt, h, ghosts, has_interior, bodies, own, pass_kind,
-              buffers):
-    u, v = velocity
-    modes_u, values_u, modes_v, values_v = ghosts
-    solid_x, theta_x, cut_x, solid_y, theta_y, cut_y, near = bodies
-    body_velocity = own[1]
-    forward, low, high = buffers
-    nx, ny1 = v.shape
-    inv_h = 1.0 / h
-    lx = nx * h
-    ly = (ny1 - 1) * h
-    sampled = forward if pass_kind >= PASS_CORRECT else source
-    for i in prange(nx):
-        for j in range(ny1):
-            if has_interior and solid_y[i, j]:
-                out[i, j] = body_velocity[i, j]
-                continue
-            x = (i + 0.5) * h
-            y = j * h
-            if has_interior:
-                ux = _sample_with_bodies(u, x * inv_h, y * inv_h - 0.5, modes_u, values_u,
-                                         solid_x, theta_x, cut_x, near)
-                xb, yb = _trace_back_bodies(
-                    u, v, x, y, ux, v[i, j], dt, inv_h, lx, ly, modes_u, values_u, modes_v,
-                    values_v, solid_x, theta_x, cut_x, solid_y, theta_y, cut_y, near,
-                )
-            else:
-                ux = _sample(u, x * inv_h, y * inv_h - 0.5, modes_u, values_u)
-                xb, yb = _trace_back(
-                    u, v, x, y, ux, v[i, j], dt, inv_h, lx, ly, modes_u, values_u, modes_v,
-                    values_v,
-                )
-            fx = xb * inv_h - 0.5
-            fy = yb * inv_h
-            value = 0.0
-            if has_interior:
-                value = _sample_with_bodies(
-                    sampled, fx, fy, modes_v, values_v, solid_y, theta_y, cut_y, near
-                )
-            _write_advected(source, sampled, forward, out, low, high, i, j, fx, fy, modes_v,
-                            values_v, pass_kind, value, has_interior)
+_advect_x = njit(cache=True, parallel=True)(_make_advect_faces(0))
+_advect_y = njit(cache=True, parallel=True)(_make_advect_faces(1))
 
 
 @njit(cache=True, parallel=True)
