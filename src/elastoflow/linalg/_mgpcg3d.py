@@ -25,6 +25,7 @@ from elastoflow.linalg._kernels3d import (
     NO_BOX,
     NOT_UNIFORM,
     RED,
+    SHELL_DEPTH,
     apply_dot_kernel_3d,
     apply_dot_uniform_kernel_3d,
     coarsen_kernel_3d,
@@ -101,8 +102,9 @@ class _NullSpace3D:
 class _Level:
     """One level's operator (``total = diagonal + sum of weights``, its inverse, 0 at inactive
     points; ``uniform``: the one value of all its weights outside ``box``, or `NOT_UNIFORM`;
-    ``box``: `NO_BOX` when they are all equal, else the box around the bodies, whose weights
-    the kernels read from the arrays) and its correction ``x`` and right-hand side ``b``."""
+    ``box``: `NO_BOX` when they are all equal, else the box around the bodies and the shell
+    along the sides, whose weights the kernels read from the arrays) and its correction ``x``
+    and right-hand side ``b``."""
 
     diagonal: NDArray[np.float64]
     weights_x: NDArray[np.float64]
@@ -122,23 +124,36 @@ class _Level:
                    np.zeros((m, n, l - 1)), np.zeros(shape), np.zeros(shape), np.zeros(shape),
                    np.zeros(shape))
 
-    def set_uniform(self) -> None:
+    def set_uniform(self, shell_allowed: bool = False) -> None:
         """Find ``uniform`` and ``box`` for the weights just loaded: the one value of all
         of them, or of all outside a box holding at most half the level (the value of the
-        first x-weight; the bodies' neighbourhood in the pressure operator with bodies)."""
+        first x-weight; the bodies' neighbourhood in the pressure operator with bodies), or
+        with ``shell_allowed`` of all outside such a box and a shell of `SHELL_DEPTH` along
+        the sides (a viscosity operator, whose held boundary planes have no weights; the
+        restriction does not read a shell, so only a level with no coarse levels below it
+        may have one)."""
         self.uniform = float(uniform_weight_kernel(self.weights_x, self.weights_y,
                                                    self.weights_z))
         self.box = NO_BOX
         if self.uniform != NOT_UNIFORM or not self.weights_x.size:
             return
-        candidate = float(self.weights_x[0, 0, 0])
-        if not candidate > 0.0:
-            return
-        box = np.zeros(6, dtype=np.int64)
-        differing = uniform_box_kernel(self.weights_x, self.weights_y, self.weights_z,
-                                       candidate, box)
-        if differing and int(np.prod(box[1::2] - box[::2])) <= self.total.size // 2:
-            self.uniform, self.box = candidate, box
+        m, n, l = self.total.shape
+        size = m * n * l
+        for shell in (0, SHELL_DEPTH) if shell_allowed else (0,):
+            # A shell of more than half the level (16^3 and less) saves too little.
+            outside = size - max(m - 2 * shell, 0) * max(n - 2 * shell, 0) * max(
+                l - 2 * shell, 0)
+            if 2 * outside > size:
+                return
+            candidate = float(self.weights_x[shell, shell, shell])
+            if not candidate > 0.0:
+                continue
+            box = np.zeros(7, dtype=np.int64)
+            differing = uniform_box_kernel(self.weights_x, self.weights_y, self.weights_z,
+                                           candidate, shell, box)
+            if (differing or shell) and int(np.prod(box[1:6:2] - box[0:6:2])) <= size // 2:
+                self.uniform, self.box = candidate, box
+                return
 
     def sweep(self, x: NDArray[np.float64], b: NDArray[np.float64], first: int,
               from_zero: bool, chunks: int) -> None:
@@ -233,9 +248,9 @@ class _Hierarchy3D:
             fine.inverse, active,
         )
         self.active = active
-        fine.set_uniform()
         # A strongly diagonal operator (implicit viscosity) needs no coarse correction.
         self.coarse = len(self.levels) == 1 or dominance < _SMOOTHER_ONLY_DOMINANCE
+        fine.set_uniform(shell_allowed=not self.coarse)
         if self.coarse:
             self._build()
         previous, kept = self.operator, self.null_space
@@ -428,7 +443,9 @@ class PoissonSolverMGPCG3D:
         null_space = hierarchy.prepare(preconditioned)
         if not hierarchy.coarse:
             # A diagonally dominant A + diag(C) would get Jacobi, which does not see C's
-            # coupling between cells any better: keep the V-cycle.
+            # coupling between cells any better: keep the V-cycle (with no shell: the
+            # restriction does not read one).
+            hierarchy.levels[0].set_uniform()
             hierarchy._build()
             hierarchy.coarse = True
         points = np.ascontiguousarray(coupling.points, dtype=np.int64)

@@ -106,3 +106,49 @@ def test_diagonal_and_apply_agree_in_3d() -> None:
     dense = np.stack([term.apply(e).ravel() for e in basis], axis=1)
     assert np.allclose(dense, dense.T)
     assert np.allclose(np.diag(dense), term.diagonal(shape).ravel())
+
+
+def test_a_strongly_diagonal_operator_with_held_planes_keeps_no_shell_in_its_v_cycle() -> None:
+    """Held planes (weights 0 to them) and a dominant diagonal: `solve` alone takes the one
+    weight outside a shell along the sides, which the V-cycle's restriction does not read;
+    the coupled solve builds the V-cycle, so its fine level must keep no shell."""
+    from scipy.sparse.linalg import spsolve
+
+    shape = (24, 20, 22)
+    c = 0.05
+    diagonal = np.ones(shape) + 6.0 * c
+    weights = [np.full((23, 20, 22), c), np.full((24, 19, 22), c), np.full((24, 20, 21), c)]
+    weights[1][:, 0, :] = weights[1][:, -1, :] = 0.0
+    diagonal[:, 0, :] = diagonal[:, -1, :] = 1.0
+    operator = Operator7Point(diagonal, *weights)
+    term = _term(shape, 3, 5, 10.0)
+    rhs = np.random.default_rng(6).standard_normal(shape)
+    solver = PoissonSolverMGPCG3D(rtol=1e-11)
+    plain, report = solver.solve(operator, rhs)
+    assert report.converged and solver._hierarchy(shape).levels[0].box[6] == 2
+    x, report = solver.solve_coupled(operator, term, rhs)
+    assert report.converged
+    assert solver._hierarchy(shape).levels[0].box[6] == 0
+    size = int(np.prod(shape))
+    index = np.arange(size).reshape(shape)
+    a = sparse.diags(diagonal.ravel()).tolil()
+    pairs = ((weights[0], index[:-1], index[1:]), (weights[1], index[:, :-1], index[:, 1:]),
+             (weights[2], index[:, :, :-1], index[:, :, 1:]))
+    rows, cols, values = [], [], []
+    for w, first, second in pairs:
+        f, g, v = first.ravel(), second.ravel(), w.ravel()
+        rows += [f, g, f, g]
+        cols += [f, g, g, f]
+        values += [v, v, -v, -v]
+    a = (sparse.diags(diagonal.ravel()) + sparse.csr_matrix(
+        (np.concatenate(values), (np.concatenate(rows), np.concatenate(cols))),
+        shape=(size, size))).tocsc()
+    np.testing.assert_allclose(plain.ravel(), spsolve(a, rhs.ravel()), rtol=0,
+                               atol=1e-8 * np.abs(plain).max())
+    columns = term.offsets.shape[0] - 1
+    coupling = sparse.csr_matrix(
+        (term.weights, (term.points, np.repeat(np.arange(columns), np.diff(term.offsets)))),
+        shape=(size, columns))
+    full = (a + term.scale * coupling @ sparse.csr_matrix(term.matrix) @ coupling.T).tocsc()
+    np.testing.assert_allclose(x.ravel(), spsolve(full, rhs.ravel()), rtol=0,
+                               atol=1e-8 * np.abs(x).max())

@@ -76,6 +76,48 @@ def body_operator(shape: tuple[int, int, int], seed: int,
     return Operator7Point(*arrays)
 
 
+def held_planes_operator(shape: tuple[int, int, int], axis: int, seed: int,
+                         box: tuple[int, int, int, int, int, int] | None = None,
+                         c: float = 0.05) -> Operator7Point:
+    """Implicit viscosity ``I - c lap`` of a velocity component whose first and last planes
+    along ``axis`` are held (diagonal 1, no weights: a wall's normal velocity, an inflow),
+    with walls' ghosts on the diagonal of the other sides' planes; with ``box``, random
+    weights around a body as in `body_operator`."""
+    m, n, l = shape
+    diagonal = np.ones(shape) + 6.0 * c
+    weights = [np.full((m - 1, n, l), c), np.full((m, n - 1, l), c), np.full((m, n, l - 1), c)]
+    for along, w in enumerate(weights):
+        first = [slice(None)] * 3
+        last = [slice(None)] * 3
+        first[along], last[along] = 0, -1
+        if along == axis:
+            w[tuple(first)] = 0.0
+            w[tuple(last)] = 0.0
+            diagonal[tuple(first)] = 1.0
+            diagonal[tuple(last)] = 1.0
+    if box is not None:
+        rng = np.random.default_rng(seed)
+        i0, i1, j0, j1, k0, k1 = box
+        inside = np.zeros(shape, dtype=bool)
+        inside[i0:i1, j0:j1, k0:k1] = True
+        for along, w in enumerate(weights):
+            low = [slice(None)] * 3
+            high = [slice(None)] * 3
+            low[along], high[along] = slice(None, -1), slice(1, None)
+            touched = inside[tuple(low)] | inside[tuple(high)]
+            values = rng.uniform(0.0, 2.0 * c, w.shape) * (rng.random(w.shape) > 0.3)
+            w[touched] = values[touched]
+    return Operator7Point(diagonal, *weights)
+
+
+def everything_differs(weights_x: np.ndarray, weights_y: np.ndarray, weights_z: np.ndarray,
+                       weight: float, shell: int, box: np.ndarray) -> int:
+    """A stand-in for `uniform_box_kernel` that finds every weight differing: the box is
+    the whole level, so the solver keeps the weighted kernels."""
+    box[:] = [0, weights_y.shape[0], 0, weights_x.shape[1], 0, weights_x.shape[2], shell]
+    return weights_x.size + weights_y.size + weights_z.size
+
+
 def sparse_matrix(operator: Operator7Point) -> sparse.csr_matrix:
     """The operator assembled face by face (row-major numbering)."""
     m, n, l = operator.shape
@@ -253,25 +295,28 @@ def test_shapes_of_equal_size_share_vectors_without_mixing_answers() -> None:
     assert len(solver._vector_pool) == 1 and len(solver._hierarchies) == 3
 
 
-@pytest.mark.parametrize("kind", ["uniform", "weighted", "boxed"])
+@pytest.mark.parametrize("kind", ["uniform", "weighted", "boxed", "shelled"])
 def test_a_sweep_is_its_two_half_sweeps_however_the_planes_are_split(kind: str) -> None:
     # The fused red-black sweep walks chunks of planes, the second colour one plane behind:
     # it must give the two half sweeps one after the other, for any split into chunks; with
     # a box, the weights' arrays inside it and the one weight outside.
-    shape = (11, 6, 5)
+    shape = (11, 8, 9) if kind == "shelled" else (11, 6, 5)
     operator = {"uniform": lambda: laplacian(0, outflow=True, shape=shape),
                 "weighted": lambda: random_operator(shape, 4),
-                "boxed": lambda: body_operator(shape, 4, (3, 7, 1, 4, 2, 4))}[kind]()
+                "boxed": lambda: body_operator(shape, 4, (3, 7, 1, 4, 2, 4)),
+                "shelled": lambda: held_planes_operator(shape, 1, 4, (4, 8, 3, 5, 2, 7))
+                }[kind]()
     a = (operator.diagonal, operator.weights_x, operator.weights_y, operator.weights_z)
     total, inverse = np.empty(shape), np.empty(shape)
     load_operator_kernel_3d(*a, total, inverse, np.empty(shape, dtype=np.bool_))
     weight = uniform_weight_kernel(*a[1:])
     assert (weight == 1.0) == (kind == "uniform")
     box = NO_BOX
-    if kind == "boxed":
-        box = np.zeros(6, dtype=np.int64)
-        assert uniform_box_kernel(*a[1:], 1.0, box) > 0
-        weight = 1.0
+    if kind in ("boxed", "shelled"):
+        weight = 1.0 if kind == "boxed" else 0.05
+        shell = 2 if kind == "shelled" else 0
+        box = np.zeros(7, dtype=np.int64)
+        assert uniform_box_kernel(*a[1:], weight, shell, box) > 0
     rng = np.random.default_rng(5)
     b, start = rng.standard_normal(shape), rng.standard_normal(shape)
     colour = np.indices(shape).sum(axis=0) % 2
@@ -306,46 +351,78 @@ def test_the_box_holds_every_point_of_a_differing_weight() -> None:
         ends[tuple(low)] |= differ
         ends[tuple(high)] |= differ
     where = np.argwhere(ends)
-    box = np.zeros(6, dtype=np.int64)
-    count = uniform_box_kernel(*a, 1.0, box)
+    box = np.zeros(7, dtype=np.int64)
+    count = uniform_box_kernel(*a, 1.0, 0, box)
     assert count == sum(int(np.count_nonzero(w != 1.0)) for w in a)
     expected = [v for axis in range(3)
                 for v in (where[:, axis].min(), where[:, axis].max() + 1)]
-    assert list(box) == expected
+    assert list(box) == expected + [0]
     # All weights equal: no box.
     plain = laplacian(0, shape=shape)
-    assert uniform_box_kernel(plain.weights_x, plain.weights_y, plain.weights_z, 1.0,
+    assert uniform_box_kernel(plain.weights_x, plain.weights_y, plain.weights_z, 1.0, 0,
                               box) == 0
-    assert list(box) == [0] * 6
+    assert list(box) == [0] * 7
 
 
-def test_the_boxed_kernels_are_the_weighted_ones_to_round_off() -> None:
-    # Residual, product and restriction with the one weight outside the box and the arrays
-    # inside give the weighted kernels' values (the sums differ only in rounding).
+def test_the_shell_leaves_out_only_the_weights_between_two_of_its_points() -> None:
+    # Held planes along y: their weights (0) join points of the shell only and are left
+    # out; a body's weights, and a differing weight from the shell to a point inside it,
+    # make the box.
+    shape = (12, 10, 11)
+    operator = held_planes_operator(shape, 1, 0)
+    a = (operator.weights_x, operator.weights_y, operator.weights_z)
+    box = np.zeros(7, dtype=np.int64)
+    assert uniform_box_kernel(*a, 0.05, 0, box) > 0
+    assert uniform_box_kernel(*a, 0.05, 2, box) == 0
+    assert list(box) == [0] * 6 + [2]
+    # The weight from the shell's point (5, 1, 4) to the inside point (5, 2, 4) is read by
+    # the inside point's row: it must be in the box.
+    operator.weights_y[5, 1, 4] = 0.01
+    assert uniform_box_kernel(*a, 0.05, 2, box) == 1
+    assert list(box) == [5, 6, 1, 3, 4, 5, 2]
+    # Zero weights one plane further in (from y = 2 to 3) are outside the shell but where
+    # both of their ends lie in the shell along x or z: 8 x 7 of the 12 x 11 count.
+    operator.weights_y[5, 1, 4] = 0.05
+    operator.weights_y[:, 2, :] = 0.0
+    assert uniform_box_kernel(*a, 0.05, 2, box) == 8 * 7
+    assert list(box) == [2, 10, 2, 4, 2, 9, 2]
+
+
+@pytest.mark.parametrize("shell", [0, 2])
+def test_the_boxed_kernels_are_the_weighted_ones_to_round_off(shell: int) -> None:
+    # Residual, product and restriction with the one weight outside the box (and the shell)
+    # and the arrays inside give the weighted kernels' values (the sums differ only in
+    # rounding).
     shape = (12, 9, 10)
-    operator = body_operator(shape, 7, (4, 9, 2, 6, 3, 8))
+    if shell:
+        operator, weight = held_planes_operator(shape, 2, 7, (4, 9, 2, 6, 3, 8)), 0.05
+    else:
+        operator, weight = body_operator(shape, 7, (4, 9, 2, 6, 3, 8)), 1.0
     a = (operator.diagonal, operator.weights_x, operator.weights_y, operator.weights_z)
     total, inverse = np.empty(shape), np.empty(shape)
     load_operator_kernel_3d(*a, total, inverse, np.empty(shape, dtype=np.bool_))
-    box = np.zeros(6, dtype=np.int64)
-    uniform_box_kernel(*a[1:], 1.0, box)
+    box = np.zeros(7, dtype=np.int64)
+    uniform_box_kernel(*a[1:], weight, shell, box)
+    assert box[6] == shell
     rng = np.random.default_rng(1)
     x, b = rng.standard_normal(shape), rng.standard_normal(shape)
     x[total == 0.0] = 0.0
     r_weighted, r_boxed = np.empty(shape), np.empty(shape)
     squared = residual_kernel_3d(*a, x, b, r_weighted)
-    assert residual_uniform_kernel_3d(total, 1.0, x, b, r_boxed, *a, box) == pytest.approx(
+    assert residual_uniform_kernel_3d(total, weight, x, b, r_boxed, *a, box) == pytest.approx(
         squared, rel=1e-13)
     np.testing.assert_allclose(r_boxed, r_weighted, rtol=1e-13, atol=1e-13)
     q_weighted, q_boxed = np.empty(shape), np.empty(shape)
     dot = apply_dot_kernel_3d(*a, x, q_weighted)
-    assert apply_dot_uniform_kernel_3d(total, 1.0, x, q_boxed, *a, box) == pytest.approx(
+    assert apply_dot_uniform_kernel_3d(total, weight, x, q_boxed, *a, box) == pytest.approx(
         dot, rel=1e-13)
     np.testing.assert_allclose(q_boxed, q_weighted, rtol=1e-13, atol=1e-13)
+    if shell:
+        return  # the restriction takes no shell (`_Level.set_uniform`)
     coarse = tuple((s + 1) // 2 for s in shape)
     c_weighted, c_boxed = np.empty(coarse), np.empty(coarse)
     restrict_residual_kernel_3d(x, b, total, *a[1:], c_weighted)
-    restrict_residual_uniform_kernel_3d(x, b, total, 1.0, c_boxed, *a[1:], box)
+    restrict_residual_uniform_kernel_3d(x, b, total, weight, c_boxed, *a[1:], box)
     np.testing.assert_allclose(c_boxed, c_weighted, rtol=1e-12, atol=1e-12)
 
 
@@ -362,12 +439,38 @@ def test_a_body_operator_solves_with_its_box(monkeypatch: pytest.MonkeyPatch) ->
     assert level.uniform == 1.0 and level.box is not NO_BOX
     import elastoflow.linalg._mgpcg3d as module
 
-    monkeypatch.setattr(module, "uniform_box_kernel", lambda *args: 0)
+    monkeypatch.setattr(module, "uniform_box_kernel", everything_differs)
     weighted = PoissonSolverMGPCG3D(rtol=1e-10)
     y, other = weighted.solve(operator, rhs)
     assert other.converged
     assert weighted._hierarchy(shape).levels[0].uniform == NOT_UNIFORM
     np.testing.assert_allclose(x, y, rtol=0, atol=1e-8 * np.abs(y).max())
+
+
+@pytest.mark.parametrize("axis", [0, 1, 2])
+def test_a_viscosity_operator_with_held_planes_solves_with_its_shell(
+        monkeypatch: pytest.MonkeyPatch, axis: int) -> None:
+    # Held planes make the weights to them 0: the fine level takes the one weight outside
+    # the shell (and a body's box) and gives the weighted kernels' answer.
+    shape = (24, 20, 22)
+    operator = held_planes_operator(shape, axis, 2, (8, 14, 6, 12, 9, 15))
+    rhs = np.random.default_rng(9).standard_normal(shape)
+    solver = PoissonSolverMGPCG3D(rtol=1e-12)
+    x, report = solver.solve(operator, rhs)
+    assert report.converged
+    level = solver._hierarchy(shape).levels[0]
+    # The weights touching the body's points reach one point beyond them.
+    assert level.uniform == 0.05 and list(level.box[:6]) == [7, 15, 5, 13, 8, 16]
+    assert level.box[6] == 2
+    expected = spsolve(sparse_matrix(operator).tocsc(), rhs.ravel()).reshape(shape)
+    np.testing.assert_allclose(x, expected, rtol=0, atol=1e-10 * np.abs(expected).max())
+    import elastoflow.linalg._mgpcg3d as module
+
+    monkeypatch.setattr(module, "uniform_box_kernel", everything_differs)
+    weighted = PoissonSolverMGPCG3D(rtol=1e-12)
+    y, other = weighted.solve(operator, rhs)
+    assert weighted._hierarchy(shape).levels[0].uniform == NOT_UNIFORM
+    np.testing.assert_allclose(x, y, rtol=0, atol=1e-10 * np.abs(y).max())
 
 
 def test_an_assembled_operator_is_the_checked_one_and_wrong_shapes_are_refused() -> None:
