@@ -868,12 +868,6 @@ def uniform_weight_kernel(weights_x, weights_y, weights_z):
     return value
 
 
-@njit(cache=True, inline="always")
-def _in_shell(i, j, k, m, n, l, shell):
-    return (i < shell or i >= m - shell or j < shell or j >= n - shell or k < shell
-            or k >= l - shell)
-
-
 @njit(cache=True, parallel=True)
 def uniform_box_kernel(weights_x, weights_y, weights_z, weight, shell, box):
     """Write into ``box`` (int64, 7: ``i0, i1, j0, j1, k0, k1``, half-open, and ``shell``)
@@ -894,23 +888,43 @@ def uniform_box_kernel(weights_x, weights_y, weights_z, weight, shell, box):
     count_x = np.zeros(m, dtype=np.int64)
     count_yz = np.zeros(m, dtype=np.int64)
     for i in prange(m):
+        # Counts and bounds in locals, stored once a plane: written per point into the
+        # arrays they made the pass 5x slower (0.66 ms at 64^3, 5.4 at 128^3).
+        along_x_count = 0
+        along_yz_count = 0
+        j_low, j_high, k_low, k_high = n, -1, l, -1
+        i_shell = i < shell or i >= m - shell
+        next_i_shell = i + 1 < shell or i + 1 >= m - shell
         for j in range(n):
+            j_shell = j < shell or j >= n - shell
+            next_j_shell = j + 1 < shell or j + 1 >= n - shell
             for k in range(l):
-                own = shell > 0 and _in_shell(i, j, k, m, n, l, shell)
-                along_x = i < m - 1 and weights_x[i, j, k] != weight and not (
-                    own and _in_shell(i + 1, j, k, m, n, l, shell))
-                along_y = j < n - 1 and weights_y[i, j, k] != weight and not (
-                    own and _in_shell(i, j + 1, k, m, n, l, shell))
-                along_z = k < l - 1 and weights_z[i, j, k] != weight and not (
-                    own and _in_shell(i, j, k + 1, m, n, l, shell))
+                along_x = i < m - 1 and weights_x[i, j, k] != weight
+                along_y = j < n - 1 and weights_y[i, j, k] != weight
+                along_z = k < l - 1 and weights_z[i, j, k] != weight
                 if not (along_x or along_y or along_z):
                     continue
-                count_x[i] += 1 if along_x else 0
-                count_yz[i] += (1 if along_y else 0) + (1 if along_z else 0)
-                low_j[i] = min(low_j[i], j)
-                high_j[i] = max(high_j[i], j + 1 if along_y else j)
-                low_k[i] = min(low_k[i], k)
-                high_k[i] = max(high_k[i], k + 1 if along_z else k)
+                k_shell = k < shell or k >= l - shell
+                if i_shell or j_shell or k_shell:
+                    # Both ends within the shell: left out.
+                    along_x = along_x and not (next_i_shell or j_shell or k_shell)
+                    along_y = along_y and not (i_shell or next_j_shell or k_shell)
+                    along_z = along_z and not (i_shell or j_shell or k + 1 < shell
+                                               or k + 1 >= l - shell)
+                    if not (along_x or along_y or along_z):
+                        continue
+                along_x_count += 1 if along_x else 0
+                along_yz_count += (1 if along_y else 0) + (1 if along_z else 0)
+                j_low = min(j_low, j)
+                j_high = max(j_high, j + 1 if along_y else j)
+                k_low = min(k_low, k)
+                k_high = max(k_high, k + 1 if along_z else k)
+        count_x[i] = along_x_count
+        count_yz[i] = along_yz_count
+        low_j[i] = j_low
+        high_j[i] = j_high
+        low_k[i] = k_low
+        high_k[i] = k_high
     box[:] = 0
     box[6] = shell
     total = 0
