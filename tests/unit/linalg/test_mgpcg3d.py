@@ -518,3 +518,23 @@ def test_the_components_are_kept_while_the_positive_pattern_holds() -> None:
     assert report.converged and hierarchy.null_space.labels is not labels
     y, _ = PoissonSolverMGPCG3D(rtol=1e-10).solve(closed, rhs)
     np.testing.assert_allclose(x, y, rtol=0, atol=1e-9 * np.abs(y).max())
+
+
+def test_the_inner_columns_split_a_run_into_its_sides_and_the_rest_exactly() -> None:
+    # `_inner_columns` splits range(k_from, k_to, step) into the columns before 1, those in
+    # [1, l - 2] (read with unsigned indices, no side checks) and those after: the three
+    # ranges together are the run, in order, and the middle one holds exactly its inner
+    # columns.
+    from elastoflow.linalg._kernels3d import _inner_columns
+
+    for l in range(1, 9):
+        for step in (1, 2):
+            for k_from in range(0, l + 1):
+                for k_to in range(k_from, l + 1):
+                    first, stop, resume = _inner_columns(k_from, k_to, step, l)
+                    head = list(range(k_from, min(first, k_to), step))
+                    inner = list(range(first, stop, step))
+                    tail = list(range(resume, k_to, step))
+                    assert head + inner + tail == list(range(k_from, k_to, step))
+                    assert all(1 <= k <= l - 2 for k in inner)
+                    assert all(not 1 <= k <= l - 2 for k in head + tail)
