@@ -609,50 +609,47 @@ def _residual_weighted_run(diagonal, weights_x, weights_y, weights_z, x, b, r, i
     return plane
 
 
-def _make_residual_uniform(loop):
+def _make_residual_uniform(loop, shelled):
+    # ``shelled`` is a closure constant: each variant compiles without the other's branch
+    # (one kernel testing it at run time made the plain variant slower, 0.24 -> 0.36 ms at
+    # 64^3).
     def kernel(total, weight, x, b, r, diagonal, weights_x, weights_y, weights_z, box):
         m, n, l = x.shape
         squared = 0.0
         for i in loop(m):
             plane = 0.0
             for j in range(n):
-                k0, k1 = _row_box(box, i, j, l)
-                plane = _residual_run_sides(total, weight, x, b, r, i, j, 0, k0, m, n, l,
-                                            plane)
-                plane = _residual_weighted_run(diagonal, weights_x, weights_y, weights_z, x,
-                                               b, r, i, j, k0, k1, m, n, l, plane)
-                plane = _residual_run_sides(total, weight, x, b, r, i, j, k1, l, m, n, l,
-                                            plane)
-            squared += plane
-        return squared
-    return kernel
-
-
-def _make_residual_shell(loop):
-    def kernel(total, weight, x, b, r, diagonal, weights_x, weights_y, weights_z, box):
-        m, n, l = x.shape
-        squared = 0.0
-        for i in loop(m):
-            plane = 0.0
-            for j in range(n):
-                ka, kb, kc, kd = _row_spans(box, i, j, m, n, l)
-                plane = _residual_weighted_run(diagonal, weights_x, weights_y, weights_z, x,
-                                               b, r, i, j, 0, ka, m, n, l, plane)
-                plane = _residual_run(total, weight, x, b, r, i, j, ka, kb, m, n, l, plane)
+                if shelled:
+                    ka, kb, kc, kd = _row_spans(box, i, j, m, n, l)
+                    plane = _residual_weighted_run(diagonal, weights_x, weights_y, weights_z,
+                                                   x, b, r, i, j, 0, ka, m, n, l, plane)
+                    plane = _residual_run(total, weight, x, b, r, i, j, ka, kb, m, n, l,
+                                          plane)
+                else:
+                    # From a literal column 0, whose first column the compiler peels.
+                    kb, kc = _row_box(box, i, j, l)
+                    kd = l
+                    plane = _residual_run_sides(total, weight, x, b, r, i, j, 0, kb, m, n, l,
+                                                plane)
                 plane = _residual_weighted_run(diagonal, weights_x, weights_y, weights_z, x,
                                                b, r, i, j, kb, kc, m, n, l, plane)
-                plane = _residual_run(total, weight, x, b, r, i, j, kc, kd, m, n, l, plane)
-                plane = _residual_weighted_run(diagonal, weights_x, weights_y, weights_z, x,
-                                               b, r, i, j, kd, l, m, n, l, plane)
+                if shelled:
+                    plane = _residual_run(total, weight, x, b, r, i, j, kc, kd, m, n, l,
+                                          plane)
+                    plane = _residual_weighted_run(diagonal, weights_x, weights_y, weights_z,
+                                                   x, b, r, i, j, kd, l, m, n, l, plane)
+                else:
+                    plane = _residual_run_sides(total, weight, x, b, r, i, j, kc, l, m, n, l,
+                                                plane)
             squared += plane
         return squared
     return kernel
 
 
 _residual_uniform_serial, _residual_uniform_parallel = serial_and_parallel(
-    _make_residual_uniform, fastmath=_REDUCTION_MATH)
+    lambda loop: _make_residual_uniform(loop, False), fastmath=_REDUCTION_MATH)
 _residual_shell_serial, _residual_shell_parallel = serial_and_parallel(
-    _make_residual_shell, fastmath=_REDUCTION_MATH)
+    lambda loop: _make_residual_uniform(loop, True), fastmath=_REDUCTION_MATH)
 
 
 @njit(cache=True)
@@ -662,10 +659,10 @@ def residual_uniform_kernel_3d(total, weight, x, b, r, diagonal, weights_x, weig
     ``box`` and its shell (`NO_BOX`: everywhere), with its ``total = diagonal + sum of
     weights``: 1 operator array read instead of 4 there, the operator's own arrays inside.
 
-    A kernel of its own for a box with a shell (its rows start at a column not known to be
-    0: `_residual_run` splits off the sides), so that the one without keeps the compiled
-    code of the plain runs (one kernel for both ran 0.24 -> 0.36 ms at 64^3 without a
-    shell)."""
+    A variant compiled on its own for a box with a shell (its rows start at a column not
+    known to be 0: `_residual_run` splits off the sides), so that the one without keeps the
+    compiled code of the plain runs (one kernel testing it at run time ran 0.24 -> 0.36 ms
+    at 64^3 without a shell)."""
     if box[6] > 0:
         if x.size > STENCIL_PARALLEL_MINIMUM_3D:
             return _residual_shell_parallel(total, weight, x, b, r, diagonal, weights_x,
@@ -1216,50 +1213,44 @@ def _apply_dot_weighted_run(diagonal, weights_x, weights_y, weights_z, p, q, i, 
     return plane
 
 
-def _make_apply_dot_uniform(loop):
+def _make_apply_dot_uniform(loop, shelled):
+    # ``shelled`` as in `_make_residual_uniform`.
     def kernel(total, weight, p, q, diagonal, weights_x, weights_y, weights_z, box):
         m, n, l = p.shape
         dot = 0.0
         for i in loop(m):
             plane = 0.0
             for j in range(n):
-                k0, k1 = _row_box(box, i, j, l)
-                plane = _apply_dot_run_sides(total, weight, p, q, i, j, 0, k0, m, n, l,
-                                             plane)
-                plane = _apply_dot_weighted_run(diagonal, weights_x, weights_y, weights_z, p,
-                                                q, i, j, k0, k1, m, n, l, plane)
-                plane = _apply_dot_run_sides(total, weight, p, q, i, j, k1, l, m, n, l,
-                                             plane)
-            dot += plane
-        return dot
-    return kernel
-
-
-def _make_apply_dot_shell(loop):
-    def kernel(total, weight, p, q, diagonal, weights_x, weights_y, weights_z, box):
-        m, n, l = p.shape
-        dot = 0.0
-        for i in loop(m):
-            plane = 0.0
-            for j in range(n):
-                ka, kb, kc, kd = _row_spans(box, i, j, m, n, l)
-                plane = _apply_dot_weighted_run(diagonal, weights_x, weights_y, weights_z, p,
-                                                q, i, j, 0, ka, m, n, l, plane)
-                plane = _apply_dot_run(total, weight, p, q, i, j, ka, kb, m, n, l, plane)
+                if shelled:
+                    ka, kb, kc, kd = _row_spans(box, i, j, m, n, l)
+                    plane = _apply_dot_weighted_run(diagonal, weights_x, weights_y,
+                                                    weights_z, p, q, i, j, 0, ka, m, n, l,
+                                                    plane)
+                    plane = _apply_dot_run(total, weight, p, q, i, j, ka, kb, m, n, l, plane)
+                else:
+                    kb, kc = _row_box(box, i, j, l)
+                    kd = l
+                    plane = _apply_dot_run_sides(total, weight, p, q, i, j, 0, kb, m, n, l,
+                                                 plane)
                 plane = _apply_dot_weighted_run(diagonal, weights_x, weights_y, weights_z, p,
                                                 q, i, j, kb, kc, m, n, l, plane)
-                plane = _apply_dot_run(total, weight, p, q, i, j, kc, kd, m, n, l, plane)
-                plane = _apply_dot_weighted_run(diagonal, weights_x, weights_y, weights_z, p,
-                                                q, i, j, kd, l, m, n, l, plane)
+                if shelled:
+                    plane = _apply_dot_run(total, weight, p, q, i, j, kc, kd, m, n, l, plane)
+                    plane = _apply_dot_weighted_run(diagonal, weights_x, weights_y,
+                                                    weights_z, p, q, i, j, kd, l, m, n, l,
+                                                    plane)
+                else:
+                    plane = _apply_dot_run_sides(total, weight, p, q, i, j, kc, l, m, n, l,
+                                                 plane)
             dot += plane
         return dot
     return kernel
 
 
 _apply_dot_uniform_serial, _apply_dot_uniform_parallel = serial_and_parallel(
-    _make_apply_dot_uniform, fastmath=_REDUCTION_MATH)
+    lambda loop: _make_apply_dot_uniform(loop, False), fastmath=_REDUCTION_MATH)
 _apply_dot_shell_serial, _apply_dot_shell_parallel = serial_and_parallel(
-    _make_apply_dot_shell, fastmath=_REDUCTION_MATH)
+    lambda loop: _make_apply_dot_uniform(loop, True), fastmath=_REDUCTION_MATH)
 
 
 @njit(cache=True)
@@ -1267,7 +1258,7 @@ def apply_dot_uniform_kernel_3d(total, weight, p, q, diagonal, weights_x, weight
                                 weights_z, box):
     """`apply_dot_kernel_3d` for an operator whose weights all equal ``weight`` outside
     ``box`` and its shell (`NO_BOX`: everywhere), with its ``total = diagonal + sum of
-    weights``. With a shell, a kernel of its own as in `residual_uniform_kernel_3d`."""
+    weights``. With a shell, its own compiled variant, as in `residual_uniform_kernel_3d`."""
     if box[6] > 0:
         if p.size > STENCIL_PARALLEL_MINIMUM_3D:
             return _apply_dot_shell_parallel(total, weight, p, q, diagonal, weights_x,
