@@ -414,16 +414,18 @@ def _clamp(value, low, high):
 
 
 @njit(cache=True, inline="always")
-def _departure(u, v, w, x, y, z, ux, uy, uz, dt, inv_h, lx, ly, lz, modes, values, solid_u,
-               solid_v, solid_w, theta_u, theta_v, theta_w, cut_u, cut_v, cut_w, boxes):
-    """Departure point of the trajectory arriving at ``(x, y, z)`` with velocity ``(ux, uy,
-    uz)`` after ``dt`` [s]: midpoint (RK2) back-trace, clamped into the domain. The velocity
-    samples see the bodies: the trace does not leak through them either."""
-    xm = _clamp(x - 0.5 * dt * ux, 0.0, lx)
-    ym = _clamp(y - 0.5 * dt * uy, 0.0, ly)
-    zm = _clamp(z - 0.5 * dt * uz, 0.0, lz)
-    um, vm, wm = _velocity_at(u, v, w, xm, ym, zm, inv_h, modes, values, solid_u, solid_v,
-                              solid_w, theta_u, theta_v, theta_w, cut_u, cut_v, cut_w, boxes)
+def _midpoint(x, y, z, ux, uy, uz, dt, lx, ly, lz):
+    """Midpoint of the back-trace from ``(x, y, z)`` with arrival velocity ``(ux, uy, uz)``
+    over ``dt`` [s] (RK2), clamped into the domain."""
+    return (_clamp(x - 0.5 * dt * ux, 0.0, lx), _clamp(y - 0.5 * dt * uy, 0.0, ly),
+            _clamp(z - 0.5 * dt * uz, 0.0, lz))
+
+
+@njit(cache=True, inline="always")
+def _departure(x, y, z, um, vm, wm, dt, lx, ly, lz):
+    """Departure point of the trajectory arriving at ``(x, y, z)`` after ``dt`` [s] from the
+    velocity ``(um, vm, wm)`` sampled at its `_midpoint`, clamped into the domain. The
+    midpoint's samples see the bodies: the trace does not leak through them either."""
     return (_clamp(x - dt * um, 0.0, lx), _clamp(y - dt * vm, 0.0, ly),
             _clamp(z - dt * wm, 0.0, lz))
 
@@ -501,16 +503,20 @@ def _make_advect(loop):
         ly = (v.shape[1] - 1) * h
         lz = (w.shape[2] - 1) * h
         for i in loop(m):
+            # A line of points goes through the trace in three passes (arrival velocity and
+            # midpoint; midpoint velocity and departure point; the sample), the points'
+            # positions kept in these buffers between them. Within a pass the points are
+            # independent, so the processor overlaps their samples; one point's chain of
+            # dependent samples at a time left it waiting (about 15 % of the time).
+            xs = np.empty(l)
+            ys = np.empty(l)
+            zs = np.empty(l)
+            x = (i + offset_x) * h
             for j in range(n):
+                y = (j + offset_y) * h
                 for k in range(l):
                     if has_interior and solid[i, j, k]:
-                        out[i, j, k] = 0.0 if is_dye else body_value[i, j, k]
                         continue
-                    # The departure point is traced again by the correcting pass rather than
-                    # stored: a trace costs less than writing and reading three more arrays
-                    # of this size.
-                    x = (i + offset_x) * h
-                    y = (j + offset_y) * h
                     z = (k + offset_z) * h
                     found, ux, uy, uz = _velocity_at_point(u, v, w, i, j, k, field,
                                                            has_interior, boxes)
@@ -519,14 +525,27 @@ def _make_advect(loop):
                                                   velocity_values, solid_u, solid_v, solid_w,
                                                   theta_u, theta_v, theta_w, cut_u, cut_v,
                                                   cut_w, boxes)
-                    x, y, z = _departure(u, v, w, x, y, z, ux, uy, uz, dt, inv_h, lx, ly, lz,
-                                         velocity_modes, velocity_values, solid_u, solid_v,
-                                         solid_w, theta_u, theta_v, theta_w, cut_u, cut_v,
-                                         cut_w, boxes)
+                    xs[k], ys[k], zs[k] = _midpoint(x, y, z, ux, uy, uz, dt, lx, ly, lz)
+                for k in range(l):
+                    if has_interior and solid[i, j, k]:
+                        continue
+                    um, vm, wm = _velocity_at(u, v, w, xs[k], ys[k], zs[k], inv_h,
+                                              velocity_modes, velocity_values, solid_u,
+                                              solid_v, solid_w, theta_u, theta_v, theta_w,
+                                              cut_u, cut_v, cut_w, boxes)
+                    z = (k + offset_z) * h
+                    xs[k], ys[k], zs[k] = _departure(x, y, z, um, vm, wm, dt, lx, ly, lz)
+                for k in range(l):
+                    if has_interior and solid[i, j, k]:
+                        out[i, j, k] = 0.0 if is_dye else body_value[i, j, k]
+                        continue
+                    # The departure point is traced again by the correcting pass rather than
+                    # stored: a trace costs less than writing and reading three more arrays
+                    # of this size.
                     value, low, high = _sample_bodies(
-                        source, x * inv_h - offset_x, y * inv_h - offset_y,
-                        z * inv_h - offset_z, modes, values, 0, solid, theta, cut_velocity,
-                        boxes, field, is_dye, correct)
+                        source, xs[k] * inv_h - offset_x, ys[k] * inv_h - offset_y,
+                        zs[k] * inv_h - offset_z, modes, values, 0, solid, theta,
+                        cut_velocity, boxes, field, is_dye, correct)
                     if correct:
                         corrected = (forward[i, j, k]
                                      + 0.5 * (source[i, j, k] - backward[i, j, k]))
