@@ -501,93 +501,55 @@ def _quad(f, i, j, k, di1, dj1, dk1, di2, dj2, dk2):
     return _pair(f, i, j, k, di1, dj1, dk1) + _pair(f, i + di2, j + dj2, k + dk2, di1, dj1, dk1)
 
 
-# The advective acceleration (u . grad) u at a point of each field for `_taylor_motion`. A
-# component at its own points: centred differences over 2h. At another field's point a
-# component is the mean of the 2 or 4 values around it; along an axis where those values
-# straddle the point, the difference of the two means over h, and along the others the
-# difference of the means one point either side over 2h (all second order). The stencils
-# reach one point either way: their bounds and solid boxes are checked first.
+# The advective acceleration (u . grad) u at a point for `_taylor_motion`. A component at its
+# own points: centred differences over 2h. At another field's point a component is the mean
+# of the 2 or 4 values around it; along an axis where those values straddle the point, the
+# difference of the two means over h, and along the others the difference of the means one
+# point either side over 2h (all second order). The stencils reach one point either way:
+# their bounds and solid boxes are checked first.
 
 
 @njit(cache=True, inline="always")
-def _taylor_u(u, v, w, i, j, k, inv_h, has_interior, boxes):
-    if not (1 <= i <= u.shape[0] - 2 and 1 <= j <= u.shape[1] - 2
-            and 1 <= k <= u.shape[2] - 2):
+def _taylor_face(f, g, q, rows, i, j, k, ea, eb, ec, inv_h, has_interior, boxes):
+    """`_taylor_motion` at point ``[i, j, k]`` of the face field ``f`` normal to axis A,
+    ``g`` and ``q`` the components along axes B and C; ``ea``, ``eb``, ``ec`` the unit
+    index steps along A, B, C (literal at each call, so the compiler folds them) and
+    ``rows`` their rows of ``boxes``. Returns the velocity and acceleration along (A, B, C).
+    """
+    ai, aj, ak = ea
+    bi, bj, bk = eb
+    ci, cj, ck = ec
+    if not (1 <= i <= f.shape[0] - 2 and 1 <= j <= f.shape[1] - 2
+            and 1 <= k <= f.shape[2] - 2):
         return False, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
-    if has_interior and not (_block_clear(boxes, 0, i - 1, i + 1, j - 1, j + 1, k - 1, k + 1)
-                             and _block_clear(boxes, 1, i - 1, i, j, j + 1, k - 1, k + 1)
-                             and _block_clear(boxes, 2, i - 1, i, j - 1, j + 1, k, k + 1)):
-        return False, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
-    half = 0.5 * inv_h
-    eighth = 0.125 * inv_h
-    ux = u[i, j, k]
-    uy = 0.25 * _quad(v, i - 1, j, k, 1, 0, 0, 0, 1, 0)
-    uz = 0.25 * _quad(w, i - 1, j, k, 1, 0, 0, 0, 0, 1)
-    ax = (ux * (u[i + 1, j, k] - u[i - 1, j, k]) + uy * (u[i, j + 1, k] - u[i, j - 1, k])
-          + uz * (u[i, j, k + 1] - u[i, j, k - 1])) * half
-    ay = ((ux * (_pair(v, i, j, k, 0, 1, 0) - _pair(v, i - 1, j, k, 0, 1, 0))
-           + uy * (_pair(v, i - 1, j + 1, k, 1, 0, 0) - _pair(v, i - 1, j, k, 1, 0, 0))) * half
-          + uz * (_quad(v, i - 1, j, k + 1, 1, 0, 0, 0, 1, 0)
-                  - _quad(v, i - 1, j, k - 1, 1, 0, 0, 0, 1, 0)) * eighth)
-    az = ((ux * (_pair(w, i, j, k, 0, 0, 1) - _pair(w, i - 1, j, k, 0, 0, 1))
-           + uz * (_pair(w, i - 1, j, k + 1, 1, 0, 0) - _pair(w, i - 1, j, k, 1, 0, 0))) * half
-          + uy * (_quad(w, i - 1, j + 1, k, 1, 0, 0, 0, 0, 1)
-                  - _quad(w, i - 1, j - 1, k, 1, 0, 0, 0, 0, 1)) * eighth)
-    return True, ux, uy, uz, ax, ay, az
-
-
-@njit(cache=True, inline="always")
-def _taylor_v(u, v, w, i, j, k, inv_h, has_interior, boxes):
-    if not (1 <= i <= v.shape[0] - 2 and 1 <= j <= v.shape[1] - 2
-            and 1 <= k <= v.shape[2] - 2):
-        return False, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
-    if has_interior and not (_block_clear(boxes, 1, i - 1, i + 1, j - 1, j + 1, k - 1, k + 1)
-                             and _block_clear(boxes, 0, i, i + 1, j - 1, j, k - 1, k + 1)
-                             and _block_clear(boxes, 2, i - 1, i + 1, j - 1, j, k, k + 1)):
+    if has_interior and not (
+            _block_clear(boxes, rows[0], i - 1, i + 1, j - 1, j + 1, k - 1, k + 1)
+            and _block_clear(boxes, rows[1], i - ai - ci, i + bi + ci, j - aj - cj,
+                             j + bj + cj, k - ak - ck, k + bk + ck)
+            and _block_clear(boxes, rows[2], i - ai - bi, i + bi + ci, j - aj - bj,
+                             j + bj + cj, k - ak - bk, k + bk + ck)):
         return False, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
     half = 0.5 * inv_h
     eighth = 0.125 * inv_h
-    ux = 0.25 * _quad(u, i, j - 1, k, 1, 0, 0, 0, 1, 0)
-    uy = v[i, j, k]
-    uz = 0.25 * _quad(w, i, j - 1, k, 0, 1, 0, 0, 0, 1)
-    ax = ((ux * (_pair(u, i + 1, j - 1, k, 0, 1, 0) - _pair(u, i, j - 1, k, 0, 1, 0))
-           + uy * (_pair(u, i, j, k, 1, 0, 0) - _pair(u, i, j - 1, k, 1, 0, 0))) * half
-          + uz * (_quad(u, i, j - 1, k + 1, 1, 0, 0, 0, 1, 0)
-                  - _quad(u, i, j - 1, k - 1, 1, 0, 0, 0, 1, 0)) * eighth)
-    ay = (ux * (v[i + 1, j, k] - v[i - 1, j, k]) + uy * (v[i, j + 1, k] - v[i, j - 1, k])
-          + uz * (v[i, j, k + 1] - v[i, j, k - 1])) * half
-    az = ((uy * (_pair(w, i, j, k, 0, 0, 1) - _pair(w, i, j - 1, k, 0, 0, 1))
-           + uz * (_pair(w, i, j - 1, k + 1, 0, 1, 0) - _pair(w, i, j - 1, k, 0, 1, 0))) * half
-          + ux * (_quad(w, i + 1, j - 1, k, 0, 1, 0, 0, 0, 1)
-                  - _quad(w, i - 1, j - 1, k, 0, 1, 0, 0, 0, 1)) * eighth)
-    return True, ux, uy, uz, ax, ay, az
-
-
-@njit(cache=True, inline="always")
-def _taylor_w(u, v, w, i, j, k, inv_h, has_interior, boxes):
-    if not (1 <= i <= w.shape[0] - 2 and 1 <= j <= w.shape[1] - 2
-            and 1 <= k <= w.shape[2] - 2):
-        return False, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
-    if has_interior and not (_block_clear(boxes, 2, i - 1, i + 1, j - 1, j + 1, k - 1, k + 1)
-                             and _block_clear(boxes, 0, i, i + 1, j - 1, j + 1, k - 1, k)
-                             and _block_clear(boxes, 1, i - 1, i + 1, j, j + 1, k - 1, k)):
-        return False, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
-    half = 0.5 * inv_h
-    eighth = 0.125 * inv_h
-    ux = 0.25 * _quad(u, i, j, k - 1, 1, 0, 0, 0, 0, 1)
-    uy = 0.25 * _quad(v, i, j, k - 1, 0, 1, 0, 0, 0, 1)
-    uz = w[i, j, k]
-    ax = ((ux * (_pair(u, i + 1, j, k - 1, 0, 0, 1) - _pair(u, i, j, k - 1, 0, 0, 1))
-           + uz * (_pair(u, i, j, k, 1, 0, 0) - _pair(u, i, j, k - 1, 1, 0, 0))) * half
-          + uy * (_quad(u, i, j + 1, k - 1, 1, 0, 0, 0, 0, 1)
-                  - _quad(u, i, j - 1, k - 1, 1, 0, 0, 0, 0, 1)) * eighth)
-    ay = ((uy * (_pair(v, i, j + 1, k - 1, 0, 0, 1) - _pair(v, i, j, k - 1, 0, 0, 1))
-           + uz * (_pair(v, i, j, k, 0, 1, 0) - _pair(v, i, j, k - 1, 0, 1, 0))) * half
-          + ux * (_quad(v, i + 1, j, k - 1, 0, 1, 0, 0, 0, 1)
-                  - _quad(v, i - 1, j, k - 1, 0, 1, 0, 0, 0, 1)) * eighth)
-    az = (ux * (w[i + 1, j, k] - w[i - 1, j, k]) + uy * (w[i, j + 1, k] - w[i, j - 1, k])
-          + uz * (w[i, j, k + 1] - w[i, j, k - 1])) * half
-    return True, ux, uy, uz, ax, ay, az
+    # g's and q's cells around the point start one point back along A.
+    gi, gj, gk = i - ai, j - aj, k - ak
+    va = f[i, j, k]
+    vb = 0.25 * _quad(g, gi, gj, gk, ai, aj, ak, bi, bj, bk)
+    vc = 0.25 * _quad(q, gi, gj, gk, ai, aj, ak, ci, cj, ck)
+    acc_a = (va * (f[i + ai, j + aj, k + ak] - f[i - ai, j - aj, k - ak])
+             + vb * (f[i + bi, j + bj, k + bk] - f[i - bi, j - bj, k - bk])
+             + vc * (f[i + ci, j + cj, k + ck] - f[i - ci, j - cj, k - ck])) * half
+    acc_b = ((va * (_pair(g, i, j, k, bi, bj, bk) - _pair(g, gi, gj, gk, bi, bj, bk))
+              + vb * (_pair(g, gi + bi, gj + bj, gk + bk, ai, aj, ak)
+                      - _pair(g, gi, gj, gk, ai, aj, ak))) * half
+             + vc * (_quad(g, gi + ci, gj + cj, gk + ck, ai, aj, ak, bi, bj, bk)
+                     - _quad(g, gi - ci, gj - cj, gk - ck, ai, aj, ak, bi, bj, bk)) * eighth)
+    acc_c = ((va * (_pair(q, i, j, k, ci, cj, ck) - _pair(q, gi, gj, gk, ci, cj, ck))
+              + vc * (_pair(q, gi + ci, gj + cj, gk + ck, ai, aj, ak)
+                      - _pair(q, gi, gj, gk, ai, aj, ak))) * half
+             + vb * (_quad(q, gi + bi, gj + bj, gk + bk, ai, aj, ak, ci, cj, ck)
+                     - _quad(q, gi - bi, gj - bj, gk - bk, ai, aj, ak, ci, cj, ck)) * eighth)
+    return True, va, vb, vc, acc_a, acc_b, acc_c
 
 
 @njit(cache=True, inline="always")
@@ -621,12 +583,22 @@ def _taylor_motion(u, v, w, i, j, k, field, inv_h, has_interior, boxes):
     ``field`` and its advective acceleration ``(u . grad) u`` [m/s^2] there, by centred
     differences over the point's neighbours; ``found`` is False where they do not all lie
     inside the arrays and, with bodies, outside the solid boxes (then trace by samples)."""
+    x_step = (1, 0, 0)
+    y_step = (0, 1, 0)
+    z_step = (0, 0, 1)
     if field == FIELD_U:
-        return _taylor_u(u, v, w, i, j, k, inv_h, has_interior, boxes)
+        return _taylor_face(u, v, w, (0, 1, 2), i, j, k, x_step, y_step, z_step, inv_h,
+                            has_interior, boxes)
     if field == FIELD_V:
-        return _taylor_v(u, v, w, i, j, k, inv_h, has_interior, boxes)
+        found, vy, vx, vz, ay, ax, az = _taylor_face(v, u, w, (1, 0, 2), i, j, k, y_step,
+                                                     x_step, z_step, inv_h, has_interior,
+                                                     boxes)
+        return found, vx, vy, vz, ax, ay, az
     if field == FIELD_W:
-        return _taylor_w(u, v, w, i, j, k, inv_h, has_interior, boxes)
+        found, vz, vx, vy, az, ax, ay = _taylor_face(w, u, v, (2, 0, 1), i, j, k, z_step,
+                                                     x_step, y_step, inv_h, has_interior,
+                                                     boxes)
+        return found, vx, vy, vz, ax, ay, az
     return _taylor_cells(u, v, w, i, j, k, inv_h, has_interior, boxes)
 
 
