@@ -10,7 +10,6 @@ import numpy as np
 
 from elastoflow.fluid import FluidState, FluidState3D
 from elastoflow.grid import Grid2D, Grid3D
-from elastoflow.simulation._kernels import magnitude_and_probe
 from elastoflow.simulation._report import SimulationBlowUp, StepReport
 from elastoflow.simulation._state import CoupledModel, CoupledModel3D, CoupledState
 
@@ -36,22 +35,9 @@ def max_speed(fluid: AnyFluidState) -> float:
     largest = 0.0
     for name in _velocity_names(fluid):
         values = getattr(fluid, name)
-        if not values.size:
-            continue
-        top, probe = magnitude_and_probe(values)
-        if probe != 0.0:
-            return _max_speed_not_finite(fluid)
-        largest = max(largest, float(top))
-    return largest
-
-
-def _max_speed_not_finite(fluid: AnyFluidState) -> float:
-    """`max_speed` where a value is not finite: NaN where one is NaN, else inf."""
-    largest = 0.0
-    for name in _velocity_names(fluid):
-        values = getattr(fluid, name)
         if values.size:
-            # np.maximum keeps a NaN.
+            # Two reductions without a temporary (np.abs(values).max() makes one: 2.5x the
+            # time at 64^3); np.maximum keeps a NaN.
             largest = float(np.maximum(largest, np.maximum(values.max(), -values.min())))
     return largest
 
@@ -65,7 +51,7 @@ def check_fluid_finite(fluid: AnyFluidState, step: int, time: float) -> None:
     """Raise `SimulationBlowUp` naming the first non-finite fluid value."""
     for name in (*_velocity_names(fluid), "pressure"):
         values = getattr(fluid, name)
-        if values.size and magnitude_and_probe(values)[1] != 0.0:
+        if not np.isfinite(values).all():
             bad = np.argwhere(~np.isfinite(values))[0]
             raise SimulationBlowUp(
                 f"step {step}, t = {time:.6g} s: fluid {name} is not finite "
