@@ -382,3 +382,41 @@ def test_the_trace_is_exact_for_a_linear_flow(dt: float) -> None:
         else:
             expected = 1.0 + (departure - centre) @ dye_gradient
         np.testing.assert_allclose(field[inner], expected, rtol=0, atol=1e-13)
+
+
+@pytest.mark.parametrize("field", [kernels.FIELD_U, kernels.FIELD_V, kernels.FIELD_W,
+                                   kernels.FIELD_CELLS])
+def test_the_neighbour_trace_stops_at_any_solid_point_it_reads(field: int) -> None:
+    """`_taylor_motion` reads a point's neighbours only where none of them is solid: every
+    entry whose change moves its result (found by perturbing each entry around the point)
+    turns it off when it is the one solid point of its array, and a solid point two
+    points away does not."""
+    grid = Grid3D(nx=10, ny=10, nz=10, h=0.1)
+    state = random_state(grid, seed=8)
+    arrays = state.velocity()
+    point = (5, 5, 5)
+
+    def motion(boxes: np.ndarray, has_interior: bool = True) -> tuple:
+        return kernels._taylor_motion(*arrays, *point, field, 1.0 / grid.h, has_interior,
+                                      boxes)
+
+    base = motion(kernels.NO_BODIES_BOXES, has_interior=False)
+    assert base[0]
+    for row, array in enumerate(arrays):
+        read = []
+        for index in np.ndindex(*(5,) * 3):
+            entry = tuple(p - 2 + d for p, d in zip(point, index, strict=True))
+            saved = array[entry]
+            array[entry] = saved + 1.0
+            if motion(kernels.NO_BODIES_BOXES, has_interior=False) != base:
+                read.append(entry)
+            array[entry] = saved
+        assert read
+        for entry in read:
+            boxes = kernels.NO_BODIES_BOXES.copy()
+            boxes[row] = [entry[0], entry[0], entry[1], entry[1], entry[2], entry[2]]
+            assert not motion(boxes)[0], (row, entry)
+        far = tuple(p + 2 for p in point)
+        boxes = kernels.NO_BODIES_BOXES.copy()
+        boxes[row] = [far[0], far[0], far[1], far[1], far[2], far[2]]
+        assert motion(boxes)[0]
