@@ -572,32 +572,6 @@ def _residual_run_sides(total, weight, x, b, r, i, j, k_from, k_to, m, n, l, pla
 
 
 @njit(cache=True, inline="always")
-def _residual_run_inner(total, weight, x, b, r, i, j, k_from, k_to, plane):
-    iu, ju = np.uint64(i), np.uint64(j)
-    for k in range(np.uint64(k_from), np.uint64(k_to)):
-        value = (b[iu, ju, k] - total[iu, ju, k] * x[iu, ju, k]
-                 + weight * _inner_values(x, iu, ju, k))
-        r[iu, ju, k] = value
-        plane += value * value
-    return plane
-
-
-@njit(cache=True, inline="always")
-def _residual_run(total, weight, x, b, r, i, j, k_from, k_to, m, n, l, plane):
-    # ``plane`` carried through, not restarted: without a box the sums are bitwise those
-    # of one loop over the row. The columns away from the sides take unsigned indices
-    # (`_inner_values`); a run from a literal column 0 should take `_residual_run_sides`,
-    # whose first column the compiler peels.
-    if not _inner_row(i, j, m, n) or k_from >= k_to:
-        return _residual_run_sides(total, weight, x, b, r, i, j, k_from, k_to, m, n, l, plane)
-    first, stop, resume = _inner_columns(k_from, k_to, 1, l)
-    plane = _residual_run_sides(total, weight, x, b, r, i, j, k_from, min(first, k_to), m, n,
-                                l, plane)
-    plane = _residual_run_inner(total, weight, x, b, r, i, j, first, stop, plane)
-    return _residual_run_sides(total, weight, x, b, r, i, j, resume, k_to, m, n, l, plane)
-
-
-@njit(cache=True, inline="always")
 def _residual_weighted_run(diagonal, weights_x, weights_y, weights_z, x, b, r, i, j, k_from,
                            k_to, m, n, l, plane):
     for k in range(k_from, k_to):
@@ -609,66 +583,36 @@ def _residual_weighted_run(diagonal, weights_x, weights_y, weights_z, x, b, r, i
     return plane
 
 
-def _make_residual_uniform(loop, shelled):
-    # ``shelled`` is a closure constant: each variant compiles without the other's branch
-    # (one kernel testing it at run time made the plain variant slower, 0.24 -> 0.36 ms at
-    # 64^3).
+def _make_residual_uniform(loop):
     def kernel(total, weight, x, b, r, diagonal, weights_x, weights_y, weights_z, box):
         m, n, l = x.shape
         squared = 0.0
         for i in loop(m):
             plane = 0.0
             for j in range(n):
-                if shelled:
-                    ka, kb, kc, kd = _row_spans(box, i, j, m, n, l)
-                    plane = _residual_weighted_run(diagonal, weights_x, weights_y, weights_z,
-                                                   x, b, r, i, j, 0, ka, m, n, l, plane)
-                    plane = _residual_run(total, weight, x, b, r, i, j, ka, kb, m, n, l,
-                                          plane)
-                else:
-                    # From a literal column 0, whose first column the compiler peels.
-                    kb, kc = _row_box(box, i, j, l)
-                    kd = l
-                    plane = _residual_run_sides(total, weight, x, b, r, i, j, 0, kb, m, n, l,
-                                                plane)
+                # From a literal column 0, whose first column the compiler peels (see
+                # `_inner_values`).
+                kb, kc = _row_box(box, i, j, l)
+                plane = _residual_run_sides(total, weight, x, b, r, i, j, 0, kb, m, n, l, plane)
                 plane = _residual_weighted_run(diagonal, weights_x, weights_y, weights_z, x,
                                                b, r, i, j, kb, kc, m, n, l, plane)
-                if shelled:
-                    plane = _residual_run(total, weight, x, b, r, i, j, kc, kd, m, n, l,
-                                          plane)
-                    plane = _residual_weighted_run(diagonal, weights_x, weights_y, weights_z,
-                                                   x, b, r, i, j, kd, l, m, n, l, plane)
-                else:
-                    plane = _residual_run_sides(total, weight, x, b, r, i, j, kc, l, m, n, l,
-                                                plane)
+                plane = _residual_run_sides(total, weight, x, b, r, i, j, kc, l, m, n, l, plane)
             squared += plane
         return squared
     return kernel
 
 
 _residual_uniform_serial, _residual_uniform_parallel = serial_and_parallel(
-    lambda loop: _make_residual_uniform(loop, False), fastmath=_REDUCTION_MATH)
-_residual_shell_serial, _residual_shell_parallel = serial_and_parallel(
-    lambda loop: _make_residual_uniform(loop, True), fastmath=_REDUCTION_MATH)
+    _make_residual_uniform, fastmath=_REDUCTION_MATH)
 
 
 @njit(cache=True)
 def residual_uniform_kernel_3d(total, weight, x, b, r, diagonal, weights_x, weights_y,
                                weights_z, box):
     """`residual_kernel_3d` for an operator whose weights all equal ``weight`` outside
-    ``box`` and its shell (`NO_BOX`: everywhere), with its ``total = diagonal + sum of
-    weights``: 1 operator array read instead of 4 there, the operator's own arrays inside.
-
-    A variant compiled on its own for a box with a shell (its rows start at a column not
-    known to be 0: `_residual_run` splits off the sides), so that the one without keeps the
-    compiled code of the plain runs (one kernel testing it at run time ran 0.24 -> 0.36 ms
-    at 64^3 without a shell)."""
-    if box[6] > 0:
-        if x.size > STENCIL_PARALLEL_MINIMUM_3D:
-            return _residual_shell_parallel(total, weight, x, b, r, diagonal, weights_x,
-                                            weights_y, weights_z, box)
-        return _residual_shell_serial(total, weight, x, b, r, diagonal, weights_x,
-                                      weights_y, weights_z, box)
+    ``box`` (`NO_BOX`: everywhere; a box without a shell), with its ``total = diagonal +
+    sum of weights``: 1 operator array read instead of 4 there, the operator's own arrays
+    inside."""
     if x.size > STENCIL_PARALLEL_MINIMUM_3D:
         return _residual_uniform_parallel(total, weight, x, b, r, diagonal, weights_x,
                                           weights_y, weights_z, box)
@@ -732,42 +676,6 @@ def step_kernel_3d(x, r, p, q, alpha):
     if x.size > PARALLEL_MINIMUM_3D:
         return _step_parallel(x, r, p, q, alpha)
     return _step_serial(x, r, p, q, alpha)
-
-
-def _make_step_jacobi(loop):
-    def kernel(x, r, p, q, alpha, inverse, z):
-        m, n, l = x.shape
-        squared = 0.0
-        rz = 0.0
-        for i in loop(m):
-            plane = 0.0
-            plane_rz = 0.0
-            for j in range(n):
-                for k in range(l):
-                    x[i, j, k] += alpha * p[i, j, k]
-                    value = r[i, j, k] - alpha * q[i, j, k]
-                    r[i, j, k] = value
-                    preconditioned = value * inverse[i, j, k]
-                    z[i, j, k] = preconditioned
-                    plane += value * value
-                    plane_rz += preconditioned * value
-            squared += plane
-            rz += plane_rz
-        return squared, rz
-    return kernel
-
-
-_step_jacobi_serial, _step_jacobi_parallel = serial_and_parallel(_make_step_jacobi,
-                                                                 fastmath=_REDUCTION_MATH)
-
-
-@njit(cache=True)
-def step_jacobi_kernel_3d(x, r, p, q, alpha, inverse, z):
-    """`step_kernel_3d` and then `jacobi_kernel_3d` in one pass: ``x += alpha p``,
-    ``r -= alpha q``, ``z = r / D``; returns ``(|r|^2, r . z)``."""
-    if x.size > PARALLEL_MINIMUM_3D:
-        return _step_jacobi_parallel(x, r, p, q, alpha, inverse, z)
-    return _step_jacobi_serial(x, r, p, q, alpha, inverse, z)
 
 
 def _make_dot(loop):
@@ -1180,28 +1088,6 @@ def _apply_dot_run_sides(total, weight, p, q, i, j, k_from, k_to, m, n, l, plane
 
 
 @njit(cache=True, inline="always")
-def _apply_dot_run_inner(total, weight, p, q, i, j, k_from, k_to, plane):
-    iu, ju = np.uint64(i), np.uint64(j)
-    for k in range(np.uint64(k_from), np.uint64(k_to)):
-        value = total[iu, ju, k] * p[iu, ju, k] - weight * _inner_values(p, iu, ju, k)
-        q[iu, ju, k] = value
-        plane += value * p[iu, ju, k]
-    return plane
-
-
-@njit(cache=True, inline="always")
-def _apply_dot_run(total, weight, p, q, i, j, k_from, k_to, m, n, l, plane):
-    # ``plane`` carried through, as in `_residual_run`.
-    if not _inner_row(i, j, m, n) or k_from >= k_to:
-        return _apply_dot_run_sides(total, weight, p, q, i, j, k_from, k_to, m, n, l, plane)
-    first, stop, resume = _inner_columns(k_from, k_to, 1, l)
-    plane = _apply_dot_run_sides(total, weight, p, q, i, j, k_from, min(first, k_to), m, n, l,
-                                 plane)
-    plane = _apply_dot_run_inner(total, weight, p, q, i, j, first, stop, plane)
-    return _apply_dot_run_sides(total, weight, p, q, i, j, resume, k_to, m, n, l, plane)
-
-
-@njit(cache=True, inline="always")
 def _apply_dot_weighted_run(diagonal, weights_x, weights_y, weights_z, p, q, i, j, k_from,
                             k_to, m, n, l, plane):
     for k in range(k_from, k_to):
@@ -1213,88 +1099,35 @@ def _apply_dot_weighted_run(diagonal, weights_x, weights_y, weights_z, p, q, i, 
     return plane
 
 
-def _make_apply_dot_uniform(loop, shelled):
-    # ``shelled`` as in `_make_residual_uniform`.
+def _make_apply_dot_uniform(loop):
     def kernel(total, weight, p, q, diagonal, weights_x, weights_y, weights_z, box):
         m, n, l = p.shape
         dot = 0.0
         for i in loop(m):
             plane = 0.0
             for j in range(n):
-                if shelled:
-                    ka, kb, kc, kd = _row_spans(box, i, j, m, n, l)
-                    plane = _apply_dot_weighted_run(diagonal, weights_x, weights_y,
-                                                    weights_z, p, q, i, j, 0, ka, m, n, l,
-                                                    plane)
-                    plane = _apply_dot_run(total, weight, p, q, i, j, ka, kb, m, n, l, plane)
-                else:
-                    kb, kc = _row_box(box, i, j, l)
-                    kd = l
-                    plane = _apply_dot_run_sides(total, weight, p, q, i, j, 0, kb, m, n, l,
-                                                 plane)
+                kb, kc = _row_box(box, i, j, l)
+                plane = _apply_dot_run_sides(total, weight, p, q, i, j, 0, kb, m, n, l, plane)
                 plane = _apply_dot_weighted_run(diagonal, weights_x, weights_y, weights_z, p,
                                                 q, i, j, kb, kc, m, n, l, plane)
-                if shelled:
-                    plane = _apply_dot_run(total, weight, p, q, i, j, kc, kd, m, n, l, plane)
-                    plane = _apply_dot_weighted_run(diagonal, weights_x, weights_y,
-                                                    weights_z, p, q, i, j, kd, l, m, n, l,
-                                                    plane)
-                else:
-                    plane = _apply_dot_run_sides(total, weight, p, q, i, j, kc, l, m, n, l,
-                                                 plane)
+                plane = _apply_dot_run_sides(total, weight, p, q, i, j, kc, l, m, n, l, plane)
             dot += plane
         return dot
     return kernel
 
 
 _apply_dot_uniform_serial, _apply_dot_uniform_parallel = serial_and_parallel(
-    lambda loop: _make_apply_dot_uniform(loop, False), fastmath=_REDUCTION_MATH)
-_apply_dot_shell_serial, _apply_dot_shell_parallel = serial_and_parallel(
-    lambda loop: _make_apply_dot_uniform(loop, True), fastmath=_REDUCTION_MATH)
+    _make_apply_dot_uniform, fastmath=_REDUCTION_MATH)
 
 
 @njit(cache=True)
 def apply_dot_uniform_kernel_3d(total, weight, p, q, diagonal, weights_x, weights_y,
                                 weights_z, box):
     """`apply_dot_kernel_3d` for an operator whose weights all equal ``weight`` outside
-    ``box`` and its shell (`NO_BOX`: everywhere), with its ``total = diagonal + sum of
-    weights``. With a shell, its own compiled variant, as in `residual_uniform_kernel_3d`."""
-    if box[6] > 0:
-        if p.size > STENCIL_PARALLEL_MINIMUM_3D:
-            return _apply_dot_shell_parallel(total, weight, p, q, diagonal, weights_x,
-                                             weights_y, weights_z, box)
-        return _apply_dot_shell_serial(total, weight, p, q, diagonal, weights_x, weights_y,
-                                       weights_z, box)
+    ``box`` (`NO_BOX`: everywhere; a box without a shell), with its ``total = diagonal +
+    sum of weights``."""
     if p.size > STENCIL_PARALLEL_MINIMUM_3D:
         return _apply_dot_uniform_parallel(total, weight, p, q, diagonal, weights_x,
                                            weights_y, weights_z, box)
     return _apply_dot_uniform_serial(total, weight, p, q, diagonal, weights_x, weights_y,
                                      weights_z, box)
-
-
-def _make_jacobi(loop):
-    def kernel(r, inverse, z):
-        m, n, l = r.shape
-        dot = 0.0
-        for i in loop(m):
-            plane = 0.0
-            for j in range(n):
-                for k in range(l):
-                    value = r[i, j, k] * inverse[i, j, k]
-                    z[i, j, k] = value
-                    plane += value * r[i, j, k]
-            dot += plane
-        return dot
-    return kernel
-
-
-_jacobi_serial, _jacobi_parallel = serial_and_parallel(_make_jacobi, fastmath=_REDUCTION_MATH)
-
-
-@njit(cache=True)
-def jacobi_kernel_3d(r, inverse, z):
-    """``z = r / D`` (Jacobi preconditioner, ``inverse = 1 / D``, 0 at inactive points);
-    returns ``r . z``."""
-    if r.size > PARALLEL_MINIMUM_3D:
-        return _jacobi_parallel(r, inverse, z)
-    return _jacobi_serial(r, inverse, z)

@@ -8,6 +8,7 @@ each); the work per grid point is all in the kernels.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
@@ -15,6 +16,7 @@ import numpy as np
 from numba import get_num_threads
 from numpy.typing import NDArray
 
+from elastoflow.linalg._chebyshev_kernels3d import chebyshev_pass_kernel_3d
 from elastoflow.linalg._kernels import (
     low_rank_add_dot_kernel,
     remove_component_means_kernel,
@@ -34,7 +36,6 @@ from elastoflow.linalg._kernels3d import (
     direction_kernel_3d,
     dot_kernel_3d,
     fill_kernel_3d,
-    jacobi_kernel_3d,
     label_components_kernel_3d,
     load_operator_kernel_3d,
     masked_copy_kernel_3d,
@@ -46,7 +47,6 @@ from elastoflow.linalg._kernels3d import (
     restrict_residual_kernel_3d,
     restrict_residual_uniform_kernel_3d,
     sweep_kernel_3d,
-    step_jacobi_kernel_3d,
     step_kernel_3d,
     uniform_box_kernel,
     uniform_weight_kernel,
@@ -63,11 +63,13 @@ Shape3 = tuple[int, int, int]
 # iteration counts are the same (5 to 1e-6 at 16^3-64^3) and a solve at 16^3 / 32^3 / 64^3
 # took 2 / 11-23 / 49-57 ms instead of 10 / 25-31 / 114-129 ms (load average ~3.5 on 2 cores).
 _COARSEST_SIZE = 64
-# Smallest ratio of diagonal to sum of weights at which the Jacobi preconditioner replaces
-# the V-cycle (implicit viscosity, I - nu dt lap with nu dt / h^2 <= 2/3): coarse levels
-# would cost more to build and run than the few extra iterations they save. At 128^3 with
-# nu dt / h^2 = 0.0128 (the benchmark's channel): 3 iterations either way, and a Jacobi
-# iteration reads 3 arrays where symmetric Gauss-Seidel (two sweeps each way) read 8 x 6.
+# Smallest ratio of diagonal to sum of weights at which the Jacobi-preconditioned Chebyshev
+# iteration replaces MGPCG (implicit viscosity, I - nu dt lap with nu dt / h^2 <= 2/3):
+# coarse levels would cost more to build and run than the few extra iterations they save.
+# At 128^3 with nu dt / h^2 = 0.0128 (the benchmark's channel): 3 Chebyshev iterations
+# (4 passes over 5 arrays each) against 3 MGPCG iterations (a V-cycle alone reads 8 arrays
+# 6 times), and 2 Jacobi-preconditioned CG iterations, which took 1.6x the Chebyshev time
+# (docs/benchmarks.md, 2026-12-06, fifth session).
 _SMOOTHER_ONLY_DOMINANCE = 0.25
 
 
@@ -229,6 +231,12 @@ class _Hierarchy3D:
         self.dense = np.zeros((coarse, coarse))
         self.factor = np.zeros((coarse, coarse))
         self.coarse = True
+        # Without coarse levels (the Chebyshev iteration): the bound on the Jacobi iteration
+        # matrix's row sums; whether every point is active; whether the last solve took an
+        # odd number of iterations (its successor then starts in `p` to end in the output).
+        self.spread = 0.0
+        self.every_active = False
+        self.odd = False
         self.null_space: _NullSpace3D | None = None
         # The operator the levels hold; kept alive so that its identity is not reused.
         self.operator: Operator7Point | None = None
@@ -250,6 +258,9 @@ class _Hierarchy3D:
         self.active = active
         # A strongly diagonal operator (implicit viscosity) needs no coarse correction.
         self.coarse = len(self.levels) == 1 or dominance < _SMOOTHER_ONLY_DOMINANCE
+        # Row sums of D^-1 (D - A): sum of weights / (diagonal + sum of weights).
+        self.spread = 1.0 / (1.0 + float(dominance))
+        self.every_active = not self.coarse and bool(active.all())
         fine.set_uniform(shell_allowed=not self.coarse)
         if self.coarse:
             self._build()
@@ -292,10 +303,7 @@ class _Hierarchy3D:
         return _NullSpace3D(active, labels, singular, int(count))
 
     def precondition(self, r: NDArray[np.float64], z: NDArray[np.float64], sweeps: int) -> float:
-        """``z = M r``; returns ``r . z``. One symmetric V-cycle, or Jacobi on a strongly
-        diagonal operator."""
-        if not self.coarse:
-            return float(jacobi_kernel_3d(r, self.levels[0].inverse, z))
+        """``z = M r``; returns ``r . z``. One symmetric V-cycle."""
         self.v_cycle(r, z, sweeps)
         return float(dot_kernel_3d(r, z))
 
@@ -338,7 +346,9 @@ class PoissonSolverMGPCG3D:
     and black-red after, so the preconditioner is symmetric positive definite on the active
     points and CG converges for every operator of the contract. An operator whose diagonal
     is at least a quarter of the sum of its weights everywhere (implicit viscosity) is
-    preconditioned by its diagonal (Jacobi) instead, with no coarse levels.
+    solved by the Jacobi-preconditioned Chebyshev iteration instead, with no coarse levels
+    and no inner products: its eigenvalue bounds follow from the row sums (Gershgorin), and
+    each pass is one sweep (`chebyshev_pass_kernel_3d`).
 
     Guarantee: the same as `PoissonSolverMGPCG`: returns when the true relative residual is
     ``<= rtol`` or after ``max_iterations`` iterations; inactive points get 0; singular
@@ -349,7 +359,7 @@ class PoissonSolverMGPCG3D:
 
     Attributes:
         rtol: Relative residual tolerance ``|b - A x| / |b|``.
-        max_iterations: Maximum number of CG iterations.
+        max_iterations: Maximum number of CG (or Chebyshev) iterations.
         smoothing_sweeps: Red-black Gauss-Seidel sweeps before and after each coarse correction.
     """
 
@@ -413,6 +423,14 @@ class PoissonSolverMGPCG3D:
         rhs, x0 = self._checked(shape, rhs, x0)
         hierarchy = self._hierarchy(shape)
         null_space = hierarchy.prepare(operator)
+        # The right-hand side is read in place: not when the output overwrites it.
+        if hierarchy.every_active and (out is None or not np.may_share_memory(rhs, out)):
+            return self._solve_in_place(hierarchy, null_space, rhs, x0, out)
+        if not hierarchy.coarse:
+            return self._solve_prepared(
+                hierarchy, null_space, rhs, x0, out,
+                lambda x, threshold: self._chebyshev(hierarchy, null_space, x, x, hierarchy.b,
+                                                     threshold))
         return self._solve_prepared(hierarchy, null_space, rhs, x0, out,
                                     lambda x, threshold: self._pcg(hierarchy, x, threshold))
 
@@ -442,8 +460,8 @@ class PoissonSolverMGPCG3D:
         hierarchy = self._hierarchy(shape)
         null_space = hierarchy.prepare(preconditioned)
         if not hierarchy.coarse:
-            # A diagonally dominant A + diag(C) would get Jacobi, which does not see C's
-            # coupling between cells any better: keep the V-cycle (with no shell: the
+            # A diagonally dominant A + diag(C) would get the Chebyshev iteration, whose
+            # Gershgorin bounds do not hold for A + C: keep the V-cycle (with no shell: the
             # restriction does not read one).
             hierarchy.levels[0].set_uniform()
             hierarchy._build()
@@ -504,6 +522,80 @@ class PoissonSolverMGPCG3D:
         return x, SolveReport(int(iterations), relative,
                               relative <= self.rtol and incompatible <= self.rtol, incompatible)
 
+    def _solve_in_place(self, hierarchy: _Hierarchy3D, null_space: _NullSpace3D,
+                        rhs: NDArray[np.float64], x0: NDArray[np.float64] | None,
+                        out: NDArray[np.float64] | None
+                        ) -> tuple[NDArray[np.float64], SolveReport]:
+        """`solve` by the Chebyshev iteration where every point is active (implicit
+        viscosity), without the masked copies: the right-hand side is read where it is, a
+        warm start that is the output stays there, and a non-finite input, which the first
+        pass's residual shows, is traced to its array before anything is written to the
+        output. The iteration starts in the buffer from which the last solve's number of
+        passes would end in the output, so that in the usual case no copy follows."""
+        shape = hierarchy.shape
+        x = _output(out, shape)  # type: ignore[arg-type]
+        squared_b = float(dot_kernel_3d(rhs, rhs))
+        if not math.isfinite(squared_b):
+            raise ValueError("rhs: values must be finite; got NaN or inf")
+        if squared_b == 0.0:
+            x[...] = 0.0
+            return x, SolveReport(0, 0.0, True, 0.0)
+        start = hierarchy.p if hierarchy.odd else x
+        if x0 is None:
+            fill_kernel_3d(start, 0.0)
+        elif x0 is not start:
+            _, probe = masked_copy_kernel_3d(x0, null_space.active, start)
+            if not np.isfinite(probe):
+                raise ValueError("x0: values must be finite; got NaN or inf")
+        threshold = self.rtol**2 * squared_b
+        iterations, squared = self._chebyshev(hierarchy, null_space, x, start, rhs, threshold)
+        if not math.isfinite(squared) and x0 is start and not np.isfinite(x0).all():
+            raise ValueError("x0: values must be finite; got NaN or inf")
+        relative = math.sqrt(squared / squared_b)
+        return x, SolveReport(int(iterations), relative, relative <= self.rtol, 0.0)
+
+    def _chebyshev(self, hierarchy: _Hierarchy3D, null_space: _NullSpace3D,
+                   x: NDArray[np.float64], start: NDArray[np.float64], b: NDArray[np.float64],
+                   threshold: float) -> tuple[int, float]:
+        """Jacobi-preconditioned Chebyshev iteration from ``start`` (``x`` or
+        ``hierarchy.p``), the answer in ``x``, for an operator without coarse levels (the 3D
+        twin of the 2D `chebyshev_kernel`): the eigenvalues of ``D^-1 A`` lie in
+        ``[1 - spread, 1 + spread]`` (Gershgorin on the row sums), and each pass reduces the
+        error by about ``(sqrt(k) - 1) / (sqrt(k) + 1)``, ``k = (1 + spread) / (1 - spread)``.
+        Each pass measures the true residual of the iterate it steps from, so the iteration
+        stops on ``|b - A x|^2 <= threshold`` as CG does; return ``(iterations,
+        |b - A x|^2)``. A non-finite residual stops it at once: the first pass writes only
+        the other buffer, so a non-finite input leaves ``start`` as it was."""
+        fine = hierarchy.levels[0]
+        # theta = 1 (the interval's centre), delta = spread (its half-width); a spread of 0
+        # (no weights) would divide by 0 below, where a tiny one solves in one pass.
+        spread = max(hierarchy.spread, 1e-30)
+        sigma = 1.0 / spread
+        rho_old = spread
+        scale_old, scale_new = 0.0, 1.0
+        current = start
+        following = hierarchy.p if start is x else x
+        iterations = 0
+        while True:
+            squared = float(chebyshev_pass_kernel_3d(
+                fine.total, fine.uniform, current, b, following, scale_old, scale_new,
+                fine.weights_x, fine.weights_y, fine.weights_z, fine.box))
+            # The pass measured the residual of `current` before stepping to `following`.
+            if (squared <= threshold or iterations >= self.max_iterations
+                    or not math.isfinite(squared)):
+                break
+            current, following = following, current
+            iterations += 1
+            rho_new = 1.0 / (2.0 * sigma - rho_old)
+            scale_old = rho_new * rho_old
+            scale_new = 2.0 * rho_new / spread
+            rho_old = rho_new
+        if current is not x:
+            masked_copy_kernel_3d(current, null_space.active, x)
+        # The next solve of this shape likely takes as many passes.
+        hierarchy.odd = iterations % 2 == 1
+        return iterations, squared
+
     def _pcg(self, hierarchy: _Hierarchy3D, x: NDArray[np.float64],
              threshold: float) -> tuple[int, float]:
         """CG on ``x`` from its warm start; return ``(iterations, |b - A x|^2)`` with the true
@@ -512,8 +604,6 @@ class PoissonSolverMGPCG3D:
         b, r, p, q, z = hierarchy.b, hierarchy.r, hierarchy.p, hierarchy.q, hierarchy.z
         fine = hierarchy.levels[0]
         a = (fine.diagonal, fine.weights_x, fine.weights_y, fine.weights_z)
-        # Jacobi's z comes with the step (one pass, `step_jacobi_kernel_3d`).
-        jacobi = not hierarchy.coarse
         iterations = 0
         pq = 1.0
         squared = fine.residual(x, b, r)
@@ -531,16 +621,11 @@ class PoissonSolverMGPCG3D:
                 if not (pq > 0.0):
                     break
                 alpha = rz / pq
-                if jacobi:
-                    recursive, rz_next = step_jacobi_kernel_3d(x, r, p, q, alpha, fine.inverse,
-                                                               z)
-                else:
-                    recursive = step_kernel_3d(x, r, p, q, alpha)
+                recursive = step_kernel_3d(x, r, p, q, alpha)
                 iterations += 1
                 if recursive <= threshold:
                     break
-                if not jacobi:
-                    rz_next = hierarchy.precondition(r, z, self.smoothing_sweeps)
+                rz_next = hierarchy.precondition(r, z, self.smoothing_sweeps)
                 direction_kernel_3d(z, p, rz_next / rz)
                 rz = rz_next
             squared = fine.residual(x, b, r)

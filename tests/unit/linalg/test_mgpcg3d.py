@@ -14,6 +14,7 @@ from elastoflow.linalg import (
     SolveReport,
     apply_operator_3d,
 )
+from elastoflow.linalg._chebyshev_kernels3d import chebyshev_pass_kernel_3d
 from elastoflow.linalg._kernels3d import (
     BLACK,
     NO_BOX,
@@ -221,7 +222,7 @@ def test_strongly_diagonal_operator_is_solved_without_coarse_levels() -> None:
     solver = PoissonSolverMGPCG3D()
     x, report = solver.solve(operator, rhs)
     assert not solver._hierarchies[operator.shape].coarse
-    # Jacobi-preconditioned: 17 iterations at nu dt / h^2 = 0.5 (16^3 and 128^3 alike).
+    # Jacobi-preconditioned Chebyshev: 17 iterations at nu dt / h^2 = 0.5.
     assert report.converged and report.iterations <= 20
     assert np.linalg.norm(rhs - apply_operator_3d(operator, x)) <= 1e-6 * np.linalg.norm(rhs)
 
@@ -388,22 +389,16 @@ def test_the_shell_leaves_out_only_the_weights_between_two_of_its_points() -> No
     assert list(box) == [2, 10, 2, 4, 2, 9, 2]
 
 
-@pytest.mark.parametrize("shell", [0, 2])
-def test_the_boxed_kernels_are_the_weighted_ones_to_round_off(shell: int) -> None:
-    # Residual, product and restriction with the one weight outside the box (and the shell)
-    # and the arrays inside give the weighted kernels' values (the sums differ only in
-    # rounding).
+def test_the_boxed_kernels_are_the_weighted_ones_to_round_off() -> None:
+    # Residual, product and restriction with the one weight outside the box and the arrays
+    # inside give the weighted kernels' values (the sums differ only in rounding).
     shape = (12, 9, 10)
-    if shell:
-        operator, weight = held_planes_operator(shape, 2, 7, (4, 9, 2, 6, 3, 8)), 0.05
-    else:
-        operator, weight = body_operator(shape, 7, (4, 9, 2, 6, 3, 8)), 1.0
+    operator, weight = body_operator(shape, 7, (4, 9, 2, 6, 3, 8)), 1.0
     a = (operator.diagonal, operator.weights_x, operator.weights_y, operator.weights_z)
     total, inverse = np.empty(shape), np.empty(shape)
     load_operator_kernel_3d(*a, total, inverse, np.empty(shape, dtype=np.bool_))
     box = np.zeros(7, dtype=np.int64)
-    uniform_box_kernel(*a[1:], weight, shell, box)
-    assert box[6] == shell
+    uniform_box_kernel(*a[1:], weight, 0, box)
     rng = np.random.default_rng(1)
     x, b = rng.standard_normal(shape), rng.standard_normal(shape)
     x[total == 0.0] = 0.0
@@ -417,13 +412,101 @@ def test_the_boxed_kernels_are_the_weighted_ones_to_round_off(shell: int) -> Non
     assert apply_dot_uniform_kernel_3d(total, weight, x, q_boxed, *a, box) == pytest.approx(
         dot, rel=1e-13)
     np.testing.assert_allclose(q_boxed, q_weighted, rtol=1e-13, atol=1e-13)
-    if shell:
-        return  # the restriction takes no shell (`_Level.set_uniform`)
     coarse = tuple((s + 1) // 2 for s in shape)
     c_weighted, c_boxed = np.empty(coarse), np.empty(coarse)
     restrict_residual_kernel_3d(x, b, total, *a[1:], c_weighted)
     restrict_residual_uniform_kernel_3d(x, b, total, weight, c_boxed, *a[1:], box)
     np.testing.assert_allclose(c_boxed, c_weighted, rtol=1e-12, atol=1e-12)
+
+
+@pytest.mark.parametrize("kind", ["uniform", "weighted", "boxed", "shelled"])
+@pytest.mark.parametrize("first", [True, False])
+def test_a_chebyshev_pass_is_its_formula_however_the_operator_is_read(kind: str,
+                                                                       first: bool) -> None:
+    # other <- x + s_new (b - A x) / D + s_old (x - other), the residual of x returned; the
+    # first pass (s_old = 0) must not read `other` (NaN there); inactive points get 0.
+    shape = (13, 9, 10)
+    operator = {"uniform": lambda: laplacian(0, outflow=True, shape=shape, diagonal=0.5),
+                "weighted": lambda: random_operator(shape, 4),
+                "boxed": lambda: body_operator(shape, 4, (3, 7, 1, 4, 2, 6)),
+                "shelled": lambda: held_planes_operator(shape, 1, 4, (4, 8, 3, 5, 2, 7))
+                }[kind]()
+    a = (operator.diagonal, operator.weights_x, operator.weights_y, operator.weights_z)
+    if kind == "boxed":
+        # One point of the box cut off from everything: inactive.
+        i, j, k = 5, 2, 3
+        a[0][i, j, k] = a[1][i - 1, j, k] = a[1][i, j, k] = a[2][i, j - 1, k] = 0.0
+        a[2][i, j, k] = a[3][i, j, k - 1] = a[3][i, j, k] = 0.0
+    total, inverse = np.empty(shape), np.empty(shape)
+    active = np.empty(shape, dtype=np.bool_)
+    load_operator_kernel_3d(*a, total, inverse, active)
+    weight, box = uniform_weight_kernel(*a[1:]), NO_BOX
+    if kind in ("boxed", "shelled"):
+        weight = 1.0 if kind == "boxed" else 0.05
+        box = np.zeros(7, dtype=np.int64)
+        assert uniform_box_kernel(*a[1:], weight, 2 if kind == "shelled" else 0, box) > 0
+        assert box[6] == (2 if kind == "shelled" else 0)
+    assert (weight == NOT_UNIFORM) == (kind == "weighted")
+    assert (kind == "boxed") == (not active.all())
+    rng = np.random.default_rng(8)
+    x, b = rng.standard_normal(shape), rng.standard_normal(shape)
+    x[~active] = 0.0
+    b[~active] = 0.0
+    before = np.full(shape, np.nan) if first else rng.standard_normal(shape)
+    scale_old, scale_new = (0.0, 1.0) if first else (0.3, 1.7)
+    residual = b - apply_operator_3d(operator, x)
+    expected = x + scale_new * np.divide(residual, total, out=np.zeros(shape), where=active)
+    if not first:
+        expected += scale_old * (x - before)
+    expected[~active] = 0.0
+    other = before.copy()
+    squared = chebyshev_pass_kernel_3d(total, weight, x, b, other, scale_old, scale_new,
+                                       *a[1:], box)
+    assert squared == pytest.approx(float(np.sum(residual**2)), rel=1e-12)
+    np.testing.assert_allclose(other, expected, rtol=1e-13, atol=1e-13)
+
+
+@pytest.mark.parametrize("c", [0.01, 0.085, 0.5])
+@pytest.mark.parametrize("warm", [False, True])
+def test_the_chebyshev_iteration_keeps_its_gershgorin_rate(c: float, warm: bool) -> None:
+    # I - c lap with held planes and a body's random weights: the solve takes no coarse
+    # levels, reaches the direct solution, and stops within the count its interval
+    # guarantees: r_k = D^1/2 p_k(D^-1/2 A D^-1/2) D^-1/2 r_0 with |p_k| <= 2 q^k on
+    # [1 - s, 1 + s], s the largest Jacobi row sum.
+    shape = (17, 14, 15)
+    operator = held_planes_operator(shape, 0, 3, (5, 10, 4, 9, 6, 11), c=c)
+    rhs = np.random.default_rng(21).standard_normal(shape)
+    matrix = sparse_matrix(operator)
+    expected = spsolve(matrix.tocsc(), rhs.ravel()).reshape(shape)
+    x0 = expected + 0.01 * np.random.default_rng(22).standard_normal(shape) if warm else None
+    solver = PoissonSolverMGPCG3D(rtol=1e-9)
+    x, report = solver.solve(operator, rhs, x0=x0)
+    assert not solver._hierarchies[shape].coarse
+    assert report.converged
+    true = np.linalg.norm(rhs - apply_operator_3d(operator, x)) / np.linalg.norm(rhs)
+    assert true == pytest.approx(report.residual, rel=1e-6)
+    np.testing.assert_allclose(x, expected, rtol=0, atol=1e-8 * np.abs(expected).max())
+    total = matrix.diagonal()
+    spread = float(np.max((abs(matrix).sum(axis=1).A1 - total) / total))
+    assert spread == pytest.approx(solver._hierarchies[shape].spread, rel=1e-12)
+    kappa = (1.0 + spread) / (1.0 - spread)
+    q = (np.sqrt(kappa) - 1.0) / (np.sqrt(kappa) + 1.0)
+    start = np.zeros(shape) if x0 is None else x0
+    r0 = np.linalg.norm(rhs.ravel() - matrix @ start.ravel())
+    amplification = 2.0 * np.sqrt(total.max() / total.min())
+    bound = np.log(1e-9 * np.linalg.norm(rhs) / (amplification * r0)) / np.log(q)
+    assert report.iterations <= int(np.ceil(bound))
+
+
+def test_the_chebyshev_iteration_without_weights_is_exact() -> None:
+    shape = (9, 7, 8)
+    diagonal = np.random.default_rng(5).uniform(0.5, 4.0, shape)
+    operator = Operator7Point(diagonal, np.zeros((8, 7, 8)), np.zeros((9, 6, 8)),
+                              np.zeros((9, 7, 7)))
+    rhs = np.random.default_rng(6).standard_normal(shape)
+    x, report = PoissonSolverMGPCG3D().solve(operator, rhs)
+    assert report.converged and report.iterations <= 1
+    np.testing.assert_allclose(x, rhs / diagonal, rtol=1e-12)
 
 
 def test_a_body_operator_solves_with_its_box(monkeypatch: pytest.MonkeyPatch) -> None:
@@ -538,3 +621,43 @@ def test_the_inner_columns_split_a_run_into_its_sides_and_the_rest_exactly() -> 
                     assert head + inner + tail == list(range(k_from, k_to, step))
                     assert all(1 <= k <= l - 2 for k in inner)
                     assert all(not 1 <= k <= l - 2 for k in head + tail)
+
+
+def test_the_in_place_chebyshev_solve_keeps_the_contract() -> None:
+    # Every point active: the right-hand side is read where it is and a warm start that is
+    # the output stays there. An odd pass count makes the next solve start in the other
+    # buffer (no copy at the end), with bitwise the answer of a fresh solver; an output that
+    # is the right-hand side, and non-finite inputs, are handled as by the masked path.
+    shape = (12, 10, 11)
+    operator = held_planes_operator(shape, 2, 5, (3, 8, 2, 7, 4, 9), c=0.2)
+    rhs = np.random.default_rng(31).standard_normal(shape)
+    start = rhs + 0.01 * np.random.default_rng(32).standard_normal(shape)
+    # A tolerance that takes an odd number of passes.
+    rtol = next(r for r in (1e-8, 5e-9, 2e-9, 1e-9, 5e-10)
+                if PoissonSolverMGPCG3D(rtol=r).solve(operator, rhs, x0=start)[1].iterations % 2)
+    solver = PoissonSolverMGPCG3D(rtol=rtol)
+    answers = []
+    for _ in range(3):
+        out = start.copy()
+        x, report = solver.solve(operator, rhs, x0=out, out=out)
+        assert x is out and report.converged
+        answers.append(x)
+    assert report.iterations % 2 == 1 and solver._hierarchies[shape].odd
+    fresh, _ = PoissonSolverMGPCG3D(rtol=rtol).solve(operator, rhs, x0=start.copy())
+    for x in answers:
+        np.testing.assert_array_equal(x, fresh)
+    aliased = rhs.copy()
+    x, report = PoissonSolverMGPCG3D(rtol=1e-8).solve(operator, aliased, out=aliased)
+    assert report.converged
+    np.testing.assert_allclose(apply_operator_3d(operator, x), rhs, rtol=0, atol=1e-6)
+    bad = start.copy()
+    bad[4, 5, 6] = np.inf
+    kept = bad.copy()
+    # A fresh solver starts in the output: the warm start is read in place, its inf found
+    # by the first pass; the others copy it (probed) into the other buffer.
+    for user, x0 in ((PoissonSolverMGPCG3D(), bad), (solver, bad), (solver, bad.copy())):
+        with pytest.raises(ValueError, match="x0: values must be finite"):
+            user.solve(operator, rhs, x0=x0, out=bad)
+        np.testing.assert_array_equal(bad, kept)
+    with pytest.raises(ValueError, match="rhs: values must be finite"):
+        solver.solve(operator, bad, x0=start.copy())
