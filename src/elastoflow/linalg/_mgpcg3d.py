@@ -16,7 +16,10 @@ import numpy as np
 from numba import get_num_threads
 from numpy.typing import NDArray
 
-from elastoflow.linalg._chebyshev_kernels3d import chebyshev_pass_kernel_3d
+from elastoflow.linalg._chebyshev_kernels3d import (
+    chebyshev_pass_kernel_3d,
+    inner_total_kernel_3d,
+)
 from elastoflow.linalg._kernels import (
     low_rank_add_dot_kernel,
     remove_component_means_kernel,
@@ -133,27 +136,34 @@ class _Level:
         with ``shell_allowed`` of all outside such a box and a shell of `SHELL_DEPTH` along
         the sides (a viscosity operator, whose held boundary planes have no weights; the
         restriction does not read a shell, so only a level with no coarse levels below it
-        may have one)."""
-        self.uniform = float(uniform_weight_kernel(self.weights_x, self.weights_y,
-                                                   self.weights_z))
+        may have one). With ``shell_allowed`` the shell is tried first, with no pass for
+        all weights equal: the viscosity's held planes make it the one that fits, and a
+        level rebuilt every step (a body's) saves the passes that would not."""
+        self.uniform = NOT_UNIFORM
+        if not shell_allowed:
+            self.uniform = float(uniform_weight_kernel(self.weights_x, self.weights_y,
+                                                       self.weights_z))
         self.box = NO_BOX
         if self.uniform != NOT_UNIFORM or not self.weights_x.size:
             return
         m, n, l = self.total.shape
         size = m * n * l
-        for shell in (0, SHELL_DEPTH) if shell_allowed else (0,):
+        for shell in (SHELL_DEPTH, 0) if shell_allowed else (0,):
             # A shell of more than half the level (16^3 and less) saves too little.
             outside = size - max(m - 2 * shell, 0) * max(n - 2 * shell, 0) * max(
                 l - 2 * shell, 0)
             if 2 * outside > size:
-                return
+                continue
             candidate = float(self.weights_x[shell, shell, shell])
             if not candidate > 0.0:
                 continue
             box = np.zeros(7, dtype=np.int64)
             differing = uniform_box_kernel(self.weights_x, self.weights_y, self.weights_z,
                                            candidate, shell, box)
-            if (differing or shell) and int(np.prod(box[1:6:2] - box[0:6:2])) <= size // 2:
+            if not differing and not shell:
+                self.uniform = candidate  # all weights equal
+                return
+            if int(np.prod(box[1:6:2] - box[0:6:2])) <= size // 2:
                 self.uniform, self.box = candidate, box
                 return
 
@@ -233,10 +243,12 @@ class _Hierarchy3D:
         self.coarse = True
         # Without coarse levels (the Chebyshev iteration): the bound on the Jacobi iteration
         # matrix's row sums; whether every point is active; whether the last solve took an
-        # odd number of iterations (its successor then starts in `p` to end in the output).
+        # odd number of iterations (its successor then starts in `p` to end in the output);
+        # the total where the fine level reads the one weight (`inner_total_kernel_3d`).
         self.spread = 0.0
         self.every_active = False
         self.odd = False
+        self.inner_total = NOT_UNIFORM
         self.null_space: _NullSpace3D | None = None
         # The operator the levels hold; kept alive so that its identity is not reused.
         self.operator: Operator7Point | None = None
@@ -262,6 +274,9 @@ class _Hierarchy3D:
         self.spread = 1.0 / (1.0 + float(dominance))
         self.every_active = not self.coarse and bool(active.all())
         fine.set_uniform(shell_allowed=not self.coarse)
+        # The Chebyshev pass reads the total as one number where it reads the one weight.
+        self.inner_total = (inner_total_kernel_3d(fine.total, fine.box)
+                            if not self.coarse and fine.uniform != NOT_UNIFORM else NOT_UNIFORM)
         if self.coarse:
             self._build()
         previous, kept = self.operator, self.null_space
@@ -578,8 +593,8 @@ class PoissonSolverMGPCG3D:
         iterations = 0
         while True:
             squared = float(chebyshev_pass_kernel_3d(
-                fine.total, fine.uniform, current, b, following, scale_old, scale_new,
-                fine.weights_x, fine.weights_y, fine.weights_z, fine.box))
+                fine.total, hierarchy.inner_total, fine.uniform, current, b, following,
+                scale_old, scale_new, fine.weights_x, fine.weights_y, fine.weights_z, fine.box))
             # The pass measured the residual of `current` before stepping to `following`.
             if (squared <= threshold or iterations >= self.max_iterations
                     or not math.isfinite(squared)):

@@ -14,7 +14,10 @@ from elastoflow.linalg import (
     SolveReport,
     apply_operator_3d,
 )
-from elastoflow.linalg._chebyshev_kernels3d import chebyshev_pass_kernel_3d
+from elastoflow.linalg._chebyshev_kernels3d import (
+    chebyshev_pass_kernel_3d,
+    inner_total_kernel_3d,
+)
 from elastoflow.linalg._kernels3d import (
     BLACK,
     NO_BOX,
@@ -459,11 +462,18 @@ def test_a_chebyshev_pass_is_its_formula_however_the_operator_is_read(kind: str,
     if not first:
         expected += scale_old * (x - before)
     expected[~active] = 0.0
-    other = before.copy()
-    squared = chebyshev_pass_kernel_3d(total, weight, x, b, other, scale_old, scale_new,
-                                       *a[1:], box)
-    assert squared == pytest.approx(float(np.sum(residual**2)), rel=1e-12)
-    np.testing.assert_allclose(other, expected, rtol=1e-13, atol=1e-13)
+    # The total's one value where the pass reads the one weight: 6 w + 0.5 (uniform), 6 w
+    # (boxed), 1 + 12 c (shelled: `held_planes_operator`'s diagonal holds 1 + 6 c).
+    total_value = inner_total_kernel_3d(total, box)
+    if kind != "weighted":
+        assert total_value == pytest.approx(
+            {"uniform": 6.5, "boxed": 6.0, "shelled": 1.6}[kind], abs=1e-14)
+    for value in {total_value, NOT_UNIFORM}:
+        other = before.copy()
+        squared = chebyshev_pass_kernel_3d(total, value, weight, x, b, other, scale_old,
+                                           scale_new, *a[1:], box)
+        assert squared == pytest.approx(float(np.sum(residual**2)), rel=1e-12)
+        np.testing.assert_allclose(other, expected, rtol=1e-13, atol=1e-13)
 
 
 @pytest.mark.parametrize("c", [0.01, 0.085, 0.5])
@@ -545,6 +555,8 @@ def test_a_viscosity_operator_with_held_planes_solves_with_its_shell(
     # The weights touching the body's points reach one point beyond them.
     assert level.uniform == 0.05 and list(level.box[:6]) == [7, 15, 5, 13, 8, 16]
     assert level.box[6] == 2
+    # The passes read the total there as one number too (1 + 12 c: see the operator).
+    assert solver._hierarchy(shape).inner_total == pytest.approx(1.6, abs=1e-14)
     expected = spsolve(sparse_matrix(operator).tocsc(), rhs.ravel()).reshape(shape)
     np.testing.assert_allclose(x, expected, rtol=0, atol=1e-10 * np.abs(expected).max())
     import elastoflow.linalg._mgpcg3d as module
@@ -661,3 +673,20 @@ def test_the_in_place_chebyshev_solve_keeps_the_contract() -> None:
         np.testing.assert_array_equal(bad, kept)
     with pytest.raises(ValueError, match="rhs: values must be finite"):
         solver.solve(operator, bad, x0=start.copy())
+
+
+def test_the_inner_total_is_found_only_where_it_is_one_value() -> None:
+    # The viscosity operator's total is one value away from the sides and the body; a point
+    # there with another diagonal makes it not uniform; one in the shell or the box does not.
+    shape = (14, 12, 13)
+    operator = held_planes_operator(shape, 0, 2, (5, 9, 4, 8, 5, 9), c=0.1)
+    a = (operator.diagonal, operator.weights_x, operator.weights_y, operator.weights_z)
+    total, inverse = np.empty(shape), np.empty(shape)
+    load_operator_kernel_3d(*a, total, inverse, np.empty(shape, dtype=np.bool_))
+    box = np.zeros(7, dtype=np.int64)
+    uniform_box_kernel(*a[1:], 0.1, 2, box)
+    assert inner_total_kernel_3d(total, box) == pytest.approx(2.2, abs=1e-14)
+    for point, uniform in (((1, 5, 5), True), ((6, 6, 6), True), ((11, 2, 10), False)):
+        changed = total.copy()
+        changed[point] += 0.25
+        assert (inner_total_kernel_3d(changed, box) != NOT_UNIFORM) == uniform
