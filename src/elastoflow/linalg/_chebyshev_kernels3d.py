@@ -49,7 +49,7 @@ def _next(value, total, current, before, scale_old, scale_new):
 @njit(cache=True, inline="always")
 def _run_inner(total_value, factor, weight, x, b, other, scale_old, i, j, k_from, k_to, plane):
     # Unsigned indices: see `_kernels3d._inner_values`. The total is the one value of the
-    # points away from the sides outside the box (`inner_total_kernel_3d`), ``factor`` is
+    # points away from the sides outside the box (`_kernels3d.inner_value_kernel_3d`), ``factor`` is
     # ``scale_new / total_value``: one array and one division less a point.
     iu, ju = np.uint64(i), np.uint64(j)
     for k in range(np.uint64(k_from), np.uint64(k_to)):
@@ -193,50 +193,6 @@ _pass_weighted_serial, _pass_weighted_parallel = serial_and_parallel(
     lambda loop: _make_pass(loop, True), fastmath=_REDUCTION_MATH)
 
 
-def _make_inner_total(loop):
-    def kernel(total, box, found):
-        m, n, l = total.shape
-        for i in loop(m):
-            # Per plane: the one value, NaN where the plane has no such point, or
-            # NOT_UNIFORM (no reduction across threads). A running minimum and maximum, which
-            # vectorise, where comparing each value with the first did not (0.13 ms for a
-            # 64^3 level).
-            low = np.inf
-            high = -np.inf
-            for j in range(n):
-                if not _inner_row(i, j, m, n):
-                    continue
-                ka, kb, kc, kd = _row_spans(box, i, j, m, n, l)
-                for k in range(max(ka, 1), min(kb, l - 1)):
-                    low = min(low, total[i, j, k])
-                    high = max(high, total[i, j, k])
-                for k in range(max(kc, 1), min(kd, l - 1)):
-                    low = min(low, total[i, j, k])
-                    high = max(high, total[i, j, k])
-            found[i] = np.nan if low > high else (low if low == high else NOT_UNIFORM)
-    return kernel
-
-
-_inner_total_serial, _inner_total_parallel = serial_and_parallel(_make_inner_total)
-
-
-def inner_total_kernel_3d(total: NDArray[np.float64], box: NDArray[np.int64]) -> float:
-    """The one value of ``total`` at the points a pass reads with the one weight and the
-    unchecked runs (all six neighbours there, outside ``box`` and its shell), or
-    `NOT_UNIFORM` when they differ or there are none. For the viscosity it is ``1 + 6 c``:
-    the walls' ghosts and the bodies' cuts change the diagonal only in the shell and the
-    box."""
-    found = np.empty(total.shape[0])
-    if total.size > STENCIL_PARALLEL_MINIMUM_3D:
-        _inner_total_parallel(total, box, found)
-    else:
-        _inner_total_serial(total, box, found)
-    values = found[~np.isnan(found)]
-    if not values.size or not (values == values[0]).all() or values[0] <= 0.0:
-        return NOT_UNIFORM
-    return float(values[0])
-
-
 def chebyshev_pass_kernel_3d(total: NDArray[np.float64], total_value: float, weight: float,
                              x: NDArray[np.float64], b: NDArray[np.float64],
                              other: NDArray[np.float64], scale_old: float, scale_new: float,
@@ -248,7 +204,7 @@ def chebyshev_pass_kernel_3d(total: NDArray[np.float64], total_value: float, wei
 
     The operator is read with ``weight`` outside ``box`` and its shell, the weights'
     arrays inside, and ``total_value`` for ``total`` at the points away from the sides
-    outside them (`inner_total_kernel_3d`); with either `NOT_UNIFORM`, with the arrays
+    outside them (`_kernels3d.inner_value_kernel_3d`); with either `NOT_UNIFORM`, with the arrays
     everywhere. Inactive points (``total == 0``) get 0. Picked here, not in a compiled
     dispatcher, so that only the variants used compile."""
     parallel = x.size > STENCIL_PARALLEL_MINIMUM_3D

@@ -16,10 +16,7 @@ import numpy as np
 from numba import get_num_threads
 from numpy.typing import NDArray
 
-from elastoflow.linalg._chebyshev_kernels3d import (
-    chebyshev_pass_kernel_3d,
-    inner_total_kernel_3d,
-)
+from elastoflow.linalg._chebyshev_kernels3d import chebyshev_pass_kernel_3d
 from elastoflow.linalg._kernels import (
     low_rank_add_dot_kernel,
     remove_component_means_kernel,
@@ -39,6 +36,7 @@ from elastoflow.linalg._kernels3d import (
     direction_kernel_3d,
     dot_kernel_3d,
     fill_kernel_3d,
+    inner_value_kernel_3d,
     label_components_kernel_3d,
     load_operator_kernel_3d,
     masked_copy_kernel_3d,
@@ -121,6 +119,10 @@ class _Level:
     b: NDArray[np.float64]
     uniform: float = NOT_UNIFORM
     box: NDArray[np.int64] = field(default_factory=lambda: NO_BOX)
+    # With a uniform weight: the one value of ``inverse`` where the sweep reads that weight
+    # without checks (`inner_value_kernel_3d`), or `NOT_UNIFORM` (the sweep then reads the
+    # arrays everywhere).
+    inner_inverse: float = NOT_UNIFORM
 
     @classmethod
     def zeros(cls, shape: Shape3) -> _Level:
@@ -139,6 +141,11 @@ class _Level:
         may have one). With ``shell_allowed`` the shell is tried first, with no pass for
         all weights equal: the viscosity's held planes make it the one that fits, and a
         level rebuilt every step (a body's) saves the passes that would not."""
+        self._set_uniform(shell_allowed)
+        self.inner_inverse = (inner_value_kernel_3d(self.inverse, self.box)
+                              if self.uniform != NOT_UNIFORM else NOT_UNIFORM)
+
+    def _set_uniform(self, shell_allowed: bool) -> None:
         self.uniform = NOT_UNIFORM
         if not shell_allowed:
             self.uniform = float(uniform_weight_kernel(self.weights_x, self.weights_y,
@@ -171,8 +178,9 @@ class _Level:
               from_zero: bool, chunks: int) -> None:
         """One red-black Gauss-Seidel sweep on this level, colour ``first`` first;
         ``from_zero``: x is taken as 0 (and need not be filled); ``chunks``: the threads."""
+        weight = self.uniform if self.inner_inverse != NOT_UNIFORM else NOT_UNIFORM
         sweep_kernel_3d(x, b, self.inverse, self.weights_x, self.weights_y, self.weights_z,
-                        self.uniform, first, from_zero, chunks, self.box)
+                        weight, self.inner_inverse, first, from_zero, chunks, self.box)
 
     def prolong(self, coarse_x: NDArray[np.float64], x: NDArray[np.float64]) -> None:
         """``x += P coarse_x`` at this level's active points (all of a uniform level)."""
@@ -244,7 +252,7 @@ class _Hierarchy3D:
         # Without coarse levels (the Chebyshev iteration): the bound on the Jacobi iteration
         # matrix's row sums; whether every point is active; whether the last solve took an
         # odd number of iterations (its successor then starts in `p` to end in the output);
-        # the total where the fine level reads the one weight (`inner_total_kernel_3d`).
+        # the total where the fine level reads the one weight (`inner_value_kernel_3d`).
         self.spread = 0.0
         self.every_active = False
         self.odd = False
@@ -275,7 +283,7 @@ class _Hierarchy3D:
         self.every_active = not self.coarse and bool(active.all())
         fine.set_uniform(shell_allowed=not self.coarse)
         # The Chebyshev pass reads the total as one number where it reads the one weight.
-        self.inner_total = (inner_total_kernel_3d(fine.total, fine.box)
+        self.inner_total = (inner_value_kernel_3d(fine.total, fine.box)
                             if not self.coarse and fine.uniform != NOT_UNIFORM else NOT_UNIFORM)
         if self.coarse:
             self._build()

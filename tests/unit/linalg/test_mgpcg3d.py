@@ -14,10 +14,7 @@ from elastoflow.linalg import (
     SolveReport,
     apply_operator_3d,
 )
-from elastoflow.linalg._chebyshev_kernels3d import (
-    chebyshev_pass_kernel_3d,
-    inner_total_kernel_3d,
-)
+from elastoflow.linalg._chebyshev_kernels3d import chebyshev_pass_kernel_3d
 from elastoflow.linalg._kernels3d import (
     BLACK,
     NO_BOX,
@@ -27,6 +24,7 @@ from elastoflow.linalg._kernels3d import (
     _sweep_serial,
     apply_dot_kernel_3d,
     apply_dot_uniform_kernel_3d,
+    inner_value_kernel_3d,
     load_operator_kernel_3d,
     residual_kernel_3d,
     residual_uniform_kernel_3d,
@@ -321,6 +319,9 @@ def test_a_sweep_is_its_two_half_sweeps_however_the_planes_are_split(kind: str) 
         shell = 2 if kind == "shelled" else 0
         box = np.zeros(7, dtype=np.int64)
         assert uniform_box_kernel(*a[1:], weight, shell, box) > 0
+    # The inverse is one number where the uniform runs read without checks.
+    inverse_value = inner_value_kernel_3d(inverse, box) if kind != "weighted" else NOT_UNIFORM
+    assert (inverse_value == NOT_UNIFORM) == (kind == "weighted")
     rng = np.random.default_rng(5)
     b, start = rng.standard_normal(shape), rng.standard_normal(shape)
     colour = np.indices(shape).sum(axis=0) % 2
@@ -333,7 +334,7 @@ def test_a_sweep_is_its_two_half_sweeps_however_the_planes_are_split(kind: str) 
         for chunks in (1, 2, 3, 4, 11, 20):
             x = start.copy()
             sweep = _sweep_serial if chunks == 1 else _sweep_parallel
-            sweep(x, b, inverse, *a[1:], weight, first, from_zero, chunks, box)
+            sweep(x, b, inverse, *a[1:], weight, inverse_value, first, from_zero, chunks, box)
             swept.append(x)
         np.testing.assert_allclose(swept[0], expected, rtol=1e-13, atol=1e-13)
         for x in swept[1:]:
@@ -464,7 +465,7 @@ def test_a_chebyshev_pass_is_its_formula_however_the_operator_is_read(kind: str,
     expected[~active] = 0.0
     # The total's one value where the pass reads the one weight: 6 w + 0.5 (uniform), 6 w
     # (boxed), 1 + 12 c (shelled: `held_planes_operator`'s diagonal holds 1 + 6 c).
-    total_value = inner_total_kernel_3d(total, box)
+    total_value = inner_value_kernel_3d(total, box)
     if kind != "weighted":
         assert total_value == pytest.approx(
             {"uniform": 6.5, "boxed": 6.0, "shelled": 1.6}[kind], abs=1e-14)
@@ -685,8 +686,8 @@ def test_the_inner_total_is_found_only_where_it_is_one_value() -> None:
     load_operator_kernel_3d(*a, total, inverse, np.empty(shape, dtype=np.bool_))
     box = np.zeros(7, dtype=np.int64)
     uniform_box_kernel(*a[1:], 0.1, 2, box)
-    assert inner_total_kernel_3d(total, box) == pytest.approx(2.2, abs=1e-14)
+    assert inner_value_kernel_3d(total, box) == pytest.approx(2.2, abs=1e-14)
     for point, uniform in (((1, 5, 5), True), ((6, 6, 6), True), ((11, 2, 10), False)):
         changed = total.copy()
         changed[point] += 0.25
-        assert (inner_total_kernel_3d(changed, box) != NOT_UNIFORM) == uniform
+        assert (inner_value_kernel_3d(changed, box) != NOT_UNIFORM) == uniform
