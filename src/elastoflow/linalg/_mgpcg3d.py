@@ -142,8 +142,11 @@ class _Level:
         all weights equal: the viscosity's held planes make it the one that fits, and a
         level rebuilt every step (a body's) saves the passes that would not."""
         self._set_uniform(shell_allowed)
+        # Only the sweeps read it: a level that may have a shell has no V-cycle (the
+        # coupled solve loads the level again, without, before it builds one).
         self.inner_inverse = (inner_value_kernel_3d(self.inverse, self.box)
-                              if self.uniform != NOT_UNIFORM else NOT_UNIFORM)
+                              if self.uniform != NOT_UNIFORM and not shell_allowed
+                              else NOT_UNIFORM)
 
     def _set_uniform(self, shell_allowed: bool) -> None:
         self.uniform = NOT_UNIFORM
