@@ -1082,52 +1082,6 @@ def inner_value_kernel_3d(values, box):
     return float(values[0])
 
 
-def _make_restrict_uniform(loop):
-    def kernel(x, b, total, weight, coarse_b, weights_x, weights_y, weights_z, box):
-        m, n, l = x.shape
-        mc, nc, lc = coarse_b.shape
-        for ic in loop(mc):
-            for jc in range(nc):
-                for kc in range(lc):
-                    coarse_b[ic, jc, kc] = 0.0
-            for i in range(2 * ic, min(2 * ic + 2, m)):
-                for j in range(n):
-                    jc = j >> 1
-                    k0, k1 = _row_box(box, i, j, l)
-                    for kc in range(lc):
-                        pair = 0.0
-                        for k in range(2 * kc, min(2 * kc + 2, l)):
-                            if k0 <= k < k1:
-                                # Inside the box: as `restrict_residual_kernel_3d`.
-                                t = total[i, j, k]
-                                if t > 0.0:
-                                    pair += b[i, j, k] - t * x[i, j, k] + _coupled_sum(
-                                        weights_x, weights_y, weights_z, x, i, j, k, m, n, l)
-                            else:
-                                pair += (b[i, j, k] - total[i, j, k] * x[i, j, k]
-                                         + weight * _neighbour_values(x, i, j, k, m, n, l))
-                        coarse_b[ic, jc, kc] += pair
-    return kernel
-
-
-_restrict_uniform_serial, _restrict_uniform_parallel = serial_and_parallel(
-    _make_restrict_uniform)
-
-
-@njit(cache=True)
-def restrict_residual_uniform_kernel_3d(x, b, total, weight, coarse_b, weights_x, weights_y,
-                                        weights_z, box):
-    """`restrict_residual_kernel_3d` for an operator whose weights all equal ``weight``
-    outside ``box`` (`NO_BOX`: everywhere), with no shell: a level with coarse levels below
-    it never has one (`_Level.set_uniform`); with the checked split runs of the other
-    kernels this restriction ran slower (4.3 against 3.9 ms at 128^3)."""
-    if x.size > STENCIL_PARALLEL_MINIMUM_3D:
-        return _restrict_uniform_parallel(x, b, total, weight, coarse_b, weights_x, weights_y,
-                                          weights_z, box)
-    return _restrict_uniform_serial(x, b, total, weight, coarse_b, weights_x, weights_y,
-                                    weights_z, box)
-
-
 @njit(cache=True, inline="always")
 def _apply_dot_run_sides(total, weight, p, q, i, j, k_from, k_to, m, n, l, plane):
     for k in range(k_from, k_to):

@@ -46,7 +46,6 @@ from elastoflow.linalg._kernels3d import (
     residual_kernel_3d,
     residual_uniform_kernel_3d,
     restrict_residual_kernel_3d,
-    restrict_residual_uniform_kernel_3d,
     sweep_kernel_3d,
     step_kernel_3d,
     uniform_box_kernel,
@@ -56,6 +55,7 @@ from elastoflow.linalg._mgpcg import LowRankTerm
 from elastoflow.linalg._operator import SolveReport
 from elastoflow.linalg._operator3d import Operator7Point
 from elastoflow.linalg._problem import _output, incompatibility
+from elastoflow.linalg._restrict_kernels3d import row_ends, restrict_residual_uniform_kernel_3d
 
 Shape3 = tuple[int, int, int]
 
@@ -72,6 +72,8 @@ _COARSEST_SIZE = 64
 # 6 times), and 2 Jacobi-preconditioned CG iterations, which took 1.6x the Chebyshev time
 # (docs/benchmarks.md, 2026-12-06, fifth session).
 _SMOOTHER_ONLY_DOMINANCE = 0.25
+# A level's `side_total` where the restriction does not read it.
+_NO_SIDES = np.zeros((0, 0, 2))
 
 
 @dataclass
@@ -119,10 +121,15 @@ class _Level:
     b: NDArray[np.float64]
     uniform: float = NOT_UNIFORM
     box: NDArray[np.int64] = field(default_factory=lambda: NO_BOX)
-    # With a uniform weight: the one value of ``inverse`` where the sweep reads that weight
-    # without checks (`inner_value_kernel_3d`), or `NOT_UNIFORM` (the sweep then reads the
-    # arrays everywhere).
+    # With a uniform weight: the one value of ``total`` and of ``inverse`` where the
+    # kernels read that weight without checks (`inner_value_kernel_3d`), or `NOT_UNIFORM`
+    # (they then read the arrays everywhere). The restriction and the Chebyshev pass read
+    # the total, the sweeps the inverse.
+    inner_total: float = NOT_UNIFORM
     inner_inverse: float = NOT_UNIFORM
+    # With ``inner_total``: its first and last columns (`row_ends`; the restriction reads
+    # them at the rows' ends).
+    side_total: NDArray[np.float64] = field(default_factory=lambda: _NO_SIDES)
 
     @classmethod
     def zeros(cls, shape: Shape3) -> _Level:
@@ -142,6 +149,11 @@ class _Level:
         all weights equal: the viscosity's held planes make it the one that fits, and a
         level rebuilt every step (a body's) saves the passes that would not."""
         self._set_uniform(shell_allowed)
+        self.inner_total = (inner_value_kernel_3d(self.total, self.box)
+                            if self.uniform != NOT_UNIFORM else NOT_UNIFORM)
+        self.side_total = (row_ends(self.total)
+                           if self.inner_total != NOT_UNIFORM and not shell_allowed
+                           else _NO_SIDES)
         # Only the sweeps read it: a level that may have a shell has no V-cycle (the
         # coupled solve loads the level again, without, before it builds one).
         self.inner_inverse = (inner_value_kernel_3d(self.inverse, self.box)
@@ -206,7 +218,8 @@ class _Level:
                  coarse_b: NDArray[np.float64]) -> None:
         """``coarse_b`` = the residual of this level summed over each coarse point."""
         if self.uniform != NOT_UNIFORM:
-            restrict_residual_uniform_kernel_3d(x, b, self.total, self.uniform, coarse_b,
+            restrict_residual_uniform_kernel_3d(x, b, self.total, self.inner_total,
+                                                self.side_total, self.uniform, coarse_b,
                                                 self.weights_x, self.weights_y,
                                                 self.weights_z, self.box)
         else:
@@ -254,12 +267,10 @@ class _Hierarchy3D:
         self.coarse = True
         # Without coarse levels (the Chebyshev iteration): the bound on the Jacobi iteration
         # matrix's row sums; whether every point is active; whether the last solve took an
-        # odd number of iterations (its successor then starts in `p` to end in the output);
-        # the total where the fine level reads the one weight (`inner_value_kernel_3d`).
+        # odd number of iterations (its successor then starts in `p` to end in the output).
         self.spread = 0.0
         self.every_active = False
         self.odd = False
-        self.inner_total = NOT_UNIFORM
         self.null_space: _NullSpace3D | None = None
         # The operator the levels hold; kept alive so that its identity is not reused.
         self.operator: Operator7Point | None = None
@@ -285,9 +296,6 @@ class _Hierarchy3D:
         self.spread = 1.0 / (1.0 + float(dominance))
         self.every_active = not self.coarse and bool(active.all())
         fine.set_uniform(shell_allowed=not self.coarse)
-        # The Chebyshev pass reads the total as one number where it reads the one weight.
-        self.inner_total = (inner_value_kernel_3d(fine.total, fine.box)
-                            if not self.coarse and fine.uniform != NOT_UNIFORM else NOT_UNIFORM)
         if self.coarse:
             self._build()
         previous, kept = self.operator, self.null_space
@@ -604,7 +612,7 @@ class PoissonSolverMGPCG3D:
         iterations = 0
         while True:
             squared = float(chebyshev_pass_kernel_3d(
-                fine.total, hierarchy.inner_total, fine.uniform, current, b, following,
+                fine.total, fine.inner_total, fine.uniform, current, b, following,
                 scale_old, scale_new, fine.weights_x, fine.weights_y, fine.weights_z, fine.box))
             # The pass measured the residual of `current` before stepping to `following`.
             if (squared <= threshold or iterations >= self.max_iterations

@@ -29,10 +29,10 @@ from elastoflow.linalg._kernels3d import (
     residual_kernel_3d,
     residual_uniform_kernel_3d,
     restrict_residual_kernel_3d,
-    restrict_residual_uniform_kernel_3d,
     uniform_box_kernel,
     uniform_weight_kernel,
 )
+from elastoflow.linalg._restrict_kernels3d import restrict_residual_uniform_kernel_3d, row_ends
 
 
 def laplacian(n: int, outflow: bool = False, shape: tuple[int, int, int] | None = None,
@@ -302,7 +302,8 @@ def test_a_sweep_is_its_two_half_sweeps_however_the_planes_are_split(kind: str) 
     # The fused red-black sweep walks chunks of planes, the second colour one plane behind:
     # it must give the two half sweeps one after the other, for any split into chunks; with
     # a box, the weights' arrays inside it and the one weight outside.
-    shape = (11, 8, 9) if kind == "shelled" else (11, 6, 5)
+    # Odd and even row lengths: the rows' last columns are of either colour.
+    shape = {"shelled": (11, 8, 9), "uniform": (10, 7, 6)}.get(kind, (11, 6, 5))
     operator = {"uniform": lambda: laplacian(0, outflow=True, shape=shape),
                 "weighted": lambda: random_operator(shape, 4),
                 "boxed": lambda: body_operator(shape, 4, (3, 7, 1, 4, 2, 4)),
@@ -419,8 +420,41 @@ def test_the_boxed_kernels_are_the_weighted_ones_to_round_off() -> None:
     coarse = tuple((s + 1) // 2 for s in shape)
     c_weighted, c_boxed = np.empty(coarse), np.empty(coarse)
     restrict_residual_kernel_3d(x, b, total, *a[1:], c_weighted)
-    restrict_residual_uniform_kernel_3d(x, b, total, weight, c_boxed, *a[1:], box)
+    restrict_residual_uniform_kernel_3d(x, b, total, NOT_UNIFORM, row_ends(total), weight,
+                                        c_boxed, *a[1:], box)
     np.testing.assert_allclose(c_boxed, c_weighted, rtol=1e-12, atol=1e-12)
+
+
+@pytest.mark.parametrize("shape", [(12, 9, 10), (11, 8, 9), (9, 10, 7)])
+@pytest.mark.parametrize("boxed", [True, False])
+def test_the_restriction_reads_the_inner_total_as_one_number(
+        shape: tuple[int, int, int], boxed: bool) -> None:
+    # Away from the sides and the box the total is one number: read so, the restriction is
+    # bitwise the one that reads the array, and the weighted kernel's to round-off (odd
+    # sizes: a coarse point with one fine point along an axis).
+    if boxed:
+        operator = body_operator(shape, 3, (3, 8, 2, 6, 3, 5))
+    else:
+        operator = laplacian(0, outflow=True, shape=shape)
+    a = (operator.diagonal, operator.weights_x, operator.weights_y, operator.weights_z)
+    total, inverse = np.empty(shape), np.empty(shape)
+    load_operator_kernel_3d(*a, total, inverse, np.empty(shape, dtype=np.bool_))
+    box = NO_BOX.copy()
+    if boxed:
+        uniform_box_kernel(*a[1:], 1.0, 0, box)
+    total_value = inner_value_kernel_3d(total, box)
+    assert total_value == 6.0
+    rng = np.random.default_rng(2)
+    x, b = rng.standard_normal(shape), rng.standard_normal(shape)
+    x[total == 0.0] = 0.0
+    coarse = tuple((s + 1) // 2 for s in shape)
+    read, one, weighted = np.empty(coarse), np.empty(coarse), np.empty(coarse)
+    sides = row_ends(total)
+    restrict_residual_uniform_kernel_3d(x, b, total, NOT_UNIFORM, sides, 1.0, read, *a[1:], box)
+    restrict_residual_uniform_kernel_3d(x, b, total, total_value, sides, 1.0, one, *a[1:], box)
+    restrict_residual_kernel_3d(x, b, total, *a[1:], weighted)
+    np.testing.assert_array_equal(one, read)
+    np.testing.assert_allclose(one, weighted, rtol=1e-12, atol=1e-12)
 
 
 @pytest.mark.parametrize("kind", ["uniform", "weighted", "boxed", "shelled"])
@@ -557,7 +591,7 @@ def test_a_viscosity_operator_with_held_planes_solves_with_its_shell(
     assert level.uniform == 0.05 and list(level.box[:6]) == [7, 15, 5, 13, 8, 16]
     assert level.box[6] == 2
     # The passes read the total there as one number too (1 + 12 c: see the operator).
-    assert solver._hierarchy(shape).inner_total == pytest.approx(1.6, abs=1e-14)
+    assert level.inner_total == pytest.approx(1.6, abs=1e-14)
     expected = spsolve(sparse_matrix(operator).tocsc(), rhs.ravel()).reshape(shape)
     np.testing.assert_allclose(x, expected, rtol=0, atol=1e-10 * np.abs(expected).max())
     import elastoflow.linalg._mgpcg3d as module
