@@ -1,7 +1,7 @@
 """Unsteady accuracy (issue 11): DFG 2D-2, the advection schemes' order, the drag's
 convergence, and what each advection scheme costs on the paper's scenes.
 
-``python -m benchmarks unsteady [--parts=order,dfg,drag,pieces,speed,time] [--resolutions=10,20,30]
+``python -m benchmarks unsteady [--parts=order,dfg,drag,pieces,speed,time,placement] [--resolutions=10,20,30]
 [--advection=maccormack,semi_lagrangian] [--duration=10] [--name=NAME] [--quick]``
 
 Parts:
@@ -27,6 +27,11 @@ Parts:
   named by ``--time-fine-variants`` (default: BDF2) at N = 20 (``--time-fine``, 0 skips
   it), CFL 0.5.
   Not in the default parts.
+* ``placement``: DFG 2D-2 with MacCormack at each resolution of ``--placement-resolutions``
+  (default 10, 20) with the cylinder moved downstream by 0, 1/4, 1/2 and 3/4 of a cell
+  (``run_dfg(offset=...)``): how much the quantities depend on where the grid cuts the
+  circle (at offset 0 the centre lies on a grid node and the circle passes through nodes);
+  their mean and spread over the placements. Not in the default parts.
 * ``speed``: the paper's scenes (``bar_in_jet``, ``windmill``) stepped with each advection
   scheme: ms per step and the advection phase.
 
@@ -441,6 +446,76 @@ def pieces_part(resolution: int, duration: float) -> list[dict[str, Any]]:
     return rows
 
 
+PLACEMENTS = (0.0, 0.25, 0.5, 0.75)
+
+
+def placement_part(resolutions: list[int], duration: float) -> list[dict[str, Any]]:
+    """The same flow on four placements of the grid per resolution, and each quantity's
+    mean and spread (largest minus smallest) over them."""
+    from elastoflow.validation import run_dfg
+
+    rows: list[dict[str, Any]] = []
+    keys = ("strouhal", "drag_max", "lift_max", "delta_p", "drag mean", "drag_cv mean")
+    for resolution in resolutions:
+        group = []
+        for offset in PLACEMENTS:
+            result = run_dfg(resolution, duration=duration, offset=offset)
+            row: dict[str, Any] = {"part": "placement", "N": resolution, "offset": offset,
+                                   "wall [s]": round(result.seconds, 1)}
+            row.update(result.quantities)
+            for name in ("drag", "drag_cv"):
+                if name in result.statistics:
+                    row[f"{name} mean"] = result.statistics[name].mean
+            if result.failure is not None:
+                row["note"] = result.failure
+            print(row, flush=True)
+            group.append(row)
+        rows += group
+        summary: dict[str, Any] = {"part": "placement", "N": resolution, "offset": "mean"}
+        spread: dict[str, Any] = {"part": "placement", "N": resolution, "offset": "spread"}
+        for key in keys:
+            values = [row[key] for row in group if key in row]
+            if len(values) == len(group):
+                summary[key] = float(np.mean(values))
+                spread[key] = float(np.max(values) - np.min(values))
+        rows += [summary, spread]
+    print(markdown_table(rows, ["N", "offset", *keys, "wall [s]", "note"]), flush=True)
+    plot_placement(rows)
+    return rows
+
+
+def plot_placement(rows: list[dict[str, Any]]) -> None:
+    """``docs/validation/unsteady/dfg2d2_placement.png``: each quantity against the offset,
+    one line per resolution (rows of `placement_part`, from one run or several)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from elastoflow.validation._dfg import BOUNDS, LABELS
+
+    runs = [r for r in rows if r.get("part") == "placement" and isinstance(r["offset"], float)]
+    figure, axes = plt.subplots(1, 4, figsize=(15, 3.4))
+    for axis, key in zip(axes, QUANTITIES):
+        for resolution in sorted({r["N"] for r in runs}):
+            chosen = [r for r in runs if r["N"] == resolution and key in r]
+            axis.plot([r["offset"] for r in chosen], [r[key] for r in chosen], "o-",
+                      label=f"N = {resolution}")
+        low, high = BOUNDS[key]
+        axis.axhspan(low, high, color="tab:green", alpha=0.25, label="published bounds")
+        axis.set_xticks(PLACEMENTS)
+        axis.set_xlabel("cylinder moved downstream [cells]")
+        axis.set_title(LABELS[key], fontsize=9)
+        axis.grid(alpha=0.3)
+    axes[0].legend(fontsize=7)
+    figure.suptitle("DFG 2D-2, MacCormack: the same flow on four placements of the grid "
+                    "(offset 0: the benchmark's, centre on a grid node)", fontsize=9)
+    figure.tight_layout()
+    DOCS.mkdir(parents=True, exist_ok=True)
+    figure.savefig(DOCS / "dfg2d2_placement.png", dpi=100)
+    plt.close(figure)
+
+
 def speed_part(steps: int, quick: bool) -> list[dict[str, Any]]:
     """ms per step of the paper's scenes with each advection scheme. The two simulations of
     a scene are stepped in alternating blocks of 10 steps, so that a change in the machine's
@@ -507,6 +582,11 @@ def main(argv: list[str] | None = None) -> list[dict[str, Any]]:
                           int(_option(argv, "time-fine", "20")), duration, quick,
                           tuple(_option(argv, "time-fine-variants",
                                         "extrapolated + BDF2").split(",")))
+    if "placement" in parts:
+        rows += placement_part(
+            [int(v) for v in _option(argv, "placement-resolutions",
+                                     "8" if quick else "10,20").split(",")],
+            duration)
     if "speed" in parts:
         rows += speed_part(20 if quick else 100, quick)
     write_results(_option(argv, "name", "unsteady"), rows)

@@ -105,3 +105,40 @@ def test_cli_bad_input_is_one_line_and_exit_2(arguments: list[str], message: str
     lines = [line for line in result.output.splitlines() if line.strip()]
     assert len(lines) == 1 and message in lines[0], result.output
     assert "Traceback" not in result.output
+
+
+def test_offset_moves_the_cylinder_and_the_pressure_points_by_a_fraction_of_a_cell() -> None:
+    """``offset`` shifts the obstacle downstream: the cells inside it are those whose centres
+    lie inside the moved circle (checked away from its outline, where the polygon's sag and
+    round-off cannot decide), and Δp's points move with it."""
+    from elastoflow.validation._dfg import BACK, CENTER, FRONT, RADIUS, dfg_solver
+
+    for offset in (0.0, 0.5, 0.75):
+        setup = dfg_setup(10, duration=0.1, offset=offset)
+        h = setup.h
+        assert setup.center == (CENTER[0] + offset * h, CENTER[1])
+        front, back = setup.front_and_back
+        assert front == (FRONT[0] + offset * h, FRONT[1])
+        assert back == (BACK[0] + offset * h, BACK[1])
+        grid, _, _, interior = dfg_solver(setup)
+        x, y = grid.cell_centers()
+        distance = np.hypot(x - setup.center[0], y - setup.center[1]) - RADIUS
+        clear = np.abs(distance) > 0.01 * h
+        np.testing.assert_array_equal(interior.solid_cells[clear], distance[clear] < 0.0)
+        assert interior.solid_cells.sum() > 50
+
+
+def test_offset_zero_is_the_benchmark_placement_and_other_offsets_run() -> None:
+    reference = run_dfg(4, duration=0.05)
+    same = run_dfg(4, duration=0.05, offset=0.0)
+    for key, values in reference.series.items():
+        np.testing.assert_array_equal(values, same.series[key])
+    moved = run_dfg(4, duration=0.05, offset=0.5)
+    assert all(np.isfinite(values[1:]).all() for values in moved.series.values())
+    assert not np.array_equal(moved.series["drag"], reference.series["drag"])
+
+
+@pytest.mark.parametrize("offset", [-0.1, 1.0, 2, True, float("nan")])
+def test_offset_outside_a_cell_is_refused(offset: float) -> None:
+    with pytest.raises(ValueError, match=r"offset = .*must be a fraction of a cell in \[0, 1\)"):
+        dfg_setup(10, offset=offset)

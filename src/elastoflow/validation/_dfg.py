@@ -98,6 +98,9 @@ class DfgSetup:
         advecting_velocity: The back-trace's velocity (`FluidSolver`): "current" or
             "extrapolated" (to mid-step, second order in time).
         viscosity_scheme: "backward_euler" or "crank_nicolson" (`FluidSolver`).
+        offset: The cylinder moved downstream by this fraction of a cell (0 <= offset < 1):
+            the same flow on another placement of the grid (at 0 the centre lies on a grid
+            node and the circle passes through nodes; docs/validation/unsteady.md).
     """
 
     resolution: int
@@ -110,6 +113,18 @@ class DfgSetup:
     limiter: bool = True
     advecting_velocity: str = "current"
     viscosity_scheme: str = "backward_euler"
+    offset: float = 0.0
+
+    @property
+    def center(self) -> tuple[float, float]:
+        """The cylinder's centre [m]: the benchmark's, moved by ``offset`` cells along x."""
+        return (CENTER[0] + self.offset * self.h, CENTER[1])
+
+    @property
+    def front_and_back(self) -> tuple[tuple[float, float], tuple[float, float]]:
+        """The points of Δp: the cylinder's upstream and downstream ends [m]."""
+        shift = self.offset * self.h
+        return (FRONT[0] + shift, FRONT[1]), (BACK[0] + shift, BACK[1])
 
     @property
     def steps(self) -> int:
@@ -124,9 +139,10 @@ def dfg_setup(resolution: int = 20, *, duration: float | None = None, dt: float 
               advection: str = "maccormack", cfl: float = 0.5,
               incremental_pressure: bool = False, kick: float = 0.3,
               limiter: bool = True, advecting_velocity: str = "current",
-              viscosity_scheme: str = "backward_euler") -> DfgSetup:
+              viscosity_scheme: str = "backward_euler", offset: float = 0.0) -> DfgSetup:
     """Resolution N -> h = 0.41 / ceil(4.1 N); dt from ``cfl`` on the inflow peak (0.5:
-    dt = h / 3 s/m); 10 s of simulated time by default.
+    dt = h / 3 s/m); 10 s of simulated time by default; the cylinder ``offset`` cells
+    downstream of its benchmark position (see `DfgSetup`).
 
     Raises:
         ValueError: one line naming the bad argument.
@@ -148,13 +164,15 @@ def dfg_setup(resolution: int = 20, *, duration: float | None = None, dt: float 
                          f"{', '.join(VISCOSITY_SCHEMES)}")
     if not (isinstance(cfl, (int, float)) and math.isfinite(cfl) and cfl > 0.0):
         raise ValueError(f"cfl = {cfl!r}: must be a finite number > 0")
+    if isinstance(offset, bool) or not (isinstance(offset, (int, float)) and 0.0 <= offset < 1.0):
+        raise ValueError(f"offset = {offset!r}: must be a fraction of a cell in [0, 1)")
     if dt is None:
         dt = cfl * h / PEAK_SPEED
     if not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0.0):
         raise ValueError(f"dt = {dt!r}: must be a finite positive time step [s]")
     return DfgSetup(resolution, h, float(dt), float(duration), advection,
                     incremental_pressure, float(kick), limiter, advecting_velocity,
-                    viscosity_scheme)
+                    viscosity_scheme, float(offset))
 
 
 @dataclass
@@ -210,16 +228,17 @@ def dfg_solver(setup: DfgSetup) -> tuple[Grid2D, FluidSolver, Any, InteriorBound
     )
     # Edges no longer than h / 4 (the 2D-1 study's choice), at least 64.
     segments = max(64, math.ceil(4.0 * 2.0 * math.pi * RADIUS / setup.h))
-    cylinder = coupling.obstacle_circle(CENTER, RADIUS, segments=segments)
+    cylinder = coupling.obstacle_circle(setup.center, RADIUS, segments=segments)
     bmap = coupling.build_boundary_map(grid, cylinder.points_at(0.0),
                                        cylinder.velocities_at(0.0), cylinder.edges)
     interior = coupling.interior_boundary_from_map(grid, bmap)
     return grid, solver, bmap, interior
 
 
-def initial_state(grid: Grid2D, interior: InteriorBoundary, kick: float) -> FluidState:
+def initial_state(grid: Grid2D, interior: InteriorBoundary, kick: float,
+                  center: tuple[float, float] = CENTER) -> FluidState:
     """Poiseuille profile everywhere, zero inside the cylinder, plus a transverse Gaussian
-    kick of peak ``kick`` [m/s] one diameter behind the cylinder."""
+    kick of peak ``kick`` [m/s] one diameter behind the cylinder centred at ``center``."""
     from elastoflow.fluid import FluidState
 
     state = FluidState.zeros(grid)
@@ -228,23 +247,23 @@ def initial_state(grid: Grid2D, interior: InteriorBoundary, kick: float) -> Flui
     state.velocity_x[...] = 4.0 * PEAK_SPEED * y * (height - y) / height**2
     state.velocity_x[interior.solid_faces_x] = 0.0
     x, y = grid.faces_y()
-    r2 = (x - CENTER[0] - DIAMETER) ** 2 + (y - CENTER[1]) ** 2
+    r2 = (x - center[0] - DIAMETER) ** 2 + (y - center[1]) ** 2
     state.velocity_y[...] = kick * np.exp(-r2 / RADIUS**2)
     state.velocity_y[interior.solid_faces_y] = 0.0
     return state
 
 
 def surface_pressure(grid: Grid2D, pressure: np.ndarray, solid: np.ndarray,
-                     point: tuple[float, float]) -> float:
-    """Pressure [Pa] at a point on the cylinder's surface on its horizontal axis,
-    extrapolated linearly along x from the two nearest fluid cells outside it (interpolated
-    linearly in y between the two cell rows around the point)."""
+                     point: tuple[float, float], center: tuple[float, float] = CENTER) -> float:
+    """Pressure [Pa] at a point on the surface of the cylinder about ``center``, on its
+    horizontal axis, extrapolated linearly along x from the two nearest fluid cells outside
+    it (interpolated linearly in y between the two cell rows around the point)."""
     h = grid.h
     row = point[1] / h - 0.5
     j0 = int(math.floor(row))
     weight = row - j0
     column = point[0] / h - 0.5
-    side = 1 if point[0] > CENTER[0] else -1
+    side = 1 if point[0] > center[0] else -1
     i = int(math.floor(column)) if side < 0 else int(math.ceil(column))
     while solid[i, j0] or solid[i, j0 + 1]:
         i += side
@@ -263,14 +282,14 @@ class ControlVolumeDrag:
     the last step.
     """
 
-    def __init__(self, grid: Grid2D) -> None:
+    def __init__(self, grid: Grid2D, center: tuple[float, float] = CENTER) -> None:
         h = grid.h
         self.h = h
         half = 1.5 * DIAMETER
-        self.i0 = max(1, int(round((CENTER[0] - half) / h)))
-        self.i1 = min(grid.nx - 1, int(round((CENTER[0] + half) / h)))
-        self.j0 = max(1, int(round((CENTER[1] - half) / h)))
-        self.j1 = min(grid.ny - 1, int(round((CENTER[1] + half) / h)))
+        self.i0 = max(1, int(round((center[0] - half) / h)))
+        self.i1 = min(grid.nx - 1, int(round((center[0] + half) / h)))
+        self.j0 = max(1, int(round((center[1] - half) / h)))
+        self.j1 = min(grid.ny - 1, int(round((center[1] + half) / h)))
         self._previous: tuple[float, float] | None = None
 
     def momentum(self, u: np.ndarray, v: np.ndarray) -> tuple[float, float]:
@@ -330,14 +349,15 @@ class SurfacePressureDrag:
     of them fluid at these distances), carried to the surface at constant value (as the
     traction integral does) or extrapolated linearly: how much the carry matters."""
 
-    def __init__(self, grid: Grid2D, count: int = 720) -> None:
+    def __init__(self, grid: Grid2D, count: int = 720,
+                 center: tuple[float, float] = CENTER) -> None:
         angle = 2.0 * math.pi * (np.arange(count) + 0.5) / count
         self.normal = np.stack([np.cos(angle), np.sin(angle)], axis=1)
         self.length = 2.0 * math.pi * RADIUS / count
         h = grid.h
         self.samples = []
         for distance in (1.5 * h, 2.5 * h):
-            points = np.asarray(CENTER) + (RADIUS + distance) * self.normal
+            points = np.asarray(center) + (RADIUS + distance) * self.normal
             fx, fy = points[:, 0] / h - 0.5, points[:, 1] / h - 0.5
             i, j = np.floor(fx).astype(np.int64), np.floor(fy).astype(np.int64)
             self.samples.append((i, j, fx - i, fy - j))
@@ -359,7 +379,7 @@ def run_dfg(resolution: int = 20, *, duration: float | None = None, dt: float | 
             advection: str = "maccormack", cfl: float = 0.5,
             incremental_pressure: bool = False, kick: float = 0.3, limiter: bool = True,
             advecting_velocity: str = "current", viscosity_scheme: str = "backward_euler",
-            progress: Progress | None = None) -> DfgResult:
+            offset: float = 0.0, progress: Progress | None = None) -> DfgResult:
     """Run DFG 2D-2 and evaluate its quantities over the last period.
 
     Args:
@@ -373,17 +393,20 @@ def run_dfg(resolution: int = 20, *, duration: float | None = None, dt: float | 
         limiter: MacCormack's clamp (False only for studies).
         advecting_velocity: "current" or "extrapolated" (`FluidSolver`).
         viscosity_scheme: "backward_euler" or "crank_nicolson" (`FluidSolver`).
+        offset: The cylinder moved downstream by this fraction of a cell (`DfgSetup`).
         progress: Called with (steps done, steps in all) as the run goes.
     """
     from elastoflow.coupling import force_traction
 
     setup = dfg_setup(resolution, duration=duration, dt=dt, advection=advection, cfl=cfl,
                       incremental_pressure=incremental_pressure, kick=kick, limiter=limiter,
-                      advecting_velocity=advecting_velocity, viscosity_scheme=viscosity_scheme)
+                      advecting_velocity=advecting_velocity, viscosity_scheme=viscosity_scheme,
+                      offset=offset)
     grid, solver, bmap, interior = dfg_solver(setup)
-    state = initial_state(grid, interior, setup.kick)
-    balance = ControlVolumeDrag(grid)
-    surface = SurfacePressureDrag(grid)
+    state = initial_state(grid, interior, setup.kick, setup.center)
+    balance = ControlVolumeDrag(grid, setup.center)
+    surface = SurfacePressureDrag(grid, center=setup.center)
+    front, back = setup.front_and_back
     steps = setup.steps
     names = ("drag", "lift", "drag_pressure", "drag_pressure_constant", "drag_pressure_linear",
              "drag_cv", "lift_cv", "delta_p")
@@ -409,8 +432,9 @@ def run_dfg(resolution: int = 20, *, duration: float | None = None, dt: float | 
         columns["drag_pressure"][k] = scale * pressure_part[0]
         columns["drag_cv"][k] = scale * control[0]
         columns["lift_cv"][k] = scale * control[1]
-        columns["delta_p"][k] = (surface_pressure(grid, p, interior.solid_cells, FRONT)
-                                 - surface_pressure(grid, p, interior.solid_cells, BACK))
+        columns["delta_p"][k] = (
+            surface_pressure(grid, p, interior.solid_cells, front, setup.center)
+            - surface_pressure(grid, p, interior.solid_cells, back, setup.center))
         if progress is not None:
             progress(k + 1, steps)
     seconds = _time.perf_counter() - began
