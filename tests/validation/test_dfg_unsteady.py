@@ -17,7 +17,14 @@ from typer.testing import CliRunner
 
 from elastoflow.cli import app
 from elastoflow.validation import dfg_setup, run_dfg
-from elastoflow.validation._dfg import BOUNDS, DIAMETER, MEAN_SPEED, evaluate
+from elastoflow.validation._dfg import (
+    BOUNDS,
+    DIAMETER,
+    MEAN_SPEED,
+    describe,
+    evaluate,
+    quantities_json,
+)
 
 PUBLISHED_STROUHAL = 0.5 * sum(BOUNDS["strouhal"])
 
@@ -136,6 +143,9 @@ def test_offset_zero_is_the_benchmark_placement_and_other_offsets_run() -> None:
     moved = run_dfg(4, duration=0.05, offset=0.5)
     assert all(np.isfinite(values[1:]).all() for values in moved.series.values())
     assert not np.array_equal(moved.series["drag"], reference.series["drag"])
+    assert "cylinder 0.5 cell downstream" in describe(moved)
+    assert "downstream" not in describe(reference)
+    assert quantities_json(moved)["offset"] == 0.5
 
 
 @pytest.mark.parametrize("offset", [-0.1, 1.0, 2, True, float("nan")])

@@ -484,6 +484,7 @@ def describe(result: DfgResult) -> str:
     form += "" if s.limiter or s.advection != "maccormack" else ", unlimited"
     form += ", extrapolated trace" if s.advecting_velocity == "extrapolated" else ""
     form += ", Crank-Nicolson viscosity" if s.viscosity_scheme == "crank_nicolson" else ""
+    form += f", cylinder {s.offset:g} cell downstream" if s.offset else ""
     return (f"DFG 2D-2, resolution {s.resolution}: {nx}x{ny} cells (h = {s.h:.5g} m), "
             f"{s.advection} advection{form}, dt = {s.dt:.4g} s, t = 0-{end:.4g} s "
             f"({s.steps} steps), {result.seconds:.1f} s wall")
@@ -524,6 +525,7 @@ def quantities_json(result: DfgResult) -> dict[str, Any]:
         "maccormack_limiter": s.limiter,
         "advecting_velocity": s.advecting_velocity,
         "viscosity_scheme": s.viscosity_scheme,
+        "offset": s.offset,
         "duration": float(result.time[-1]) if len(result.time) else 0.0,
         "steps": s.steps,
         "wall_seconds": result.seconds,
