@@ -1,8 +1,9 @@
 """Unsteady accuracy (issue 11): DFG 2D-2, the advection schemes' order, the drag's
 convergence, and what each advection scheme costs on the paper's scenes.
 
-``python -m benchmarks unsteady [--parts=order,dfg,drag,pieces,speed,time,placement] [--resolutions=10,20,30]
-[--advection=maccormack,semi_lagrangian] [--duration=10] [--name=NAME] [--quick]``
+``python -m benchmarks unsteady [--parts=order,dfg,drag,pieces,speed,time,placement,couette]
+[--resolutions=10,20,30] [--advection=maccormack,semi_lagrangian] [--duration=10] [--name=NAME]
+[--quick]``
 
 Parts:
 
@@ -32,6 +33,12 @@ Parts:
   (``run_dfg(offset=...)``): how much the quantities depend on where the grid cuts the
   circle (at offset 0 the centre lies on a grid node and the circle passes through nodes);
   their mean and spread over the placements. Not in the default parts.
+* ``couette``: circular Couette flow between two cut-cell cylinders
+  (`elastoflow.validation._couette`, exact at any Reynolds number; U = 1 m/s, nu = 0.01,
+  3 s from the exact flow) on 32², 64², 128² with the first-order step, BDF2 with the
+  extrapolated trace, the incremental pressure form and both; then 64² at CFL 0.25 and
+  0.125: the errors of u_theta and of the pressure near the inner wall, and their orders.
+  Not in the default parts.
 * ``speed``: the paper's scenes (``bar_in_jet``, ``windmill``) stepped with each advection
   scheme: ms per step and the advection phase.
 
@@ -45,6 +52,7 @@ written from. ``--quick``: N = 8 and 12 for 2 s (a smoke test; nothing is copied
 
 from __future__ import annotations
 
+import math
 import shutil
 import sys
 import time
@@ -447,6 +455,49 @@ def pieces_part(resolution: int, duration: float) -> list[dict[str, Any]]:
 
 
 PLACEMENTS = (0.0, 0.25, 0.5, 0.75)
+COUETTE_SCHEMES: tuple[tuple[str, dict[str, Any]], ...] = (
+    ("first order", {}),
+    ("BDF2 + extrapolated trace", {"viscosity_scheme": "bdf2",
+                                   "advecting_velocity": "extrapolated"}),
+    ("incremental pressure", {"incremental_pressure": True}),
+    ("BDF2 + extrapolated + incremental", {"viscosity_scheme": "bdf2",
+                                           "advecting_velocity": "extrapolated",
+                                           "incremental_pressure": True}),
+)
+
+
+def couette_part(sizes: list[int]) -> list[dict[str, Any]]:
+    """Circular Couette flow: each time scheme on each grid at CFL 0.5, then the first-order
+    step and BDF2 at smaller steps on the middle grid (whether the error is the time step's)."""
+    from elastoflow.validation._couette import PRESSURE_BANDS, CouetteSetup, run_couette
+
+    bands = [f"p err {low:g}-{high:g} h" for low, high in PRESSURE_BANDS]
+    runs: list[tuple[str, int, float, dict[str, Any]]] = [
+        (label, size, 0.5, options) for label, options in COUETTE_SCHEMES for size in sizes]
+    middle = sizes[len(sizes) // 2]
+    runs += [(label, middle, cfl, options) for label, options in COUETTE_SCHEMES[:2]
+             for cfl in (0.25, 0.125)]
+    rows: list[dict[str, Any]] = []
+    for label, size, cfl, options in runs:
+        result = run_couette(CouetteSetup(size, cfl=cfl, **options))
+        row: dict[str, Any] = {
+            "part": "couette", "scheme": label, "cells": size, "cfl": cfl,
+            "u err core (rms)": result.speed_error_core, "u err max": result.speed_error_max,
+            "p err core (rms)": result.pressure_error_core,
+            **dict(zip(bands, result.pressure_error_bands)),
+            "wall [s]": round(result.seconds, 1)}
+        previous = [r for r in rows if r["scheme"] == label and r["cfl"] == cfl]
+        if previous:
+            ratio = size / previous[-1]["cells"]
+            for key in ("u err core (rms)", "u err max"):
+                row[f"order ({key.split(' (')[0]})"] = (
+                    math.log(previous[-1][key] / row[key]) / math.log(ratio))
+        print(row, flush=True)
+        rows.append(row)
+    print(markdown_table(rows, ["scheme", "cells", "cfl", "u err core (rms)",
+                                "order (u err core)", "u err max", "order (u err max)",
+                                "p err core (rms)", *bands, "wall [s]"]), flush=True)
+    return rows
 
 
 def placement_part(resolutions: list[int], duration: float) -> list[dict[str, Any]]:
@@ -582,6 +633,10 @@ def main(argv: list[str] | None = None) -> list[dict[str, Any]]:
                           int(_option(argv, "time-fine", "20")), duration, quick,
                           tuple(_option(argv, "time-fine-variants",
                                         "extrapolated + BDF2").split(",")))
+    if "couette" in parts:
+        rows += couette_part([int(v) for v in _option(argv, "couette-sizes",
+                                                      "16,32" if quick else "32,64,128"
+                                                      ).split(",")])
     if "placement" in parts:
         rows += placement_part(
             [int(v) for v in _option(argv, "placement-resolutions",

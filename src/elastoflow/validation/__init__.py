@@ -5,7 +5,9 @@ the benchmark defines them.
 ``run_case("FSI3", resolution=20)`` runs Turek & Hron's FSI3; `write_report` writes its time
 series (CSV), plots (PNG) and quantities (JSON); ``elastoflow validate turek-hron FSI3`` does
 both. ``run_dfg(20)`` runs DFG 2D-2 (vortex shedding at Re = 100) and `write_dfg_report`
-writes its report; ``elastoflow validate dfg-2d-2`` does both.
+writes its report; ``elastoflow validate dfg-2d-2`` does both. ``run_couette(CouetteSetup(64))``
+steps circular Couette flow between two cut-cell cylinders from its exact solution and
+measures how far the scheme's steady state lies from it.
 
 The boundary study (issue 13: the boundary map against the staircase boundary) is not a
 published benchmark but is run the same way: ``run_poisson_study()`` solves the pressure
@@ -55,6 +57,7 @@ from elastoflow.validation._leakage_study import (
     run_leakage_study,
     write_leakage_report,
 )
+from elastoflow.validation._couette import CouetteResult, CouetteSetup, run_couette
 from elastoflow.validation._dfg import (
     DfgResult,
     DfgSetup,
@@ -96,6 +99,8 @@ __all__ = [
     "REFERENCE",
     "STUDY_PARTS",
     "Case",
+    "CouetteResult",
+    "CouetteSetup",
     "DfgResult",
     "DfgSetup",
     "DfgStudy",
@@ -124,6 +129,7 @@ __all__ = [
     "quantities_json",
     "rigid_flag_polygon",
     "run_case",
+    "run_couette",
     "run_dfg",
     "run_dfg_study",
     "run_flap",
