@@ -500,9 +500,10 @@ def couette_part(sizes: list[int]) -> list[dict[str, Any]]:
     return rows
 
 
-def placement_part(resolutions: list[int], duration: float) -> list[dict[str, Any]]:
+def placement_part(resolutions: list[int], duration: float, quick: bool
+                   ) -> list[dict[str, Any]]:
     """The same flow on four placements of the grid per resolution, and each quantity's
-    mean and spread (largest minus smallest) over them."""
+    mean and spread (largest minus smallest) over them; the plot into docs unless ``quick``."""
     from elastoflow.validation import run_dfg
 
     rows: list[dict[str, Any]] = []
@@ -531,7 +532,8 @@ def placement_part(resolutions: list[int], duration: float) -> list[dict[str, An
                 spread[key] = float(np.max(values) - np.min(values))
         rows += [summary, spread]
     print(markdown_table(rows, ["N", "offset", *keys, "wall [s]", "note"]), flush=True)
-    plot_placement(rows)
+    if not quick:
+        plot_placement(rows)
     return rows
 
 
@@ -641,7 +643,7 @@ def main(argv: list[str] | None = None) -> list[dict[str, Any]]:
         rows += placement_part(
             [int(v) for v in _option(argv, "placement-resolutions",
                                      "8" if quick else "10,20").split(",")],
-            duration)
+            duration, quick)
     if "speed" in parts:
         rows += speed_part(20 if quick else 100, quick)
     write_results(_option(argv, "name", "unsteady"), rows)
