@@ -1,7 +1,7 @@
 """Unsteady accuracy (issue 11): DFG 2D-2, the advection schemes' order, the drag's
 convergence, and what each advection scheme costs on the paper's scenes.
 
-``python -m benchmarks unsteady [--parts=order,dfg,drag,pieces,speed,time,placement,couette]
+``python -m benchmarks unsteady [--parts=order,dfg,drag,pieces,speed,time,placement,couette,steady]
 [--resolutions=10,20,30] [--advection=maccormack,semi_lagrangian] [--duration=10] [--name=NAME]
 [--quick]``
 
@@ -39,6 +39,12 @@ Parts:
   extrapolated trace, the incremental pressure form and both; then 64² at CFL 0.25 and
   0.125: the errors of u_theta and of the pressure near the inner wall, and their orders.
   Not in the default parts.
+* ``steady``: DFG 2D-1 (steady, Re = 20; `elastoflow.validation.run_dfg_steady`) through the
+  same unsteady step, MacCormack, 5 s: the first-order step and BDF2 with the extrapolated
+  trace at CFL 0.5 at each resolution of ``--steady-resolutions`` (default 10, 20, 30, 40,
+  60), then both at CFL 0.25 and 0.125 at the second: c_D by the traction integral and by
+  the control-volume balance against the fine reference, the traction's pressure part, c_L
+  and Δp (what the time scheme does to a steady state). Not in the default parts.
 * ``speed``: the paper's scenes (``bar_in_jet``, ``windmill``) stepped with each advection
   scheme: ms per step and the advection phase.
 
@@ -500,6 +506,43 @@ def couette_part(sizes: list[int]) -> list[dict[str, Any]]:
     return rows
 
 
+STEADY_SCHEMES: tuple[tuple[str, dict[str, str]], ...] = (
+    ("first order", {}),
+    ("BDF2 + extrapolated", {"viscosity_scheme": "bdf2", "advecting_velocity": "extrapolated"}),
+)
+
+
+def steady_part(resolutions: list[int], duration: float) -> list[dict[str, Any]]:
+    """DFG 2D-1 with each time scheme: at CFL 0.5 over the resolutions, then at smaller
+    steps on the second resolution (whether the steady state depends on dt)."""
+    from elastoflow.validation import run_dfg_steady
+
+    runs = [(label, n, 0.5, options) for label, options in STEADY_SCHEMES for n in resolutions]
+    middle = resolutions[min(1, len(resolutions) - 1)]
+    runs += [(label, middle, cfl, options) for label, options in STEADY_SCHEMES
+             for cfl in (0.25, 0.125)]
+    rows: list[dict[str, Any]] = []
+    for label, resolution, cfl, options in runs:
+        result = run_dfg_steady(resolution, duration=duration, cfl=cfl, **options)
+        row: dict[str, Any] = {"part": "steady", "scheme": label, "N": resolution, "cfl": cfl,
+                               "wall [s]": round(result.seconds, 1)}
+        if result.failure is not None:
+            row["note"] = result.failure
+        else:
+            q = result.quantities
+            row.update({"c_D": q["drag"], "c_D err": result.error("drag"),
+                        "c_D cv": q["drag_cv"], "c_D cv err": result.error("drag_cv"),
+                        "c_D pressure": q["drag_pressure"], "c_L": q["lift"],
+                        "Δp": q["delta_p"], "Δp err": result.error("delta_p"),
+                        "drift": q["drift"], "c_L drift": q["lift_drift"]})
+        print(row, flush=True)
+        rows.append(row)
+    print(markdown_table(rows, ["scheme", "N", "cfl", "c_D", "c_D err", "c_D cv", "c_D cv err",
+                                "c_D pressure", "c_L", "Δp", "Δp err", "drift", "c_L drift",
+                                "wall [s]", "note"]), flush=True)
+    return rows
+
+
 def placement_part(resolutions: list[int], duration: float, quick: bool
                    ) -> list[dict[str, Any]]:
     """The same flow on four placements of the grid per resolution, and each quantity's
@@ -644,6 +687,11 @@ def main(argv: list[str] | None = None) -> list[dict[str, Any]]:
             [int(v) for v in _option(argv, "placement-resolutions",
                                      "8" if quick else "10,20").split(",")],
             duration, quick)
+    if "steady" in parts:
+        rows += steady_part([int(v) for v in _option(argv, "steady-resolutions",
+                                                     "8,12" if quick else "10,20,30,40,60"
+                                                     ).split(",")],
+                            float(_option(argv, "steady-duration", "2" if quick else "5")))
     if "speed" in parts:
         rows += speed_part(20 if quick else 100, quick)
     write_results(_option(argv, "name", "unsteady"), rows)

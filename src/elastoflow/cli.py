@@ -34,6 +34,7 @@ app = typer.Typer(
         "  elastoflow validate windmill.toml                # check a scene file\n\n"
         "  elastoflow validate turek-hron FSI3              # a published benchmark\n\n"
         "  elastoflow validate dfg-2d-2 --resolution 20     # vortex shedding at Re 100\n\n"
+        "  elastoflow validate dfg-2d-1 --viscosity-scheme bdf2  # steady flow at Re 20\n\n"
         "  elastoflow validate boundary-study --out docs/validation  # map vs staircase\n\n"
         "  elastoflow view jet_in_box                       # interactive window\n\n"
         "  elastoflow render out/bar_in_jet --view vorticity  # new video from saved fields\n\n"
@@ -503,7 +504,8 @@ def list_command() -> None:
 def validate(
     scene: Annotated[str, typer.Argument(help="Scene TOML file (or built-in name), or a "
                                          "benchmark: turek-hron, perpendicular-flap, "
-                                         "dfg-2d-2, boundary-study, force-smoothness.")],
+                                         "dfg-2d-2, dfg-2d-1, boundary-study, "
+                                         "force-smoothness.")],
     case: Annotated[str | None, typer.Argument(help="The benchmark's case: CFD1-3, CSM1-3, "
                                                "FSI1-3 (turek-hron); the study's part, "
                                                "default all (boundary-study: poisson, "
@@ -514,7 +516,7 @@ def validate(
     resolution: Annotated[int, typer.Option(help="Benchmark: about this many cells per "
                                             "cylinder diameter (turek-hron) or metre "
                                             "(perpendicular-flap), 5-200; cells per diameter, "
-                                            "4-160 (dfg-2d-2).")] = 20,
+                                            "4-160 (dfg-2d-2, dfg-2d-1).")] = 20,
     duration: Annotated[float | None, typer.Option(help="Benchmark: simulated time [s] "
                                                    "(default: the case's).")] = None,
     dt: Annotated[float | None, typer.Option(help="Benchmark: time step [s] (default: CFL "
@@ -559,6 +561,10 @@ def validate(
     if scene == "dfg-2d-2":
         _dfg_benchmark(case, resolution, duration, dt, advection, out, json_file,
                        advecting_velocity, viscosity_scheme, incremental_pressure)
+        return
+    if scene == "dfg-2d-1":
+        _dfg_steady_benchmark(case, resolution, duration, dt, advection, out, json_file,
+                              advecting_velocity, viscosity_scheme, incremental_pressure)
         return
     if scene == "boundary-study":
         _boundary_study(case, out)
@@ -685,6 +691,52 @@ def _dfg_benchmark(case: str | None, resolution: int, duration: float | None,
                          progress=lambda done, total: progress.update(task, completed=done))
     _report_benchmark(describe(result), format_quantities(result),
                       lambda: write_dfg_report(result, out, json_file=json_file), out,
+                      result.failure is not None)
+
+
+def _dfg_steady_benchmark(case: str | None, resolution: int, duration: float | None,
+                          dt: float | None, advection: str, out: Path, json_file: bool,
+                          advecting_velocity: str, viscosity_scheme: str,
+                          incremental_pressure: bool) -> None:
+    """DFG 2D-1 through the unsteady step: run it, print its steady quantities against the
+    reference and the bounds, write the report. Exit 1 when the run blew up."""
+    from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
+
+    from elastoflow.validation import run_dfg_steady
+    from elastoflow.validation._dfg import STEADY_PEAK_SPEED, dfg_setup
+    from elastoflow.validation._dfg_steady import (
+        STEADY_WINDOW,
+        describe_steady,
+        format_steady,
+        write_dfg_steady_report,
+    )
+
+    if case is not None:
+        _fail(f"{case!r}: DFG 2D-1 has one case (leave it out)")
+    duration = 5.0 if duration is None else duration
+    if not duration >= 2.0 * STEADY_WINDOW:
+        _fail(f"--duration = {duration!r}: must be >= {2.0 * STEADY_WINDOW:g} s for DFG 2D-1 "
+              f"(its quantities are the means over the last {STEADY_WINDOW:g} s)")
+    try:
+        setup = dfg_setup(resolution, duration=duration, dt=dt, advection=advection,
+                          incremental_pressure=incremental_pressure,
+                          advecting_velocity=advecting_velocity,
+                          viscosity_scheme=viscosity_scheme, kick=0.0,
+                          peak_speed=STEADY_PEAK_SPEED)
+    except ValueError as error:
+        _fail(str(error))
+    _output_folder(out, "--out")
+    columns = (TextColumn(f"DFG 2D-1 N={resolution}"), BarColumn(),
+               TextColumn("{task.completed}/{task.total}"), TimeRemainingColumn())
+    with Progress(*columns, transient=True, disable=not sys.stderr.isatty()) as progress:
+        task = progress.add_task("run", total=setup.steps)
+        result = run_dfg_steady(
+            resolution, duration=setup.duration, dt=setup.dt, advection=advection,
+            incremental_pressure=incremental_pressure, advecting_velocity=advecting_velocity,
+            viscosity_scheme=viscosity_scheme,
+            progress=lambda done, total: progress.update(task, completed=done))
+    _report_benchmark(describe_steady(result), format_steady(result),
+                      lambda: write_dfg_steady_report(result, out, json_file=json_file), out,
                       result.failure is not None)
 
 

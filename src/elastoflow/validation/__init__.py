@@ -5,7 +5,9 @@ the benchmark defines them.
 ``run_case("FSI3", resolution=20)`` runs Turek & Hron's FSI3; `write_report` writes its time
 series (CSV), plots (PNG) and quantities (JSON); ``elastoflow validate turek-hron FSI3`` does
 both. ``run_dfg(20)`` runs DFG 2D-2 (vortex shedding at Re = 100) and `write_dfg_report`
-writes its report; ``elastoflow validate dfg-2d-2`` does both. ``run_couette(CouetteSetup(64))``
+writes its report; ``elastoflow validate dfg-2d-2`` does both. ``run_dfg_steady(20)`` runs
+DFG 2D-1 (steady, Re = 20) through the same unsteady step, to show what the time scheme does
+to a steady state; ``elastoflow validate dfg-2d-1`` prints it. ``run_couette(CouetteSetup(64))``
 steps circular Couette flow between two cut-cell cylinders from its exact solution and
 measures how far the scheme's steady state lies from it.
 
@@ -65,6 +67,7 @@ from elastoflow.validation._dfg import (
     run_dfg,
     write_dfg_report,
 )
+from elastoflow.validation._dfg_steady import DfgSteadyResult, run_dfg_steady
 from elastoflow.validation._perpendicular_flap import FLAP_CASE, cells_high, flap_setup, run_flap
 from elastoflow.validation._report import (
     describe,
@@ -103,6 +106,7 @@ __all__ = [
     "CouetteSetup",
     "DfgResult",
     "DfgSetup",
+    "DfgSteadyResult",
     "DfgStudy",
     "ForceJumpStudy",
     "PoissonDisk",
@@ -131,6 +135,7 @@ __all__ = [
     "run_case",
     "run_couette",
     "run_dfg",
+    "run_dfg_steady",
     "run_dfg_study",
     "run_flap",
     "run_force_jump_study",

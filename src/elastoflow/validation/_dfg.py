@@ -45,6 +45,8 @@ RADIUS = 0.05
 DIAMETER = 2.0 * RADIUS
 PEAK_SPEED = 1.5
 MEAN_SPEED = 2.0 * PEAK_SPEED / 3.0
+# DFG 2D-1's inflow peak (Re = 20, steady; `elastoflow.validation._dfg_steady`).
+STEADY_PEAK_SPEED = 0.3
 DENSITY = 1.0
 VISCOSITY = 1e-3
 FRONT = (0.15, 0.2)
@@ -101,6 +103,8 @@ class DfgSetup:
         offset: The cylinder moved downstream by this fraction of a cell (0 <= offset < 1):
             the same flow on another placement of the grid (at 0 the centre lies on a grid
             node and the circle passes through nodes; docs/validation/unsteady.md).
+        peak_speed: The inflow's peak velocity [m/s]: 1.5 for 2D-2 (Re = 100), 0.3 for the
+            steady 2D-1 (Re = 20, `run_dfg_steady`).
     """
 
     resolution: int
@@ -114,6 +118,21 @@ class DfgSetup:
     advecting_velocity: str = "current"
     viscosity_scheme: str = "backward_euler"
     offset: float = 0.0
+    peak_speed: float = PEAK_SPEED
+
+    @property
+    def mean_speed(self) -> float:
+        """The inflow's mean velocity U [m/s], two thirds of its peak."""
+        return 2.0 * self.peak_speed / 3.0
+
+    @property
+    def name(self) -> str:
+        """"DFG 2D-2", "DFG 2D-1", or the geometry's name with the Reynolds number."""
+        if self.peak_speed == PEAK_SPEED:
+            return "DFG 2D-2"
+        if self.peak_speed == STEADY_PEAK_SPEED:
+            return "DFG 2D-1"
+        return f"DFG geometry at Re = {self.mean_speed * DIAMETER / VISCOSITY:.4g}"
 
     @property
     def center(self) -> tuple[float, float]:
@@ -139,10 +158,11 @@ def dfg_setup(resolution: int = 20, *, duration: float | None = None, dt: float 
               advection: str = "maccormack", cfl: float = 0.5,
               incremental_pressure: bool = False, kick: float = 0.3,
               limiter: bool = True, advecting_velocity: str = "current",
-              viscosity_scheme: str = "backward_euler", offset: float = 0.0) -> DfgSetup:
+              viscosity_scheme: str = "backward_euler", offset: float = 0.0,
+              peak_speed: float = PEAK_SPEED) -> DfgSetup:
     """Resolution N -> h = 0.41 / ceil(4.1 N); dt from ``cfl`` on the inflow peak (0.5:
-    dt = h / 3 s/m); 10 s of simulated time by default; the cylinder ``offset`` cells
-    downstream of its benchmark position (see `DfgSetup`).
+    dt = h / 3 s/m at 2D-2's peak); 10 s of simulated time by default; the cylinder
+    ``offset`` cells downstream of its benchmark position (see `DfgSetup`).
 
     Raises:
         ValueError: one line naming the bad argument.
@@ -166,13 +186,16 @@ def dfg_setup(resolution: int = 20, *, duration: float | None = None, dt: float 
         raise ValueError(f"cfl = {cfl!r}: must be a finite number > 0")
     if isinstance(offset, bool) or not (isinstance(offset, (int, float)) and 0.0 <= offset < 1.0):
         raise ValueError(f"offset = {offset!r}: must be a fraction of a cell in [0, 1)")
+    if isinstance(peak_speed, bool) or not (isinstance(peak_speed, (int, float))
+                                            and math.isfinite(peak_speed) and peak_speed > 0.0):
+        raise ValueError(f"peak_speed = {peak_speed!r}: must be a finite number > 0 [m/s]")
     if dt is None:
-        dt = cfl * h / PEAK_SPEED
+        dt = cfl * h / peak_speed
     if not (isinstance(dt, (int, float)) and math.isfinite(dt) and dt > 0.0):
         raise ValueError(f"dt = {dt!r}: must be a finite positive time step [s]")
     return DfgSetup(resolution, h, float(dt), float(duration), advection,
                     incremental_pressure, float(kick), limiter, advecting_velocity,
-                    viscosity_scheme, float(offset))
+                    viscosity_scheme, float(offset), float(peak_speed))
 
 
 @dataclass
@@ -217,7 +240,7 @@ def dfg_solver(setup: DfgSetup) -> tuple[Grid2D, FluidSolver, Any, InteriorBound
     nx, ny = setup.cells
     grid = Grid2D(nx=nx, ny=ny, h=setup.h)
     boundaries = fluid.DomainBoundaries(
-        left=fluid.Inflow(speed=PEAK_SPEED, profile="parabolic"), right=fluid.Outflow(),
+        left=fluid.Inflow(speed=setup.peak_speed, profile="parabolic"), right=fluid.Outflow(),
         bottom=fluid.WallNoSlip(), top=fluid.WallNoSlip(),
     )
     solver = fluid.FluidSolver(
@@ -236,15 +259,17 @@ def dfg_solver(setup: DfgSetup) -> tuple[Grid2D, FluidSolver, Any, InteriorBound
 
 
 def initial_state(grid: Grid2D, interior: InteriorBoundary, kick: float,
-                  center: tuple[float, float] = CENTER) -> FluidState:
-    """Poiseuille profile everywhere, zero inside the cylinder, plus a transverse Gaussian
-    kick of peak ``kick`` [m/s] one diameter behind the cylinder centred at ``center``."""
+                  center: tuple[float, float] = CENTER,
+                  peak_speed: float = PEAK_SPEED) -> FluidState:
+    """Poiseuille profile of peak ``peak_speed`` everywhere, zero inside the cylinder, plus a
+    transverse Gaussian kick of peak ``kick`` [m/s] one diameter behind the cylinder centred
+    at ``center``."""
     from elastoflow.fluid import FluidState
 
     state = FluidState.zeros(grid)
     _, y = grid.faces_x()
     height = CHANNEL[1]
-    state.velocity_x[...] = 4.0 * PEAK_SPEED * y * (height - y) / height**2
+    state.velocity_x[...] = 4.0 * peak_speed * y * (height - y) / height**2
     state.velocity_x[interior.solid_faces_x] = 0.0
     x, y = grid.faces_y()
     r2 = (x - center[0] - DIAMETER) ** 2 + (y - center[1]) ** 2
@@ -396,23 +421,41 @@ def run_dfg(resolution: int = 20, *, duration: float | None = None, dt: float | 
         offset: The cylinder moved downstream by this fraction of a cell (`DfgSetup`).
         progress: Called with (steps done, steps in all) as the run goes.
     """
-    from elastoflow.coupling import force_traction
-
     setup = dfg_setup(resolution, duration=duration, dt=dt, advection=advection, cfl=cfl,
                       incremental_pressure=incremental_pressure, kick=kick, limiter=limiter,
                       advecting_velocity=advecting_velocity, viscosity_scheme=viscosity_scheme,
                       offset=offset)
+    times, columns, seconds = step_series(setup, progress)
+    if not all(np.isfinite(values[1:]).all() for values in columns.values()):
+        result = DfgResult(setup, times, columns, seconds=seconds)
+        result.failure = "non-finite forces: the run blew up"
+        return result
+    return evaluate(setup, times, columns, seconds)
+
+
+SERIES_NAMES = ("drag", "lift", "drag_pressure", "drag_pressure_constant",
+                "drag_pressure_linear", "drag_cv", "lift_cv", "delta_p")
+
+
+def step_series(setup: DfgSetup, progress: Progress | None = None
+                ) -> tuple[np.ndarray, dict[str, np.ndarray], float]:
+    """Step the channel flow of ``setup`` from its initial state and record, after every
+    step, the series `DfgResult` describes (coefficients on the setup's own mean speed).
+
+    Returns:
+        Sample times [s], the series by name, and the stepping's wall time [s].
+    """
+    from elastoflow.coupling import force_traction
+
     grid, solver, bmap, interior = dfg_solver(setup)
-    state = initial_state(grid, interior, setup.kick, setup.center)
+    state = initial_state(grid, interior, setup.kick, setup.center, setup.peak_speed)
     balance = ControlVolumeDrag(grid, setup.center)
     surface = SurfacePressureDrag(grid, center=setup.center)
     front, back = setup.front_and_back
     steps = setup.steps
-    names = ("drag", "lift", "drag_pressure", "drag_pressure_constant", "drag_pressure_linear",
-             "drag_cv", "lift_cv", "delta_p")
-    columns = {name: np.zeros(steps) for name in names}
+    columns = {name: np.zeros(steps) for name in SERIES_NAMES}
     times = np.zeros(steps)
-    scale = 2.0 / (DENSITY * MEAN_SPEED**2 * DIAMETER)
+    scale = 2.0 / (DENSITY * setup.mean_speed**2 * DIAMETER)
     balance.force(state.velocity_x, state.velocity_y, state.pressure, setup.dt)
     began = _time.perf_counter()
     now = 0.0
@@ -437,12 +480,7 @@ def run_dfg(resolution: int = 20, *, duration: float | None = None, dt: float | 
             - surface_pressure(grid, p, interior.solid_cells, back, setup.center))
         if progress is not None:
             progress(k + 1, steps)
-    seconds = _time.perf_counter() - began
-    if not all(np.isfinite(columns[name][1:]).all() for name in names):
-        result = DfgResult(setup, times, columns, seconds=seconds)
-        result.failure = "non-finite forces: the run blew up"
-        return result
-    return evaluate(setup, times, columns, seconds)
+    return times, columns, _time.perf_counter() - began
 
 
 def evaluate(setup: DfgSetup, time: np.ndarray, series: dict[str, np.ndarray],
@@ -462,7 +500,7 @@ def evaluate(setup: DfgSetup, time: np.ndarray, series: dict[str, np.ndarray],
         return result
     lift = result.statistics["lift"]
     frequency = lift.frequency
-    result.quantities["strouhal"] = DIAMETER * frequency / MEAN_SPEED
+    result.quantities["strouhal"] = DIAMETER * frequency / setup.mean_speed
     result.quantities["drag_max"] = result.statistics["drag"].maximum
     result.quantities["lift_max"] = lift.maximum
     # The last lift maximum with half a period after it inside the record: the maximum over
