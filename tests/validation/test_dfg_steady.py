@@ -1,7 +1,7 @@
 """DFG 2D-1 (Schäfer & Turek 1996, steady at Re = 20) through the unsteady step: the drag
 against the fine reference, and what the time scheme does to a steady state (the paper's
-step has a steady state that moves with dt at first order; BDF2's converges in dt at about
-second order). The study at five resolutions is docs/validation/unsteady.md, "DFG 2D-1
+step has a steady state that moves with dt by about as much at each halving; BDF2's
+converges in dt at about second order). The study at five resolutions is docs/validation/unsteady.md, "DFG 2D-1
 through the unsteady step", made by ``python -m benchmarks unsteady --parts=steady``.
 """
 

@@ -11,7 +11,7 @@ of ../shared/reference/dfg_cylinder.json and the published bounds.
 
 What it is for: a steady flow through the unsteady path shows what the time discretization
 does to a steady state. Backward Euler along trajectories (the paper's step) has a steady
-state that depends on dt at first order; the BDF2 step's does not at that order
+state that depends on dt; the BDF2 step's converges in dt at about second order
 (docs/validation/unsteady.md, "DFG 2D-1 through the unsteady step").
 """
 
