@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+import logging
 import math
 import os
 import time as _time
@@ -209,11 +210,16 @@ def open_client(scheduler: str | None = None, *, workers: int | None = None,
     try:
         with dask.config.set(_LOCAL_CLUSTER_CONFIG), _sigint_blocked():
             # Without the dashboard the scheduler's HTTP server (health, metrics) still runs:
-            # on any free port then, leaving 8787 to others.
+            # on any free port then, leaving 8787 to others. Only critical logs of the
+            # cluster's processes reach the terminal: the sweep reports each point's failure
+            # itself (a lost worker or connection included), and Dask's error logs carry
+            # tracebacks. One came after a Ctrl-C: a worker busy in a step when the cluster
+            # closed woke to a heartbeat to the scheduler that was gone, and printed one
+            # (CI, tests/examples/test_sweep.py).
             cluster = LocalCluster(n_workers=count, threads_per_worker=1, processes=True,
                                    dashboard_address=":8787" if dashboard else ":0",
                                    scheduler_kwargs={"dashboard": dashboard}, env=env,
-                                   silence_logs=40)
+                                   silence_logs=logging.CRITICAL)
         client = Client(cluster)
         try:
             yield client
