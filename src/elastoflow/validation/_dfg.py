@@ -549,23 +549,29 @@ def format_quantities(result: DfgResult) -> list[str]:
     return lines
 
 
+def setup_record(setup: DfgSetup) -> dict[str, Any]:
+    """What a run was set up with, as JSON-ready data (the head of every DFG report)."""
+    return {
+        "benchmark": setup.name,
+        "resolution": setup.resolution,
+        "h": setup.h,
+        "dt": setup.dt,
+        "cells": list(setup.cells),
+        "advection": setup.advection,
+        "incremental_pressure": setup.incremental_pressure,
+        "maccormack_limiter": setup.limiter,
+        "advecting_velocity": setup.advecting_velocity,
+        "viscosity_scheme": setup.viscosity_scheme,
+        "offset": setup.offset,
+    }
+
+
 def quantities_json(result: DfgResult) -> dict[str, Any]:
     """The run and its quantities as JSON-ready data."""
-    s = result.setup
     return {
-        "benchmark": "DFG 2D-2",
-        "resolution": s.resolution,
-        "h": s.h,
-        "dt": s.dt,
-        "cells": list(s.cells),
-        "advection": s.advection,
-        "incremental_pressure": s.incremental_pressure,
-        "maccormack_limiter": s.limiter,
-        "advecting_velocity": s.advecting_velocity,
-        "viscosity_scheme": s.viscosity_scheme,
-        "offset": s.offset,
+        **setup_record(result.setup),
         "duration": float(result.time[-1]) if len(result.time) else 0.0,
-        "steps": s.steps,
+        "steps": result.setup.steps,
         "wall_seconds": result.seconds,
         "quantities": {key: {"value": value, "bounds": list(BOUNDS[key]),
                              "inside": result.within_bounds(key)}

@@ -28,6 +28,7 @@ from elastoflow.validation._dfg import (
     DfgSetup,
     Progress,
     dfg_setup,
+    setup_record,
     step_series,
 )
 
@@ -161,20 +162,10 @@ def format_steady(result: DfgSteadyResult) -> list[str]:
 
 def steady_json(result: DfgSteadyResult) -> dict[str, Any]:
     """The run and its quantities as JSON-ready data."""
-    s = result.setup
     return {
-        "benchmark": s.name,
-        "resolution": s.resolution,
-        "h": s.h,
-        "dt": s.dt,
-        "cells": list(s.cells),
-        "advection": s.advection,
-        "incremental_pressure": s.incremental_pressure,
-        "advecting_velocity": s.advecting_velocity,
-        "viscosity_scheme": s.viscosity_scheme,
-        "offset": s.offset,
-        "duration": s.duration,
-        "steps": s.steps,
+        **setup_record(result.setup),
+        "duration": result.setup.duration,
+        "steps": result.setup.steps,
         "wall_seconds": result.seconds,
         "quantities": dict(result.quantities),
         "reference": STEADY_REFERENCE,
