@@ -485,6 +485,21 @@ class InterfaceFlux:
         """Body flux per unit length of each row's face [m/s] for nodal ``velocities`` (P, 2)."""
         return self.rows.times(velocities)
 
+    def pressure_forces(self, pressure: np.ndarray, open_x: np.ndarray,
+                        open_y: np.ndarray) -> np.ndarray:
+        """``h W^T D^T p``: the force [N/m] of the cell ``pressure`` [Pa] (nx, ny) on the
+        nodes, shape (P, 2), over the cells the pressure equation of these open fractions
+        has (an interior face open by ``OPEN_MIN``; the others' pressure counts as 0): what
+        `PressureCoupledBodies.respond` applies for a solved pressure."""
+        active = np.zeros(self.grid.shape_cells, dtype=np.bool_)
+        _active_cells(open_x, open_y, active)
+        cells, indptr, indices, data = _cell_rows(
+            self.rows.indptr, self.rows.indices, self.rows.data, self.low_cell,
+            self.high_cell, active.reshape(-1))
+        rows = SparseRows(indptr, indices, data, self.rows.columns)
+        flat = np.ascontiguousarray(pressure).reshape(-1)
+        return (self.grid.h * rows.transpose_times(flat[cells])).reshape(-1, 2)
+
 
 def interface_flux(grid: Grid2D, bmap: BoundaryMap, interior: InteriorBoundary,
                    triangles: np.ndarray | None = None,

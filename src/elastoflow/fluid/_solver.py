@@ -140,7 +140,10 @@ class FluidSolver:
             projection solves for the increment (pressure-correction form), which removes the
             O(dt) error of the plain splitting at viscous walls in steady flow. It also makes the
             pre-projection velocity already feel most of the pressure, so the paper's
-            momentum-exchange force (evaluated before the projection) becomes small.
+            momentum-exchange force (evaluated before the projection) becomes small. With
+            the strongly coupled projection the bodies' prediction must hold the previous
+            pressure's force (`elastoflow.simulation.MonolithicCoupling` does): the coupled
+            solve is for the increment and answers the bodies with its force.
         maccormack_limiter: True (default): MacCormack's corrected value is clamped to the
             range of the four samples around its departure point (no new extrema). False
             leaves it unclamped: for studies of what the limiter costs in accuracy (on DFG
@@ -649,16 +652,23 @@ class FluidSolver:
             raise ValueError(f"time step dt = {dt!r}: must be a finite number > 0")
         self._apply_forces(state, dt, time + dt)
 
-    def _apply_forces(self, state: FluidState, dt: float, side_time: float) -> None:
+    def _apply_forces(self, state: FluidState, dt: float, side_time: float,
+                      body_forces: bool = True) -> None:
         u, v = state.velocity_x, state.velocity_y
-        gx, gy = self.gravity
-        if gx != 0.0 or gy != 0.0 or self.buoyancy != 0.0:
-            kernels.add_body_forces(u, v, state.dye, dt, gx, gy, self.buoyancy)
+        if body_forces:
+            self._add_body_forces(state, dt)
         for jet, u_slice, v_slice, cell_slice in self._jet_slices:
             u[u_slice] = jet.velocity[0]
             v[v_slice] = jet.velocity[1]
             state.dye[cell_slice] = jet.dye
         self.apply_side_values(state, side_time)
+
+    def _add_body_forces(self, state: FluidState, dt: float) -> None:
+        """Gravity and dye buoyancy over ``dt``, in place."""
+        gx, gy = self.gravity
+        if gx != 0.0 or gy != 0.0 or self.buoyancy != 0.0:
+            kernels.add_body_forces(state.velocity_x, state.velocity_y, state.dye, dt, gx, gy,
+                                    self.buoyancy)
 
     def apply_side_values(self, state: FluidState, time: float) -> None:
         """Set the normal velocity on the four sides of the domain at ``time`` [s]."""
@@ -745,10 +755,6 @@ class FluidSolver:
     ) -> SolveReport:
         if interior is None:
             raise ValueError("a strongly coupled projection needs the bodies' InteriorBoundary")
-        if self.incremental_pressure:
-            raise ValueError(
-                "incremental_pressure = True: not available with the strongly coupled projection"
-            )
         solve_coupled = getattr(self.pressure_solver, "solve_coupled", None)
         if solve_coupled is None:
             raise ValueError(
@@ -771,6 +777,18 @@ class FluidSolver:
                              self._rhs_pressure)
         bodies.add_to_rhs(self._rhs_pressure, scale, active)
         term = bodies.coupling_term(active)
+        if self.incremental_pressure:
+            # The bodies' prediction holds the last pressure's force (the caller's part, as
+            # `diffuse` subtracted its gradient from the fluid's): the solve is for the
+            # increment, from 0.
+            increment, report = solve_coupled(operator, term, self._rhs_pressure)
+            bodies.respond(increment, active, self._solid_u, self._solid_v)
+            kernels.subtract_pressure_gradient(
+                u, v, increment, dt / (self.density * h), self._outflow, True, open_x,
+                open_y, self._solid_u, self._solid_v,
+            )
+            state.pressure += increment
+            return report
         self._start_pressure(state, dt)
         if self._pressure_out and _writable_into(state.pressure):
             _, report = solve_coupled(operator, term, self._rhs_pressure, x0=state.pressure,
@@ -847,12 +865,19 @@ class FluidSolver:
                 back *= 1.0 / 3.0
                 np.subtract(field, back, out=field)
         t1 = clock()
+        # The incremental form's viscosity step sees the last pressure gradient: it must see
+        # the body forces with it, or at a viscous wall the two no longer cancel where they
+        # balance (water at rest would start to flow along the walls). Without a pressure yet
+        # the step is the plain one, whose viscosity must not see them alone.
+        body_forces_first = self.incremental_pressure and bool(state.pressure.any())
+        if body_forces_first:
+            self._add_body_forces(state, effective)
         viscosity_iterations = self.diffuse(state, effective, interior)
         t2 = clock()
-        if effective == dt:
+        if effective == dt and not body_forces_first:
             self.apply_forces(state, dt, time)
         else:
-            self._apply_forces(state, effective, time + dt)
+            self._apply_forces(state, effective, time + dt, body_forces=not body_forces_first)
         t3 = clock()
         return FluidPrediction(
             projection_dt=effective, viscosity_iterations=viscosity_iterations,

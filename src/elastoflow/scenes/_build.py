@@ -579,12 +579,6 @@ def build_simulation(scene: Scene | Scene3D, *, steps: int | None = None,
 
         return build_simulation_3d(scene, steps=steps, warnings=warnings)
     problems = check_memory(scene)
-    if scene.fluid.incremental_pressure and scene.bodies and scene.coupling.scheme == "monolithic":
-        problems.append(
-            'fluid.incremental_pressure = true: not available with coupling.scheme = '
-            '"monolithic" (the coupled solve needs the whole pressure); set it false or use '
-            'coupling.scheme = "explicit"'
-        )
     if problems:
         raise SceneError(problems, scene.source)
     dt = time_step(scene)

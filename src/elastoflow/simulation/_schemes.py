@@ -307,12 +307,23 @@ class MonolithicCoupling:
         seconds["map"] = clock() - t0
 
         t0 = clock()
-        viscous = np.zeros_like(points)
+        triangles = np.concatenate([body.mesh.triangles + offsets[index]
+                                    for index, body in enumerate(model.bodies)])
+        triangle_offsets = np.cumsum([0] + [body.mesh.triangle_count for body in model.bodies])
+        flux = interface_flux(grid, bmap, interior, triangles, triangle_offsets)
+        # The fluid's force held over the step: its viscous traction from the current
+        # fields and, with ``incremental_pressure``, the last pressure's force through W (as
+        # the fluid's viscosity step subtracts the last pressure's gradient; the coupled
+        # solve then answers with the increment).
+        held = np.zeros_like(points)
         if fluid.viscosity > 0.0:
-            viscous = force_traction(
+            held = force_traction(
                 grid, bmap, out.velocity_x, out.velocity_y, np.zeros(grid.shape_cells),
                 fluid.density, fluid.viscosity, interior,
             )
+        if fluid.incremental_pressure:
+            held = held + flux.pressure_forces(out.pressure, interior.open_fraction_x,
+                                               interior.open_fraction_y)
         seconds["coupling_force"] = clock() - t0
 
         projection_dt = _intermediate_velocity(model, state_out, interior, dt, next_step,
@@ -324,7 +335,7 @@ class MonolithicCoupling:
         # held on the components resting on a wall.
         holds = wall_holds(model, state_in, dt)
         responses, substeps_taken = implicit_predictor(self.fem, model, state_in, state_out,
-                                                       dt, viscous, offsets, holds,
+                                                       dt, held, offsets, holds,
                                                        next_step, where)
         # The flux balance counts what the bodies sweep over the step, their mean velocity
         # (X* - X^n) / dt; the answer to the pressure is Newmark's: mean velocity
@@ -340,13 +351,9 @@ class MonolithicCoupling:
         seconds["solid"] = clock() - t0
 
         t0 = clock()
-        triangles = np.concatenate([body.mesh.triangles + offsets[index]
-                                    for index, body in enumerate(model.bodies)])
-        triangle_offsets = np.cumsum([0] + [body.mesh.triangle_count for body in model.bodies])
         coupled = PressureCoupledBodies(
-            interface_flux(grid, bmap, interior, triangles, triangle_offsets), predicted,
-            responses, offsets[:len(model.bodies) + 1].tolist(), fluid.density, projection_dt,
-            bmap=bmap, gravity=fluid.gravity,
+            flux, predicted, responses, offsets[:len(model.bodies) + 1].tolist(),
+            fluid.density, projection_dt, bmap=bmap, gravity=fluid.gravity,
         )
         try:
             solve = fluid.project(out, projection_dt, interior, bodies=coupled)
@@ -356,7 +363,7 @@ class MonolithicCoupling:
         seconds["pressure"] = clock() - t0
 
         t0 = clock()
-        take_pressure_answer(model.bodies, state_out, offsets, predicted, coupled, viscous, dt,
+        take_pressure_answer(model.bodies, state_out, offsets, predicted, coupled, held, dt,
                              where)
         project_onto_walls(model, state_out, holds)
         seconds["solid"] += clock() - t0

@@ -110,6 +110,33 @@ def _pressure_forces(obstacle, pressure_of, gravity=(0.0, 0.0), treatment="cut_c
 
 @treatments
 @pytest.mark.parametrize("index", [0, 1])
+def test_flux_pressure_forces_are_what_the_coupled_answer_applies(index: int,
+                                                                  treatment: str) -> None:
+    """``InterfaceFlux.pressure_forces`` (the last pressure's force the incremental form
+    holds on the bodies) is the force `PressureCoupledBodies.respond` applies for the same
+    pressure, on the same active cells; inactive cells' values do not count."""
+    obstacle = list(_outlines())[index]
+    x, y = GRID.cell_centers()
+    field = 1.0e3 * np.sin(3.0 * x + 1.0) * np.cos(2.0 * y) + 40.0 * x * y
+
+    points, expected = _pressure_forces(obstacle, lambda x, y: field, treatment=treatment)
+    mesh = mesh_from_polygon(obstacle.points_at(0.0), element_size=0.05)
+    bmap = build_boundary_map(GRID, points, np.zeros_like(points), mesh.boundary_edges)
+    interior = INTERIORS[treatment](GRID, bmap)
+    flux = interface_flux(GRID, bmap, interior, mesh.triangles,
+                          np.array([0, mesh.triangle_count]))
+    forces = flux.pressure_forces(field, interior.open_fraction_x, interior.open_fraction_y)
+    assert forces.shape == points.shape
+    assert np.abs(expected).max() > 1.0
+    assert np.allclose(forces, expected, rtol=1e-12, atol=1e-9 * np.abs(expected).max())
+    garbage = np.where(_active_cells(GRID, interior), field, 1.0e9)
+    assert np.array_equal(
+        flux.pressure_forces(garbage, interior.open_fraction_x, interior.open_fraction_y),
+        forces)
+
+
+@treatments
+@pytest.mark.parametrize("index", [0, 1])
 def test_uniform_pressure_exerts_no_net_force_or_torque(index: int, treatment: str) -> None:
     obstacle = list(_outlines())[index]
     points, forces = _pressure_forces(obstacle, lambda x, y: np.full(x.shape, 1.0e4),

@@ -72,17 +72,21 @@ def test_unknown_advection_is_refused() -> None:
         parse_scene({**_BASE, "fluid": {"advection": "weno"}})
 
 
-def test_incremental_pressure_with_a_coupled_body_is_refused_before_running() -> None:
+@pytest.mark.parametrize("scheme", ["monolithic", "explicit"])
+def test_incremental_pressure_runs_with_a_coupled_body(scheme: str) -> None:
     from elastoflow.scenes import build_simulation
 
     body = {"shape": {"type": "rectangle", "box": [0.4, 0.4, 0.6, 0.6], "divisions": [4, 4]},
-            "material": {"density": 1000.0, "young_modulus": 1e5, "poisson_ratio": 0.3}}
-    scene = parse_scene({**_BASE, "fluid": {"incremental_pressure": True}, "bodies": [body]})
-    with pytest.raises(SceneError, match="fluid.incremental_pressure"):
-        build_simulation(scene)
-    explicit = parse_scene({**_BASE, "fluid": {"incremental_pressure": True}, "bodies": [body],
-                            "coupling": {"scheme": "explicit"}})
-    build_simulation(explicit).step()
+            "material": {"density": 500.0, "young_modulus": 1e5, "poisson_ratio": 0.3}}
+    scene = parse_scene({**_BASE, "fluid": {"density": 1000.0, "viscosity": 1e-3,
+                                            "gravity": [0.0, -9.81],
+                                            "incremental_pressure": True},
+                         "bodies": [body], "coupling": {"scheme": scheme}})
+    simulation = build_simulation(scene)
+    assert simulation.fluid_solver.incremental_pressure is True
+    simulation.run(2)
+    # Lighter than the water: it starts to rise.
+    assert simulation.state.bodies[0].velocities[:, 1].mean() > 0.0
 
 
 def test_wall_contact_is_on_by_default_and_takes_its_friction() -> None:
