@@ -529,17 +529,19 @@ def validate(
     = Path("out/validation"),
     json_file: Annotated[bool, typer.Option("--json", help="Benchmark: also write the "
                                             "quantities as JSON.")] = False,
-    advection: Annotated[str, typer.Option(help="dfg-2d-2: the fluid's advection scheme, "
-                                           "maccormack or semi_lagrangian.")] = "maccormack",
+    advection: Annotated[str, typer.Option(
+        help="dfg-2d-1, dfg-2d-2: the fluid's advection scheme, maccormack or "
+             "semi_lagrangian.")] = "maccormack",
     advecting_velocity: Annotated[str, typer.Option(
-        help="dfg-2d-2: the back-trace's velocity, current or extrapolated (to mid-step, "
-             "second order in time).")] = "current",
+        help="dfg-2d-1, dfg-2d-2: the back-trace's velocity, current or extrapolated (to "
+             "mid-step, second order in time).")] = "current",
     viscosity_scheme: Annotated[str, typer.Option(
-        help="dfg-2d-2: the viscosity's time discretization, backward_euler, "
+        help="dfg-2d-1, dfg-2d-2: the viscosity's time discretization, backward_euler, "
              "crank_nicolson, or bdf2 (the whole step by BDF2 along trajectories).")
     ] = "backward_euler",
     incremental_pressure: Annotated[bool, typer.Option(
-        "--incremental-pressure", help="dfg-2d-2: solve for the pressure increment.")] = False,
+        "--incremental-pressure",
+        help="dfg-2d-1, dfg-2d-2: solve for the pressure increment.")] = False,
 ) -> None:
     """Check a scene, or run a published benchmark.
 

@@ -59,6 +59,21 @@ def test_the_drags_noise_falls_as_h_and_dt_are_refined_together() -> None:
         assert ratio >= 2.5, (boundary, ratio)
 
 
+@pytest.mark.slow
+def test_the_incremental_form_clears_cells_as_smoothly_as_the_plain_one() -> None:
+    """The incremental form starts each step from the last pressure: a cell the disc clears
+    must start from its neighbours' (the pressure extended into the body), not from a value
+    left from long ago. Measured (2026-12-06, cut cells, 96 cells, dt = 0.01 s): noise 0.106
+    N/m against the plain form's 0.096, mean drag -9.84 against -9.87 N/m; without the
+    extension 0.242 N/m and -9.69."""
+    from elastoflow.validation._force_smoothness import FIT_WINDOW, coasting_disc
+
+    plain = coasting_disc("cut_cell")
+    incremental = coasting_disc("cut_cell", incremental_pressure=True)
+    assert incremental.mean == pytest.approx(plain.mean, rel=0.01)
+    assert incremental.noise_over(FIT_WINDOW) <= 1.3 * plain.noise_over(FIT_WINDOW)
+
+
 def _run(boundary: str, noise: float) -> ForceRun:
     time = np.arange(1, 41) * 0.01
     force = -10.0 + time + noise * (-1.0) ** np.arange(40)

@@ -937,3 +937,52 @@ def any_nonzero(values):
         if flat[k] != 0.0:
             return True
     return False
+
+
+@njit(cache=True)
+def _in_pressure_equation(diagonal, weights_x, weights_y, i, j):
+    """Whether cell (i, j) is a row of the pressure operator (a diagonal term or a link)."""
+    nx, ny = diagonal.shape
+    return (diagonal[i, j] > 0.0 or (i > 0 and weights_x[i - 1, j] > 0.0)
+            or (i < nx - 1 and weights_x[i, j] > 0.0) or (j > 0 and weights_y[i, j - 1] > 0.0)
+            or (j < ny - 1 and weights_y[i, j] > 0.0))
+
+
+@njit(cache=True)
+def extend_into_inactive(values, diagonal, weights_x, weights_y, layers):
+    """Give the cells outside the pressure equation of this operator, up to ``layers`` cells
+    from it, the mean of their neighbours already known (layer by layer), in place: the
+    pressure a cell cleared by a moving body starts its first step from."""
+    nx, ny = values.shape
+    known = np.empty((nx, ny), np.bool_)
+    for i in range(nx):
+        for j in range(ny):
+            known[i, j] = _in_pressure_equation(diagonal, weights_x, weights_y, i, j)
+    fresh = np.zeros((nx, ny), np.bool_)
+    for _ in range(layers):
+        for i in range(nx):
+            for j in range(ny):
+                if known[i, j]:
+                    continue
+                total = 0.0
+                count = 0
+                if i > 0 and known[i - 1, j]:
+                    total += values[i - 1, j]
+                    count += 1
+                if i < nx - 1 and known[i + 1, j]:
+                    total += values[i + 1, j]
+                    count += 1
+                if j > 0 and known[i, j - 1]:
+                    total += values[i, j - 1]
+                    count += 1
+                if j < ny - 1 and known[i, j + 1]:
+                    total += values[i, j + 1]
+                    count += 1
+                if count:
+                    values[i, j] = total / count
+                    fresh[i, j] = True
+        for i in range(nx):
+            for j in range(ny):
+                if fresh[i, j]:
+                    known[i, j] = True
+                    fresh[i, j] = False

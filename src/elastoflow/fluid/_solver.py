@@ -31,6 +31,8 @@ from elastoflow.linalg import (
 _ADVECTION_SCHEMES = ("semi_lagrangian", "maccormack")
 _ADVECTING_VELOCITIES = ("current", "extrapolated")
 _VISCOSITY_SCHEMES = ("backward_euler", "crank_nicolson", "bdf2")
+# Cells into the bodies that the incremental form's pressure is extended to after each step.
+_PRESSURE_EXTENSION_LAYERS = 2
 _PRESSURE_GUESSES = ("previous", "extrapolated")
 
 
@@ -735,6 +737,8 @@ class FluidSolver:
             increment, report = self.pressure_solver.solve(operator, self._rhs_pressure)
             self._subtract_gradient(state, increment, dt, interior, solid_known=True)
             state.pressure += increment
+            if interior is not None:
+                self._extend_pressure(state, operator)
             return report
         self._start_pressure(state, dt)
         if self._pressure_out and _writable_into(state.pressure):
@@ -788,6 +792,7 @@ class FluidSolver:
                 open_y, self._solid_u, self._solid_v,
             )
             state.pressure += increment
+            self._extend_pressure(state, operator)
             return report
         self._start_pressure(state, dt)
         if self._pressure_out and _writable_into(state.pressure):
@@ -803,6 +808,15 @@ class FluidSolver:
             self._solid_u, self._solid_v,
         )
         return report
+
+    def _extend_pressure(self, state: FluidState, operator: Operator5Point) -> None:
+        """The incremental form reads the last pressure where the next step's equation has
+        it: in a cell a moving body clears, a value left from long ago (or 0) gave the next
+        viscosity step and the bodies' held force a jump of the whole pressure across the
+        cell's faces. Extend the pressure two cells into the bodies (a body moves less than
+        a cell per step at the CFL numbers the scenes use)."""
+        kernels.extend_into_inactive(state.pressure, operator.diagonal, operator.weights_x,
+                                     operator.weights_y, _PRESSURE_EXTENSION_LAYERS)
 
     def _solid_face_velocities(
         self, interior: InteriorBoundary
@@ -869,7 +883,7 @@ class FluidSolver:
         # the body forces with it, or at a viscous wall the two no longer cancel where they
         # balance (water at rest would start to flow along the walls). Without a pressure yet
         # the step is the plain one, whose viscosity must not see them alone.
-        body_forces_first = self.incremental_pressure and bool(state.pressure.any())
+        body_forces_first = self.incremental_pressure and kernels.any_nonzero(state.pressure)
         if body_forces_first:
             self._add_body_forces(state, effective)
         viscosity_iterations = self.diffuse(state, effective, interior)

@@ -80,11 +80,11 @@ class ForceRun:
 
 
 def coasting_disc(boundary: str, steps: int = 150, warmup: int = 50, *, cells: int = 96,
-                  dt: float = 0.01) -> ForceRun:
+                  dt: float = 0.01, incremental_pressure: bool = False) -> ForceRun:
     """A disc (R = 0.1 m, 1000 times denser than the water) started at 0.2 m/s through water
     at rest (nu = 1e-3: Re 40) in a 2 m x 1 m box of 2 ``cells`` x ``cells`` (96: R = 9.6
     cells; dt = 0.01 s: it crosses 29 cells in 150 steps); the drag over the steps after
-    ``warmup``."""
+    ``warmup``; ``incremental_pressure``: the fluid's pressure-correction form."""
     from elastoflow import coupling, fluid, solid
     from elastoflow.grid import Grid2D
     from elastoflow.simulation import Simulation
@@ -94,7 +94,7 @@ def coasting_disc(boundary: str, steps: int = 150, warmup: int = 50, *, cells: i
     walls = fluid.DomainBoundaries(left=fluid.WallNoSlip(), right=fluid.WallNoSlip(),
                                    bottom=fluid.WallNoSlip(), top=fluid.WallNoSlip())
     solver = fluid.FluidSolver(grid, density=1000.0, viscosity=1e-3, boundaries=walls,
-                               advection="maccormack")
+                               advection="maccormack", incremental_pressure=incremental_pressure)
     outline = coupling.obstacle_circle((0.5, 0.5), 0.1, segments=48).polygon
     mesh = solid.mesh_from_polygon(outline, element_size=0.03)
     body = solid.ElasticBody(mesh, solid.MaterialStVK(1.0e6, 1.0e9, 0.3))

@@ -422,3 +422,26 @@ def test_extrapolated_pressure_guess_gives_the_same_flow_in_fewer_iterations():
     assert np.abs(extrapolated.velocity_x - previous.velocity_x).max() < 1e-6 * scale
     assert np.allclose(extrapolated.pressure, previous.pressure, rtol=0.0,
                        atol=1e-5 * np.abs(previous.pressure).max())
+
+
+def test_pressure_is_extended_two_cells_into_the_cells_the_equation_leaves_out():
+    """`extend_into_inactive`: each layer takes the mean of its known neighbours; the
+    equation's own cells and cells beyond the layers keep their values."""
+    from elastoflow.fluid import _kernels
+
+    grid = Grid2D(7, 5, 0.1)
+    open_x = np.ones(grid.shape_faces_x)
+    open_y = np.ones(grid.shape_faces_y)
+    # Columns 3.. are covered: faces at and right of x = 3 h closed, and their y faces.
+    open_x[3:, :] = 0.0
+    open_y[3:, :] = 0.0
+    solver = FluidSolver(grid, density=1.0, viscosity=0.0, boundaries=CLOSED)
+    operator = solver._assemble_pressure_operator(open_x, open_y)
+    values = np.full(grid.shape_cells, -7.0)
+    values[:3, :] = np.arange(15.0).reshape(3, 5)
+    _kernels.extend_into_inactive(values, operator.diagonal, operator.weights_x,
+                                  operator.weights_y, 2)
+    np.testing.assert_array_equal(values[:3, :], np.arange(15.0).reshape(3, 5))
+    np.testing.assert_array_equal(values[3, :], values[2, :])
+    np.testing.assert_array_equal(values[4, :], values[2, :])
+    np.testing.assert_array_equal(values[5:, :], -7.0)
