@@ -336,7 +336,7 @@ class MonolithicCoupling:
         holds = wall_holds(model, state_in, dt)
         responses, substeps_taken = implicit_predictor(self.fem, model, state_in, state_out,
                                                        dt, held, offsets, holds,
-                                                       next_step, where)
+                                                       next_step, where, damped=True)
         # The flux balance counts what the bodies sweep over the step, their mean velocity
         # (X* - X^n) / dt; the answer to the pressure is Newmark's: mean velocity
         # dt/2 A^-1 f, end velocity twice that.
@@ -404,17 +404,54 @@ def wall_holds(model: CoupledModel | CoupledModel3D, state_in: CoupledState, dt:
     return holds
 
 
+# The wall velocity's weight in the 2D traction's one-sided normal derivative, in 1 / h:
+# the quadratic through the wall value and the samples at d1 = 1.5 h and d2 = 2.5 h
+# (`coupling.force_traction`) has slope weight (d1 + d2) / (d1 d2) on the wall value.
+_WALL_WEIGHT = (1.5 + 2.5) / (1.5 * 2.5)
+
+
+def _viscous_damping(body: ElasticBody, positions: np.ndarray, dynamic_viscosity: float,
+                    h: float) -> np.ndarray:
+    """The viscous traction's dependence on a 2D body's own velocity, as nodal blocks (n, 2,
+    2): ``mu w / h`` (``w`` = `_WALL_WEIGHT`) times each boundary node's share of its edges
+    (half of each) times the edge's tangential projector ``t t^T`` (the normal part of the
+    traction's wall gradient is replaced by continuity in `force_traction`). Held over the
+    step the traction is explicit in the wall velocity: a nodal damping ``c dt / m`` of
+    about ``4 mu dt / (rho_s h^2)`` on a boundary node, above 2 (unstable) on the Turek-Hron
+    flag's corner at 40 cells per diameter (FSI1 inverted an element at t = 13 s); the
+    implicit rules take ``-C (v - v0)`` implicitly instead (docs/method_notes.md item 8)."""
+    edges = body.mesh.boundary_edges
+    a, b = edges[:, 0], edges[:, 1]
+    tangent = positions[b] - positions[a]
+    length = np.linalg.norm(tangent, axis=1)
+    unit = tangent / np.maximum(length, np.finfo(float).tiny)[:, None]
+    blocks = (0.5 * length)[:, None, None] * unit[:, :, None] * unit[:, None, :]
+    damping = np.zeros((positions.shape[0], 2, 2))
+    np.add.at(damping, a, blocks)
+    np.add.at(damping, b, blocks)
+    return np.asarray(dynamic_viscosity * _WALL_WEIGHT / h * damping)
+
+
 def implicit_predictor(fem: MidpointFem | NewmarkFem, model: CoupledModel,
                        state_in: CoupledState, state_out: CoupledState, dt: float,
                        held_forces: np.ndarray, offsets: np.ndarray,
-                       holds: Sequence[WallHold | None], step: int, where: str
-                       ) -> tuple[list, list[int]]:
+                       holds: Sequence[WallHold | None], step: int, where: str,
+                       damped: bool = False) -> tuple[list, list[int]]:
     """Each body's response (held on its wall contacts) and implicit step without the
     pressure under ``held_forces`` (P, 2) into ``state_out``; returns the responses and the
-    substep counts (1 each)."""
+    substep counts (1 each). ``damped``: the held forces hold the viscous traction on the
+    whole outline, and elastic bodies take its dependence on their own velocity implicitly
+    (`_viscous_damping`)."""
+    fluid = model.fluid
+    dampings = [_viscous_damping(body, body_state.positions,
+                                fluid.density * fluid.viscosity, model.grid.h)
+                if damped and fluid.viscosity > 0.0 and isinstance(body, ElasticBody)
+                else None
+                for body, body_state in zip(model.bodies, state_in.bodies, strict=True)]
     responses = []
-    for body, body_state, hold in zip(model.bodies, state_in.bodies, holds, strict=True):
-        response = fem.response(body, body_state, dt)
+    for body, body_state, hold, damping in zip(model.bodies, state_in.bodies, holds,
+                                               dampings, strict=True):
+        response = fem.response(body, body_state, dt, damping)
         responses.append(response if hold is None else hold_response(response, hold.held))
     for index, body in enumerate(model.bodies):
         hold = holds[index]
@@ -422,7 +459,8 @@ def implicit_predictor(fem: MidpointFem | NewmarkFem, model: CoupledModel,
             fem.advance(
                 body, state_in.bodies[index], state_out.bodies[index], dt,
                 held_forces[offsets[index]:offsets[index + 1]], responses[index],
-                step=step, hold=None if hold is None else hold.held,
+                step=step, nodal_damping=dampings[index],
+                hold=None if hold is None else hold.held,
             )
         except Exception as error:  # re-raised with where it happened
             raise SimulationBlowUp(f"{where}, body {index}: {error}") from error

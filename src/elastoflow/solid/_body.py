@@ -264,10 +264,12 @@ class ElasticBody:
 
     def response_at(self, positions: np.ndarray, dt: float,
                     stiffness_step: float | None = None,
-                    scale: float | None = None) -> StepResponse:
+                    scale: float | None = None,
+                    nodal_damping: np.ndarray | None = None) -> StepResponse:
         """The linearised answer ``(M + dt D + s^2 K + dt alpha M) dv = scale f`` at
         ``positions`` (``s = stiffness_step``, default ``dt``; ``scale`` default ``dt``;
-        held nodes get 0): `elastoflow.solid._response.step_response`."""
+        held nodes get 0), ``nodal_damping`` blocks (n, 2, 2) added to ``D`` when given:
+        `elastoflow.solid._response.step_response`."""
         m = self.material
         if not self._banded_layout_built:
             self._banded_layout = banded_layout(self.mesh.triangles, self.fixed_mask,
@@ -277,7 +279,7 @@ class ElasticBody:
             np.ascontiguousarray(positions), self.mesh.triangles, self.dm_inverse,
             self.rest_area, self.mass, self.fixed_mask, m.lame_lambda, m.lame_mu,
             m.damping_lambda, m.damping_mu, self.velocity_damping, float(dt),
-            stiffness_step, scale, self._banded_layout,
+            stiffness_step, scale, self._banded_layout, nodal_damping,
         )
 
     def step_response(self, state: BodyState, dt: float) -> StepResponse:

@@ -218,7 +218,7 @@ class NewmarkFem:
                  nodal_damping: np.ndarray | None = None) -> StepResponse:
         """The answer of `advance` to a force held over the step, at the state's positions:
         mean velocity ``dt/2 A^-1 f`` with ``A = M + gamma dt (D + C + alpha M) + beta dt^2 K``
-        (end velocity twice that; ``C`` the ``nodal_damping`` blocks, 3D bodies only)."""
+        (end velocity twice that; ``C`` the ``nodal_damping`` blocks; rods take none)."""
         gamma = self.gamma
         return self.factors.response(
             body, state, dt, lambda positions: body.response_at(
@@ -242,11 +242,11 @@ class NewmarkFem:
                 (n, 3)).
             response: ``response(body, state_in, dt)``.
             step: Outer step index, only used to name the step in errors.
-            nodal_damping: Nodal 3x3 blocks ``C`` (n, 3, 3), symmetric positive
-                semi-definite (3D bodies): the force ``-C (v - v0)`` taken implicitly, the
+            nodal_damping: Nodal blocks ``C`` (n, d, d), symmetric positive
+                semi-definite: the force ``-C (v - v0)`` taken implicitly, the
                 linearisation of a force held over the step in the body's velocity (the
-                fluid's viscous traction: `MonolithicCoupling3D`). It vanishes when the
-                velocity does not change.
+                fluid's viscous traction: `MonolithicCoupling`, `MonolithicCoupling3D`). It
+                vanishes when the velocity does not change.
             hold: (n, d) bool: node components held at their start position over the step
                 (a wall contact's hold, `elastoflow.solid.WallHold`); ``response`` must then
                 be the held one (`elastoflow.solid.hold_response`).
@@ -423,8 +423,8 @@ class EnergyMomentumFem(MidpointFem):
 
 
 def _damping_keyword(nodal_damping: np.ndarray | None) -> dict[str, np.ndarray]:
-    """``response_at``'s keyword for nodal damping blocks: none when there are none (2D
-    bodies and rods take none)."""
+    """``response_at``'s keyword for nodal damping blocks: none when there are none (rods
+    take none)."""
     return {} if nodal_damping is None else {"nodal_damping": nodal_damping}
 
 

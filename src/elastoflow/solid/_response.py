@@ -355,6 +355,9 @@ class BandedLayout:
         weight: Per triplet, 1 on the diagonal and 1/2 off it: each off-diagonal pair (r, c),
             (c, r) lands on one stored entry, which so holds the symmetric part.
         diagonal: Flat storage index of each local free index's diagonal, int64.
+        nodal: Per node, the flat storage indices of its 2x2 block's entries (x, x), (y, y)
+            and (x, y), -1 where a degree of freedom is held, int64, shape (n, 3): where
+            nodal damping blocks go.
     """
 
     free: np.ndarray
@@ -363,6 +366,7 @@ class BandedLayout:
     target: np.ndarray
     weight: np.ndarray
     diagonal: np.ndarray
+    nodal: np.ndarray
 
 
 def banded_layout(triangles: np.ndarray, fixed_mask: np.ndarray,
@@ -402,7 +406,17 @@ def banded_layout(triangles: np.ndarray, fixed_mask: np.ndarray,
     target[keep] = (band + low - high) * free.size + high
     weight = np.where(rows == cols, 1.0, 0.5)
     diagonal = band * free.size + where
-    return BandedLayout(free, order, band, target, weight, diagonal.astype(np.int64))
+    # A node's own block: its x-y entry is in every element matrix, so within the band.
+    position = np.full(2 * n, -1, np.int64)
+    position[free] = where
+    x, y = position[0::2], position[1::2]
+    nodal = np.full((n, 3), -1, np.int64)
+    nodal[:, 0] = np.where(x >= 0, band * free.size + x, -1)
+    nodal[:, 1] = np.where(y >= 0, band * free.size + y, -1)
+    both = (x >= 0) & (y >= 0)
+    high, low = np.maximum(x, y), np.minimum(x, y)
+    nodal[both, 2] = ((band + low - high) * free.size + high)[both]
+    return BandedLayout(free, order, band, target, weight, diagonal.astype(np.int64), nodal)
 
 
 @njit(cache=True)
@@ -423,12 +437,13 @@ def step_response(
     rest_area: np.ndarray, mass: np.ndarray, fixed_mask: np.ndarray, lame_lambda: float,
     lame_mu: float, damping_lambda: float, damping_mu: float, velocity_damping: float,
     dt: float, stiffness_step: float | None = None, scale: float | None = None,
-    layout: BandedLayout | None = None,
+    layout: BandedLayout | None = None, nodal_damping: np.ndarray | None = None,
 ) -> StepResponse:
     """Assemble and factor ``M + dt D + s^2 K + dt alpha M`` on the free degrees of freedom
-    (``s = stiffness_step``, default ``dt``); its answer is ``scale A^-1 f`` (default ``dt``).
-    With the body's ``layout`` (`banded_layout`) it assembles straight into the banded
-    Cholesky's storage."""
+    (``s = stiffness_step``, default ``dt``), plus ``dt`` times the symmetric positive
+    semi-definite ``nodal_damping`` blocks (n, 2, 2) when given; its answer is ``scale A^-1
+    f`` (default ``dt``). With the body's ``layout`` (`banded_layout`) it assembles straight
+    into the banded Cholesky's storage."""
     s = dt if stiffness_step is None else float(stiffness_step)
     n = positions.shape[0]
     m = triangles.shape[0]
@@ -445,6 +460,13 @@ def step_response(
         storage = np.empty((layout.band + 1, layout.free.size))
         _assemble_band(values, layout.target, layout.weight, layout.diagonal, lumped,
                        storage.reshape(-1))
+        if nodal_damping is not None:
+            flat = storage.reshape(-1)
+            blocks = dt * np.asarray(nodal_damping, dtype=np.float64).reshape(n, 4)
+            for column, entry in ((0, 0), (1, 3), (2, 1)):
+                held = layout.nodal[:, column] < 0
+                np.add.at(flat, np.where(held, 0, layout.nodal[:, column]),
+                          np.where(held, 0.0, blocks[:, entry]))
         try:
             with _BLAS.limit(limits=1, user_api="blas"):
                 factor = linalg.cholesky_banded(storage, lower=False, check_finite=False)
@@ -457,6 +479,9 @@ def step_response(
     matrix = 0.5 * (matrix + matrix.T)
     lumped = np.repeat(mass * (1.0 + dt * velocity_damping), 2)
     matrix = matrix + sparse.diags(lumped)
+    if nodal_damping is not None:
+        matrix = matrix + dt * sparse.block_diag(
+            list(np.asarray(nodal_damping, dtype=np.float64)), format="csr")
     free = np.flatnonzero(~np.repeat(fixed_mask, 2)).astype(np.int64)
     if free.size == 0:
         return StepResponse(free, answer, None)

@@ -184,6 +184,39 @@ def test_every_factorization_gives_the_same_answer(path: str,
         assert np.allclose(got, expected, rtol=1e-9, atol=1e-12 * np.abs(expected).max())
 
 
+@pytest.mark.parametrize("path", ["dense", "banded_layout", "banded", "sparse_lu"])
+def test_nodal_damping_blocks_enter_the_step_matrix_on_every_path(
+        path: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    """``response_at(..., nodal_damping=C)`` factors ``A + dt blockdiag(C)`` (the viscous
+    traction's dependence on the body's velocity, `simulation._schemes._viscous_damping`), held nodes
+    left out, on each factorization path: the difference of the two answers' inverses is
+    ``dt C`` on the free degrees of freedom."""
+    from elastoflow.solid import _response
+
+    mesh = mesh_rectangle(0.35, 0.02, counts=(35, 2), pattern="crossed")
+    fixed = nodes_in_box(mesh, (-1.0, -1.0, 1e-9, 1.0))
+    if path != "banded_layout":
+        monkeypatch.setattr(_response, "_DENSE_BELOW", 10**9)
+    if path in ("banded", "sparse_lu"):
+        monkeypatch.setattr(_response, "_DENSE_LIMIT", 0)
+    if path == "sparse_lu":
+        monkeypatch.setattr(_response, "_BANDED_WORK_LIMIT", 0.0)
+    rng = np.random.default_rng(5)
+    blocks = rng.standard_normal((mesh.point_count, 2, 2))
+    blocks = np.einsum("nab,ncb->nac", blocks, blocks)
+    dt = 0.005
+    body = ElasticBody(mesh, MATERIAL, fixed_nodes=fixed)
+    positions = mesh.points @ np.array([[1.01, 0.03], [0.0, 0.99]])
+    plain = body.response_at(positions, dt)
+    damped = body.response_at(positions, dt, nodal_damping=blocks)
+    assert (damped._banded is not None) == path.startswith("banded")
+    free = np.flatnonzero(~np.repeat(np.isin(np.arange(mesh.point_count), fixed), 2))
+    compliance = [response.compliance(free) / dt for response in (plain, damped)]
+    difference = np.linalg.inv(compliance[1]) - np.linalg.inv(compliance[0])
+    expected = dt * sparse.block_diag(list(blocks)).toarray()[np.ix_(free, free)]
+    assert np.abs(difference - expected).max() < 1e-7 * np.abs(expected).max()
+
+
 def _spinning_vibrating_disc(density: float) -> tuple[ElasticBody, BodyState]:
     from elastoflow.solid import mesh_from_polygon
 
