@@ -339,8 +339,8 @@ def test_disc_in_a_viscous_liquid_does_not_vibrate_itself_apart() -> None:
     damping ``c dt / m`` of about ``4 mu dt / (rho_s h^2)`` on a boundary node, 1.7 here
     (nu = 0.025 m^2/s, 64^2, an element a cell wide). Explicit, the boundary nodes' velocity
     spread grew tenfold every 60 steps and an element inverted at step 227; taken implicitly
-    (`simulation._schemes._viscous_damping`) the spread stays at 0.005-0.02 m/s while the disc settles
-    (measured 2026-12-06)."""
+    (`simulation._schemes._viscous_damping`) the spread stays at 0.005-0.02 m/s while the
+    disc settles (measured 2026-12-06)."""
     n = 64
     grid = Grid2D(nx=n, ny=n, h=1.0 / n)
     walls = fluid.DomainBoundaries(left=fluid.WallNoSlip(), right=fluid.WallNoSlip(),

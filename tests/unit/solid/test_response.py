@@ -125,6 +125,19 @@ def test_newmark_keeps_the_energy_of_a_free_vibration(dt: float) -> None:
     assert abs(body.total_energy(body_state) - energy) < 5e-3 * energy
 
 
+def _take_path(path: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Make the step response take one factorization: "dense", "banded_layout" (the
+    default), "banded" (the general path's banded Cholesky) or "sparse_lu"."""
+    from elastoflow.solid import _response
+
+    if path != "banded_layout":
+        monkeypatch.setattr(_response, "_DENSE_BELOW", 10**9)
+    if path in ("banded", "sparse_lu"):
+        monkeypatch.setattr(_response, "_DENSE_LIMIT", 0)
+    if path == "sparse_lu":
+        monkeypatch.setattr(_response, "_BANDED_WORK_LIMIT", 0.0)
+
+
 @pytest.mark.parametrize("path", ["dense", "banded_layout", "banded", "sparse_lu"])
 def test_every_factorization_gives_the_same_answer(path: str,
                                                    monkeypatch: pytest.MonkeyPatch) -> None:
@@ -147,12 +160,7 @@ def test_every_factorization_gives_the_same_answer(path: str,
         patch.setattr(_response, "_DENSE_BELOW", 10**9)
         reference = response_of(positions)
     assert reference._inverse is not None
-    if path != "banded_layout":
-        monkeypatch.setattr(_response, "_DENSE_BELOW", 10**9)
-    if path in ("banded", "sparse_lu"):
-        monkeypatch.setattr(_response, "_DENSE_LIMIT", 0)
-    if path == "sparse_lu":
-        monkeypatch.setattr(_response, "_BANDED_WORK_LIMIT", 0.0)
+    _take_path(path, monkeypatch)
     response = response_of(positions)
     assert (response._banded is not None) == path.startswith("banded")
     assert (response._factor is not None) == (path == "sparse_lu")
@@ -188,19 +196,12 @@ def test_every_factorization_gives_the_same_answer(path: str,
 def test_nodal_damping_blocks_enter_the_step_matrix_on_every_path(
         path: str, monkeypatch: pytest.MonkeyPatch) -> None:
     """``response_at(..., nodal_damping=C)`` factors ``A + dt blockdiag(C)`` (the viscous
-    traction's dependence on the body's velocity, `simulation._schemes._viscous_damping`), held nodes
-    left out, on each factorization path: the difference of the two answers' inverses is
-    ``dt C`` on the free degrees of freedom."""
-    from elastoflow.solid import _response
-
+    traction's dependence on the body's velocity, `simulation._schemes._viscous_damping`),
+    held nodes left out, on each factorization path: the difference of the two answers'
+    inverses is ``dt C`` on the free degrees of freedom."""
     mesh = mesh_rectangle(0.35, 0.02, counts=(35, 2), pattern="crossed")
     fixed = nodes_in_box(mesh, (-1.0, -1.0, 1e-9, 1.0))
-    if path != "banded_layout":
-        monkeypatch.setattr(_response, "_DENSE_BELOW", 10**9)
-    if path in ("banded", "sparse_lu"):
-        monkeypatch.setattr(_response, "_DENSE_LIMIT", 0)
-    if path == "sparse_lu":
-        monkeypatch.setattr(_response, "_BANDED_WORK_LIMIT", 0.0)
+    _take_path(path, monkeypatch)
     rng = np.random.default_rng(5)
     blocks = rng.standard_normal((mesh.point_count, 2, 2))
     blocks = np.einsum("nab,ncb->nac", blocks, blocks)
