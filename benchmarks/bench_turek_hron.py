@@ -49,7 +49,8 @@ def _reevaluate(name: str, resolution: int) -> Any:
     saved = json.loads(stem.with_suffix(".json").read_text())
     data = np.atleast_2d(np.loadtxt(stem.with_suffix(".csv"), delimiter=",", skiprows=1))
     case = get_case(name)
-    setup = default_setup(case, resolution, duration=saved["duration"], dt=saved["dt"])
+    setup = default_setup(case, resolution, duration=saved["duration"], dt=saved["dt"],
+                          incremental_pressure=saved.get("incremental_pressure", False))
     series = {key: data[:, k + 1] for k, key in enumerate(case.quantities)}
     cells = tuple(saved["cells"]) if saved["cells"] else None
     return evaluate(setup, data[:, 0], series, saved["wall_seconds"], cells,

@@ -541,7 +541,8 @@ def validate(
     ] = "backward_euler",
     incremental_pressure: Annotated[bool, typer.Option(
         "--incremental-pressure",
-        help="dfg-2d-1, dfg-2d-2: solve for the pressure increment.")] = False,
+        help="dfg-2d-1, dfg-2d-2, turek-hron (CFD and FSI cases), perpendicular-flap: "
+             "solve for the pressure increment.")] = False,
 ) -> None:
     """Check a scene, or run a published benchmark.
 
@@ -568,6 +569,10 @@ def validate(
         _dfg_steady_benchmark(case, resolution, duration, dt, advection, out, json_file,
                               advecting_velocity, viscosity_scheme, incremental_pressure)
         return
+    if incremental_pressure and scene not in ("dfg-2d-1", "dfg-2d-2", *BENCHMARKS):
+        _fail(f"--incremental-pressure: {scene} takes no such option (it is for the "
+              "benchmarks dfg-2d-1, dfg-2d-2, turek-hron and perpendicular-flap; a scene "
+              "file sets fluid.incremental_pressure)")
     if scene == "boundary-study":
         _boundary_study(case, out)
         return
@@ -575,7 +580,8 @@ def validate(
         _force_smoothness(case, out)
         return
     if scene in BENCHMARKS:
-        _benchmark(scene, case, resolution, duration, dt, scheme, out, json_file, boundary)
+        _benchmark(scene, case, resolution, duration, dt, scheme, out, json_file, boundary,
+                   incremental_pressure)
         return
     if case is not None:
         _fail(f"{case!r}: a scene takes no case (benchmarks: {', '.join(BENCHMARKS)})")
@@ -604,7 +610,7 @@ def validate(
 
 def _benchmark(name: str, case: str | None, resolution: int, duration: float | None,
                dt: float | None, scheme: str, out: Path, json_file: bool,
-               boundary: str = "cut_cell") -> None:
+               boundary: str = "cut_cell", incremental_pressure: bool = False) -> None:
     """Run one case of a published benchmark with a progress bar; print and write its results."""
     from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 
@@ -626,24 +632,26 @@ def _benchmark(name: str, case: str | None, resolution: int, duration: float | N
             if case is not None:
                 _fail(f"{case!r}: the perpendicular flap has one case (leave it out)")
             setup = flap_setup(resolution, duration=duration, dt=dt, scheme=scheme,
-                               boundary=boundary)
+                               boundary=boundary, incremental_pressure=incremental_pressure)
             title = "flap"
 
             def run(progress: Any) -> Any:
                 return run_flap(resolution, duration=setup.duration, dt=setup.dt,
-                                scheme=scheme, progress=progress, boundary=boundary)
+                                scheme=scheme, progress=progress, boundary=boundary,
+                                incremental_pressure=incremental_pressure)
         else:
             if case is None:
                 _fail(f"{name}: name the case ({', '.join(CASES)})")
             chosen = get_case(case)
             check_resolution(resolution)
             setup = default_setup(chosen, resolution, duration=duration, dt=dt, scheme=scheme,
-                                  boundary=boundary)
+                                  boundary=boundary, incremental_pressure=incremental_pressure)
             title = chosen.name
 
             def run(progress: Any) -> Any:
                 return run_case(chosen.name, resolution, duration=setup.duration, dt=setup.dt,
-                                scheme=scheme, progress=progress, boundary=boundary)
+                                scheme=scheme, progress=progress, boundary=boundary,
+                                incremental_pressure=incremental_pressure)
     except ValueError as error:
         _fail(str(error))
     _output_folder(out, "--out")

@@ -163,6 +163,9 @@ def test_cli_runs_a_case_and_writes_csv_png_json(tmp_path: Path) -> None:
         (["turek-hron", "FSI1", "--scheme", "magic"], "scheme"),
         (["perpendicular-flap", "--boundary", "voxel"], "boundary = 'voxel'"),
         (["flag", "FSI1"], "a scene takes no case"),
+        (["turek-hron", "CSM1", "--incremental-pressure"], "CSM1 has no fluid"),
+        (["flag", "--incremental-pressure"], "a scene file sets fluid.incremental_pressure"),
+        (["force-smoothness", "--incremental-pressure"], "takes no such option"),
     ],
 )
 def test_cli_bad_benchmark_input_is_one_line(arguments: list[str], message: str) -> None:
@@ -195,6 +198,28 @@ def test_benchmark_runs_with_the_dual_cell_treatment() -> None:
     simulation.step()
     result = run_flap(5, duration=0.02, boundary="dual_cell")
     assert np.isfinite(result.series["ux_tip"]).all()
+
+
+def test_incremental_pressure_reaches_the_benchmarks_fluid(tmp_path: Path) -> None:
+    """``--incremental-pressure`` reaches the fluid of a Turek-Hron case and of the flap, and
+    the report says so (before, the option was taken for the DFG cases only and the others
+    ran the plain form without a word)."""
+    from elastoflow.validation._perpendicular_flap import flap_simulation
+    from elastoflow.validation._turek_hron import case_simulation
+
+    setup = default_setup(get_case("FSI1"), 5, duration=0.05, incremental_pressure=True)
+    assert case_simulation(setup)[0].model.fluid.incremental_pressure
+    assert not case_simulation(default_setup(get_case("FSI1"), 5))[0].model.fluid \
+        .incremental_pressure
+    flap = flap_simulation(flap_setup(5, duration=0.01, incremental_pressure=True))[0]
+    assert flap.model.fluid.incremental_pressure
+    result = CliRunner().invoke(app, ["validate", "turek-hron", "FSI1", "--resolution", "5",
+                                      "--duration", "0.05", "--incremental-pressure",
+                                      "--out", str(tmp_path), "--json"])
+    assert result.exit_code == 0, result.output
+    assert "incremental pressure" in result.output
+    data = json.loads((tmp_path / "fsi1_n5.json").read_text())
+    assert data["incremental_pressure"] is True and data["steps"] >= 1
 
 
 def test_perpendicular_flap_grid_keeps_the_flap_sides_off_the_grid_lines() -> None:

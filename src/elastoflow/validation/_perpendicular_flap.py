@@ -61,7 +61,8 @@ def cells_high(resolution: int) -> int:
 
 
 def flap_setup(resolution: int, *, duration: float | None = None, dt: float | None = None,
-               scheme: str = "monolithic", boundary: str = "cut_cell") -> Setup:
+               scheme: str = "monolithic", boundary: str = "cut_cell",
+               incremental_pressure: bool = False) -> Setup:
     """h = 4 / `cells_high`, flap elements about as large as the cells (at least 2 across),
     dt from a CFL number of 0.5 on the inflow speed."""
     h = 4.0 / cells_high(resolution)
@@ -75,7 +76,8 @@ def flap_setup(resolution: int, *, duration: float | None = None, dt: float | No
         raise ValueError(f"scheme = {scheme!r}: must be 'monolithic' or 'explicit'")
     check_boundary(boundary)
     layers = max(2, round(0.1 / h))
-    return Setup(FLAP_CASE, resolution, h, float(dt), float(duration), scheme, layers, boundary)
+    return Setup(FLAP_CASE, resolution, h, float(dt), float(duration), scheme, layers, boundary,
+                 bool(incremental_pressure))
 
 
 def flap_simulation(setup: Setup) -> tuple[Simulation, int, np.ndarray]:
@@ -94,7 +96,8 @@ def flap_simulation(setup: Setup) -> tuple[Simulation, int, np.ndarray]:
     solver = fluid.FluidSolver(
         grid, density=FLAP_CASE.fluid_density, viscosity=FLAP_CASE.viscosity,
         boundaries=boundaries, pressure_solver=linalg.PoissonSolverMGPCG(),
-        advection="maccormack", pressure_guess="extrapolated")
+        advection="maccormack", pressure_guess="extrapolated",
+        incremental_pressure=setup.incremental_pressure)
     layers = setup.layers
     mesh = mesh_rectangle(0.1, 1.0, counts=(layers, 10 * layers), origin=(FLAP[0][0], 0.0),
                           pattern="crossed")
@@ -112,9 +115,10 @@ def flap_simulation(setup: Setup) -> tuple[Simulation, int, np.ndarray]:
 
 def run_flap(resolution: int = 20, *, duration: float | None = None, dt: float | None = None,
              scheme: str = "monolithic", progress: Progress | None = None,
-             boundary: str = "cut_cell") -> Result:
+             boundary: str = "cut_cell", incremental_pressure: bool = False) -> Result:
     """Run the perpendicular flap and evaluate the tip's oscillation."""
-    setup = flap_setup(resolution, duration=duration, dt=dt, scheme=scheme, boundary=boundary)
+    setup = flap_setup(resolution, duration=duration, dt=dt, scheme=scheme, boundary=boundary,
+                       incremental_pressure=incremental_pressure)
     simulation, tip, rest = flap_simulation(setup)
     grid = simulation.grid
     mesh_triangles = model_2d(simulation).bodies[0].mesh.triangle_count

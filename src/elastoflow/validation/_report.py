@@ -63,6 +63,8 @@ def describe(result: Result) -> str:
     where = (f"{result.cells[0]}x{result.cells[1]} cells (h = {s.h:g} m)"
              if result.cells is not None else f"solid only ({s.layers} element layers)")
     scheme = f", {s.scheme} coupling" if s.case.kind == "FSI" else ""
+    if s.incremental_pressure:
+        scheme += ", incremental pressure"
     end = float(result.time[-1]) if len(result.time) else 0.0
     if s.case.kind == "CSM" and not s.case.periodic:
         stepping = f"static equilibrium by Newton's method ({result.steps} iterations)"
@@ -116,6 +118,7 @@ def quantities_json(result: Result) -> dict[str, Any]:
         "duration": float(result.time[-1]) if len(result.time) else 0.0,
         "steps": result.steps,
         "scheme": s.scheme if s.case.kind == "FSI" else None,
+        "incremental_pressure": s.incremental_pressure,
         "cells": list(result.cells) if result.cells is not None else None,
         "flag_elements": result.elements,
         "wall_seconds": result.seconds,

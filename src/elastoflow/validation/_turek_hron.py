@@ -189,7 +189,8 @@ def rigid_flag_polygon(segments: int) -> np.ndarray:
 
 @dataclass
 class Setup:
-    """What a case is run with: resolution, time step, scheme, boundary treatment."""
+    """What a case is run with: resolution, time step, scheme, boundary treatment, and whether
+    the fluid solves for the pressure increment (`FluidSolver`'s ``incremental_pressure``)."""
 
     case: Case
     resolution: int
@@ -199,6 +200,7 @@ class Setup:
     scheme: str
     layers: int
     boundary: str = "cut_cell"
+    incremental_pressure: bool = False
 
     @property
     def steps(self) -> int:
@@ -207,10 +209,10 @@ class Setup:
 
 def default_setup(case: Case, resolution: int, *, duration: float | None = None,
                   dt: float | None = None, scheme: str = "monolithic",
-                  boundary: str = "cut_cell") -> Setup:
+                  boundary: str = "cut_cell", incremental_pressure: bool = False) -> Setup:
     """Resolution N -> h = 0.41 / `cells_across` (N), about N/5 flag layers; dt from a CFL
     number of 0.5 on the inflow peak (fluid cases), 0.005 s (CSM3, the benchmark's own
-    step)."""
+    step). ``incremental_pressure`` is refused for the CSM cases, which have no fluid."""
     check_resolution(resolution)
     h = CHANNEL[1] / cells_across(resolution)
     if duration is None:
@@ -224,8 +226,11 @@ def default_setup(case: Case, resolution: int, *, duration: float | None = None,
     if scheme not in ("monolithic", "explicit"):
         raise ValueError(f"scheme = {scheme!r}: must be 'monolithic' or 'explicit'")
     check_boundary(boundary)
+    if incremental_pressure and case.kind == "CSM":
+        raise ValueError(f"incremental_pressure = True: {case.name} has no fluid (CSM cases "
+                         "are the flag alone)")
     return Setup(case, resolution, h, float(dt), float(duration), scheme,
-                 max(2, round(resolution / 5)), boundary)
+                 max(2, round(resolution / 5)), boundary, bool(incremental_pressure))
 
 
 def check_boundary(boundary: str) -> None:
@@ -275,7 +280,8 @@ Progress = Callable[[int, int], None]
 
 def run_case(name: str, resolution: int = 20, *, duration: float | None = None,
              dt: float | None = None, scheme: str = "monolithic",
-             progress: Progress | None = None, boundary: str = "cut_cell") -> Result:
+             progress: Progress | None = None, boundary: str = "cut_cell",
+             incremental_pressure: bool = False) -> Result:
     """Run one Turek-Hron case and evaluate its quantities.
 
     Args:
@@ -286,10 +292,11 @@ def run_case(name: str, resolution: int = 20, *, duration: float | None = None,
         scheme: Coupling scheme of the FSI cases ("monolithic" or "explicit").
         progress: Called with (steps done, steps in all) as the run goes.
         boundary: How the fluid sees the bodies (`elastoflow.coupling.BOUNDARY_TREATMENTS`).
+        incremental_pressure: The fluid solves for the pressure increment (CFD and FSI cases).
     """
     case = get_case(name)
     setup = default_setup(case, resolution, duration=duration, dt=dt, scheme=scheme,
-                          boundary=boundary)
+                          boundary=boundary, incremental_pressure=incremental_pressure)
     began = _time.perf_counter()
     if case.kind == "CSM":
         time, series, elements, steps = _run_solid(setup, progress)
@@ -398,7 +405,7 @@ def case_simulation(setup: Setup) -> tuple[Simulation, int | None]:
     solver = fluid.FluidSolver(
         grid, density=case.fluid_density, viscosity=case.viscosity, boundaries=boundaries,
         pressure_solver=linalg.PoissonSolverMGPCG(), advection="maccormack",
-        pressure_guess="extrapolated",
+        pressure_guess="extrapolated", incremental_pressure=setup.incremental_pressure,
     )
     segments = _circle_segments(setup.h)
     bodies = []
