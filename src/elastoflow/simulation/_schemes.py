@@ -412,24 +412,37 @@ _WALL_WEIGHT = (1.5 + 2.5) / (1.5 * 2.5)
 
 def _viscous_damping(body: ElasticBody, positions: np.ndarray, dynamic_viscosity: float,
                     h: float) -> np.ndarray:
-    """The viscous traction's dependence on a 2D body's own velocity, as nodal blocks (n, 2,
-    2): ``mu w / h`` (``w`` = `_WALL_WEIGHT`) times each boundary node's share of its edges
-    (half of each) times the edge's tangential projector ``t t^T`` (the normal part of the
-    traction's wall gradient is replaced by continuity in `force_traction`). Held over the
-    step the traction is explicit in the wall velocity: a nodal damping ``c dt / m`` of
-    about ``4 mu dt / (rho_s h^2)`` on a boundary node, above 2 (unstable) on the Turek-Hron
-    flag's corner at 40 cells per diameter (FSI1 inverted an element at t = 13 s); the
-    implicit rules take ``-C (v - v0)`` implicitly instead (docs/method_notes.md item 8)."""
+    """What the implicit rules take of the viscous traction's dependence on a 2D body's own
+    velocity, as nodal blocks (n, 2, 2) ``C``: the body takes ``-C (v - v0)`` implicitly
+    beside the traction held at ``v0`` (docs/method_notes.md item 8). Per boundary edge
+    (length ``L``, unit tangent ``t``, normal ``n``) and each of its two nodes:
+
+    * ``mu w / h (L / 2) t t^T`` (``w`` = `_WALL_WEIGHT`): the wall value's weight in the
+      one-sided normal derivative (its normal part is replaced by continuity in
+      `force_traction`). Held explicitly this is a nodal damping ``c dt / m`` of about ``4 mu
+      dt / (rho_s h^2)`` on a boundary node, above 2 (unstable) on the Turek-Hron flag's
+      corner at 40 cells per diameter (FSI1 inverted an element at t = 13 s).
+    * ``mu / 2 (t t^T + 2 n n^T)``: a bound on the wall's own tangential derivative, which
+      enters the traction as ``mu [(dv.n) t - 2 (dv.t) n]`` per edge (``dv = v_b - v_a``, half
+      to each node). That term couples a node to its neighbours, so it stays explicit; held
+      alone over the step it pumped node-scale vibrations of a disc settling at nu = 0.035
+      m^2/s. The blocks are its Gershgorin bound on a straight wall (row sums of its
+      coefficients: ``mu`` along t, ``2 mu`` along n), so the explicit coupling is damped by
+      an implicit term at least as large; ``-S (v - v0)`` vanishes as the motion settles
+      (an O(dt) lag of transients, ``dt sum S`` against the body's mass)."""
     edges = body.mesh.boundary_edges
     a, b = edges[:, 0], edges[:, 1]
     tangent = positions[b] - positions[a]
     length = np.linalg.norm(tangent, axis=1)
     unit = tangent / np.maximum(length, np.finfo(float).tiny)[:, None]
-    blocks = (0.5 * length)[:, None, None] * unit[:, :, None] * unit[:, None, :]
+    normal = np.column_stack([unit[:, 1], -unit[:, 0]])
+    along = unit[:, :, None] * unit[:, None, :]
+    across = normal[:, :, None] * normal[:, None, :]
+    blocks = (_WALL_WEIGHT / h * 0.5 * length + 0.5)[:, None, None] * along + across
     damping = np.zeros((positions.shape[0], 2, 2))
     np.add.at(damping, a, blocks)
     np.add.at(damping, b, blocks)
-    return np.asarray(dynamic_viscosity * _WALL_WEIGHT / h * damping)
+    return np.asarray(dynamic_viscosity * damping)
 
 
 def implicit_predictor(fem: MidpointFem | NewmarkFem, model: CoupledModel,

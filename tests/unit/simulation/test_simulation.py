@@ -114,3 +114,24 @@ def test_solid_failure_raises_blow_up_naming_the_step_and_body() -> None:
     simulation = _scene(substeps=1)
     with pytest.raises(SimulationBlowUp, match=r"step \d+.*body 0"):
         simulation.run(50)
+
+
+def test_the_2d_viscous_damping_blocks_hold_the_wall_weight_and_bound_the_tangential_terms(
+) -> None:
+    """On a straight side, a node's block is ``mu [(w L / h + 1) t t^T + 2 n n^T]``: the
+    wall value's weight ``w / h`` in the traction's normal derivative over its share ``L`` of
+    the outline, and the Gershgorin bound (``mu`` along t, ``2 mu`` along n) of the wall's own
+    tangential derivative, which couples it to its neighbours."""
+    from elastoflow.simulation._schemes import _WALL_WEIGHT, _viscous_damping
+
+    mesh = solid.mesh_rectangle(1.0, 0.5, counts=(4, 2), origin=(0.0, 0.0))
+    body = solid.ElasticBody(mesh, solid.MaterialStVK(1000.0, 1e6, 0.3))
+    mu, h = 2.0, 0.1
+    blocks = _viscous_damping(body, mesh.points, mu, h)
+    bottom = int(np.flatnonzero(np.all(np.isclose(mesh.points, (0.5, 0.0)), axis=1))[0])
+    side = 0.25
+    np.testing.assert_allclose(blocks[bottom], mu * np.diag([_WALL_WEIGHT * side / h + 1.0, 2.0]))
+    np.testing.assert_array_equal(blocks, np.transpose(blocks, (0, 2, 1)))
+    assert np.linalg.eigvalsh(blocks).min() > -1e-12
+    inside = np.setdiff1d(np.arange(mesh.point_count), mesh.boundary_edges.ravel())
+    assert np.all(blocks[inside] == 0.0)
