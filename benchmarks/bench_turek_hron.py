@@ -13,7 +13,11 @@ split by phase, and the wall time that projects to t = 10 s (issue 12's headline
 ``benchmarks/results/turek_hron_speed.json``). The first steps after rest cost less than the
 developed oscillation (FSI3 at N = 20: 30.6 ms a step over steps 30-230, 47 ms on average
 over a whole run), so the projection is a lower bound; the whole run's wall time
-(``--cases=FSI3 --resolutions=20``) is the headline.
+(``--cases=FSI3 --resolutions=20``) is the headline. ``--deflection``: no FSI runs; CFD1 with
+its rigid flag bent into the cantilever's shape by ``--tips`` (mm at the trailing edge; per
+resolution ``--tips-N=...`` overrides) at ``--resolutions`` (default 10,20,40) over
+``--duration`` s (default 8): the lift on cylinder and flag and on the flag alone against the
+deflection, which FSI1's steady u_y(A) balances (``benchmarks/results/turek_hron_deflection.json``).
 """
 
 from __future__ import annotations
@@ -114,6 +118,57 @@ def speed(argv: list[str]) -> list[dict[str, Any]]:
     return rows
 
 
+DEFLECTION_TIPS = "0,0.25,0.5,1"
+DEFLECTION_TIPS_FINE = "0,0.125,0.25,0.3,0.34,0.355,0.365,0.375,0.5,0.75,1,1.5,2"
+
+
+def deflection(argv: list[str]) -> list[dict[str, Any]]:
+    """How the steady lift answers the flag's deflection: CFD1's flow past the rigid flag
+    bent by each tip deflection, the lift after ``--duration`` s (docs/method_notes.md item 9,
+    FSI1's u_y(A))."""
+    from elastoflow.validation import default_setup, get_case
+    from elastoflow.validation._turek_hron import FLAG_LEFT, case_simulation
+
+    resolutions = [int(v) for v in _option(argv, "resolutions", "10,20,40").split(",")]
+    duration = float(_option(argv, "duration", "8"))
+    rows: list[dict[str, Any]] = []
+    for resolution in resolutions:
+        default = DEFLECTION_TIPS_FINE if resolution == 10 else DEFLECTION_TIPS
+        tips = [float(v) for v in
+                _option(argv, f"tips-{resolution}", _option(argv, "tips", default)).split(",")]
+        previous: tuple[float, float] | None = None
+        for tip in tips:
+            setup = default_setup(get_case("CFD1"), resolution, duration=duration)
+            simulation, _ = case_simulation(setup, tip_deflection=tip * 1e-3)
+            began = time.perf_counter()
+            for _ in range(setup.steps):
+                simulation.step()
+            force = simulation.traction_forces()[0]
+            points = simulation.model.obstacles[0].points_at(simulation.time)
+            on_flag = points[:, 0] >= FLAG_LEFT - 1e-12
+            lift = float(force[:, 1].sum())
+            row: dict[str, Any] = {
+                "N": resolution, "h [m]": setup.h, "tip deflection [mm]": tip,
+                "tip deflection / h": tip * 1e-3 / setup.h, "t_end [s]": simulation.time,
+                "drag [N/m]": float(force[:, 0].sum()), "lift [N/m]": lift,
+                "flag lift [N/m]": float(force[on_flag, 1].sum()),
+                "wall [s]": round(time.perf_counter() - began, 1),
+            }
+            if previous is not None and tip != previous[0]:
+                row["dlift/dtip since the row before [N/m per mm]"] = (
+                    (lift - previous[1]) / (tip - previous[0]))
+            previous = (tip, lift)
+            rows.append(row)
+            print(f"N={resolution} tip {tip} mm: lift {lift:.4f} N/m "
+                  f"({row['wall [s]']} s)", flush=True)
+    columns = ["N", "tip deflection [mm]", "tip deflection / h", "drag [N/m]", "lift [N/m]",
+               "flag lift [N/m]", "dlift/dtip since the row before [N/m per mm]", "wall [s]"]
+    print(markdown_table(rows, columns))
+    write_results(_option(argv, "name", "turek_hron_deflection"), rows)
+    print(machine())
+    return rows
+
+
 def main(argv: list[str] | None = None) -> list[dict[str, Any]]:
     from elastoflow.analysis import PeriodicStatistics
     from elastoflow.simulation import SimulationBlowUp
@@ -123,6 +178,8 @@ def main(argv: list[str] | None = None) -> list[dict[str, Any]]:
     argv = list(argv or [])
     if "--speed" in argv:
         return speed(argv)
+    if "--deflection" in argv:
+        return deflection(argv)
     quick = "--quick" in argv
     cases = _option(argv, "cases", "CFD1,CSM1,FSI1" if quick else ",".join(CASES)).split(",")
     resolutions = [int(v) for v in _option(argv, "resolutions", "10").split(",")]

@@ -99,3 +99,14 @@ def test_three_d_scenes_benchmark_runs(results: Path) -> None:
     assert all(row["ms_per_step"] > 0.0 and row["pressure_iterations"] > 0 for row in rows)
     assert rows[0]["tetrahedra"] > 0 and rows[1]["obstacles"] == 1
     assert _written(results, "three_d_scenes")
+
+
+def test_turek_hron_deflection_study_runs(results: Path) -> None:
+    from benchmarks import bench_turek_hron
+
+    rows = bench_turek_hron.main(["--deflection", "--resolutions=5", "--tips=0,1",
+                                  "--duration=0.2"])
+    assert [row["tip deflection [mm]"] for row in rows] == [0.0, 1.0]
+    assert all(row["drag [N/m]"] > 0.0 for row in rows)
+    assert "dlift/dtip since the row before [N/m per mm]" in rows[1]
+    assert _written(results, "turek_hron_deflection")

@@ -74,6 +74,33 @@ def test_geometry_flag_clamped_on_the_circle_and_rigid_outline() -> None:
     assert signed == pytest.approx(math.pi * RADIUS**2 + 0.02 * (0.6 - FLAG_LEFT), rel=2e-3)
 
 
+def test_bent_rigid_flag_is_a_shear_of_the_straight_one() -> None:
+    """The deflected rigid flag (how the force answers the FSI1 flag's deflection) moves each
+    point vertically by the cantilever's shape: the area is kept exactly, the root stays,
+    the trailing edge moves by the whole deflection; the FSI cases refuse it."""
+    from elastoflow.validation._turek_hron import cantilever_shape, case_simulation
+
+    def signed_area(polygon: np.ndarray) -> float:
+        x, y = polygon[:, 0], polygon[:, 1]
+        return float(0.5 * np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
+
+    straight = rigid_flag_polygon(64, 0.0, 0.01)
+    # The straight flag cut into the same pieces, for the area to compare with.
+    cut = rigid_flag_polygon(64, 1e-300, 0.01)
+    bent = rigid_flag_polygon(64, 0.004, 0.01)
+    assert cut.shape == bent.shape and len(bent) > len(straight)
+    assert signed_area(bent) == pytest.approx(signed_area(cut), rel=1e-13)
+    assert signed_area(cut) == pytest.approx(signed_area(straight), rel=1e-13)
+    tip = np.isclose(bent[:, 0], 0.6)
+    assert sorted(bent[tip, 1]) == pytest.approx([0.194, 0.214], abs=1e-15)
+    assert np.array_equal(bent[:64], straight[:64])  # the arc and the root
+    assert cantilever_shape(np.array([FLAG_LEFT, 0.6])) == pytest.approx([0.0, 1.0])
+    with pytest.raises(ValueError, match="tip_deflection"):
+        rigid_flag_polygon(64, 0.02)
+    with pytest.raises(ValueError, match="only a CFD case"):
+        case_simulation(default_setup(get_case("FSI1"), 5), tip_deflection=0.001)
+
+
 def test_grid_keeps_the_flag_faces_off_the_grid_lines() -> None:
     """The channel's height is whole cells, the flag's faces (y = 0.19, 0.21) lie about half a
     cell from the nearest grid line, the outflow at most one cell beyond 2.5 m."""

@@ -174,17 +174,44 @@ def _circle_segments(h: float) -> int:
     return max(64, math.ceil(2.0 * math.pi * RADIUS / (0.5 * h)))
 
 
-def rigid_flag_polygon(segments: int) -> np.ndarray:
+def cantilever_shape(x: np.ndarray) -> np.ndarray:
+    """The flag's deflection per unit tip deflection under a tip load (Euler-Bernoulli),
+    ``a^2 (3 L - a) / (2 L^3)`` with ``a`` the distance from the root: 0 and flat at the
+    root, 1 at the trailing edge."""
+    length = FLAG_RIGHT - FLAG_LEFT
+    a = np.clip(np.asarray(x, dtype=np.float64) - FLAG_LEFT, 0.0, length)
+    return np.asarray(a**2 * (3.0 * length - a) / (2.0 * length**3))
+
+
+def rigid_flag_polygon(segments: int, tip_deflection: float = 0.0,
+                       spacing: float = 0.0025) -> np.ndarray:
     """Cylinder and flag as one counter-clockwise polygon (the CFD cases' rigid body): the
-    circle from the flag's top corner round to its bottom corner, then the flag's outline."""
+    circle from the flag's top corner round to its bottom corner, then the flag's outline.
+
+    ``tip_deflection`` [m] bends the flag rigidly into `cantilever_shape` (each point moved
+    vertically, the trailing edge by the whole amount; a shear, so the area is kept), its long
+    sides cut into pieces of about ``spacing``: the geometry of a deflected FSI1 flag held
+    still, to measure how the fluid's force answers the flag's deflection."""
     top = math.atan2(FLAG_Y[1] - CENTER[1], FLAG_LEFT - CENTER[0])
     angles = np.linspace(top, 2.0 * math.pi - top, max(segments, 8))
     arc = np.stack([CENTER[0] + RADIUS * np.cos(angles), CENTER[1] + RADIUS * np.sin(angles)],
                    axis=1)
     arc[0] = (FLAG_LEFT, FLAG_Y[1])
     arc[-1] = (FLAG_LEFT, FLAG_Y[0])
-    outline = np.array([[FLAG_RIGHT, FLAG_Y[0]], [FLAG_RIGHT, FLAG_Y[1]]])
-    return np.concatenate([arc, outline])
+    if tip_deflection == 0.0:
+        outline = np.array([[FLAG_RIGHT, FLAG_Y[0]], [FLAG_RIGHT, FLAG_Y[1]]])
+        return np.concatenate([arc, outline])
+    if not math.isfinite(tip_deflection) or abs(tip_deflection) > 0.5 * (FLAG_Y[1] - FLAG_Y[0]):
+        raise ValueError(f"tip_deflection = {tip_deflection!r}: must be a finite length of at "
+                         f"most half the flag's thickness, {0.5 * (FLAG_Y[1] - FLAG_Y[0])} m")
+    if not (spacing > 0.0 and math.isfinite(spacing)):
+        raise ValueError(f"spacing = {spacing!r}: must be a finite positive length [m]")
+    pieces = max(1, math.ceil((FLAG_RIGHT - FLAG_LEFT) / spacing))
+    x = np.linspace(FLAG_LEFT, FLAG_RIGHT, pieces + 1)[1:]
+    lift = tip_deflection * cantilever_shape(x)
+    bottom = np.column_stack([x, FLAG_Y[0] + lift])
+    top_side = np.column_stack([x[::-1], FLAG_Y[1] + lift[::-1]])
+    return np.concatenate([arc, bottom, top_side])
 
 
 @dataclass
@@ -389,8 +416,11 @@ def _run_solid(setup: Setup, progress: Progress | None
     return np.array(times), series, body.mesh.triangle_count, steps
 
 
-def case_simulation(setup: Setup) -> tuple[Simulation, int | None]:
-    """The `Simulation` of a CFD or FSI case, and the flag's point-A node (None for CFD)."""
+def case_simulation(setup: Setup, *, tip_deflection: float = 0.0
+                    ) -> tuple[Simulation, int | None]:
+    """The `Simulation` of a CFD or FSI case, and the flag's point-A node (None for CFD).
+    ``tip_deflection`` [m]: a CFD case's rigid flag bent by that much (`rigid_flag_polygon`);
+    refused for the FSI cases, whose flag bends by itself."""
     from elastoflow import coupling, fluid, linalg
     from elastoflow.grid import Grid2D
     from elastoflow.simulation import MonolithicCoupling, Simulation
@@ -410,8 +440,11 @@ def case_simulation(setup: Setup) -> tuple[Simulation, int | None]:
     segments = _circle_segments(setup.h)
     bodies = []
     node_a = None
+    if tip_deflection != 0.0 and case.kind != "CFD":
+        raise ValueError(f"tip_deflection = {tip_deflection!r}: only a CFD case's rigid flag "
+                         f"is bent ({case.name} is {case.kind})")
     if case.kind == "CFD":
-        obstacles = [coupling.Obstacle(rigid_flag_polygon(segments))]
+        obstacles = [coupling.Obstacle(rigid_flag_polygon(segments, tip_deflection))]
     else:
         obstacles = [coupling.obstacle_circle(CENTER, RADIUS, segments=segments)]
         body, node_a = _flag_body(case, setup.layers)
