@@ -18,6 +18,12 @@ its rigid flag bent into the cantilever's shape by ``--tips`` (mm at the trailin
 resolution ``--tips-N=...`` overrides) at ``--resolutions`` (default 10,20,40) over
 ``--duration`` s (default 8): the lift on cylinder and flag and on the flag alone against the
 deflection, which FSI1's steady u_y(A) balances (``benchmarks/results/turek_hron_deflection.json``).
+``--placement``: ``--cases`` (default FSI1) at ``--resolutions`` (default 10,20), each on grids
+of about the same h that place the flag differently: ``--cells-N=k1,k2,...`` cells across the
+height (default: `cells_across` (N) - 3 to + 4, multiples of 41 left out), ``--duration``
+(default the case's), ``--layers`` (default the case's); the final quantities per grid and
+their mean, spread and standard deviation per resolution
+(``benchmarks/results/turek_hron_placement.json``).
 """
 
 from __future__ import annotations
@@ -169,6 +175,73 @@ def deflection(argv: list[str]) -> list[dict[str, Any]]:
     return rows
 
 
+def _placement_cells(resolution: int) -> list[int]:
+    from elastoflow.validation import cells_across
+
+    centre = cells_across(resolution)
+    return [k for k in range(centre - 3, centre + 5) if k % 41 != 0]
+
+
+def placement(argv: list[str]) -> list[dict[str, Any]]:
+    """A case's final quantities on grids that put the flag at different places relative to
+    the cells, at about the same h: how much of a resolution's answer is where the flag's
+    faces fall (docs/method_notes.md item 9, FSI1's u_y(A))."""
+    import dataclasses
+
+    from elastoflow.analysis import PeriodicStatistics
+    from elastoflow.validation import default_setup, get_case, run_setup
+    from elastoflow.validation._turek_hron import FLAG_Y
+
+    cases = _option(argv, "cases", "FSI1").split(",")
+    resolutions = [int(v) for v in _option(argv, "resolutions", "10,20").split(",")]
+    duration = _option(argv, "duration", "")
+    layers = _option(argv, "layers", "")
+    rows: list[dict[str, Any]] = []
+    summaries: list[dict[str, Any]] = []
+    for name in cases:
+        for resolution in resolutions:
+            given = _option(argv, f"cells-{resolution}", "")
+            grids = ([int(v) for v in given.split(",")] if given
+                     else _placement_cells(resolution))
+            values: dict[str, list[float]] = {}
+            for cells in grids:
+                setup = default_setup(get_case(name), resolution, cells=cells,
+                                      duration=float(duration) if duration else None)
+                if layers:
+                    setup = dataclasses.replace(setup, layers=int(layers))
+                result = run_setup(setup)
+                row: dict[str, Any] = {
+                    "case": name, "N": resolution, "cells across": cells, "h [m]": setup.h,
+                    "flag bottom in its cell": (FLAG_Y[0] / setup.h) % 1.0,
+                    "flag top in its cell": (FLAG_Y[1] / setup.h) % 1.0,
+                    "layers": setup.layers, "t_end [s]": float(result.time[-1]),
+                    "wall [s]": round(result.seconds, 1),
+                }
+                for key, value in result.quantities.items():
+                    number = value.mean if isinstance(value, PeriodicStatistics) else value
+                    row[key] = float(number)
+                    values.setdefault(key, []).append(float(number))
+                if result.failure:
+                    row["note"] = result.failure
+                rows.append(row)
+                print(f"{name} N={resolution} cells {cells}: "
+                      + ", ".join(f"{k} {row[k]:.5g}" for k in values), flush=True)
+            for key, series in values.items():
+                array = np.asarray(series)
+                summaries.append({"case": name, "N": resolution, "quantity": key,
+                                  "grids": len(array), "mean": float(array.mean()),
+                                  "min": float(array.min()), "max": float(array.max()),
+                                  "std": float(array.std(ddof=1)) if len(array) > 1 else 0.0})
+    columns = ["case", "N", "cells across", "flag bottom in its cell", "flag top in its cell",
+               "ux_A", "uy_A", "drag", "lift", "wall [s]"]
+    print(markdown_table(rows, columns))
+    print(markdown_table(summaries, ["case", "N", "quantity", "grids", "mean", "min", "max",
+                                     "std"]))
+    write_results(_option(argv, "name", "turek_hron_placement"), rows + summaries)
+    print(machine())
+    return rows + summaries
+
+
 def main(argv: list[str] | None = None) -> list[dict[str, Any]]:
     from elastoflow.analysis import PeriodicStatistics
     from elastoflow.simulation import SimulationBlowUp
@@ -180,6 +253,8 @@ def main(argv: list[str] | None = None) -> list[dict[str, Any]]:
         return speed(argv)
     if "--deflection" in argv:
         return deflection(argv)
+    if "--placement" in argv:
+        return placement(argv)
     quick = "--quick" in argv
     cases = _option(argv, "cases", "CFD1,CSM1,FSI1" if quick else ",".join(CASES)).split(",")
     resolutions = [int(v) for v in _option(argv, "resolutions", "10").split(",")]

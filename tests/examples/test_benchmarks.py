@@ -110,3 +110,17 @@ def test_turek_hron_deflection_study_runs(results: Path) -> None:
     assert all(row["drag [N/m]"] > 0.0 for row in rows)
     assert "dlift/dtip since the row before [N/m per mm]" in rows[1]
     assert _written(results, "turek_hron_deflection")
+
+
+def test_turek_hron_placement_study_runs(results: Path) -> None:
+    from benchmarks import bench_turek_hron
+
+    rows = bench_turek_hron.main(["--placement", "--resolutions=5", "--cells-5=20,22",
+                                  "--duration=0.1", "--layers=2"])
+    grids = [row for row in rows if "cells across" in row]
+    assert [row["cells across"] for row in grids] == [20, 22]
+    assert all(row["layers"] == 2 and 0.0 <= row["flag top in its cell"] < 1.0 for row in grids)
+    summary = [row for row in rows if row.get("quantity") == "uy_A"]
+    assert len(summary) == 1 and summary[0]["grids"] == 2
+    assert summary[0]["min"] <= summary[0]["mean"] <= summary[0]["max"]
+    assert _written(results, "turek_hron_placement")

@@ -101,6 +101,23 @@ def test_bent_rigid_flag_is_a_shear_of_the_straight_one() -> None:
         case_simulation(default_setup(get_case("FSI1"), 5), tip_deflection=0.001)
 
 
+def test_cells_place_the_flag_elsewhere_at_about_the_same_h() -> None:
+    """``cells`` replaces `cells_across` (the placement study); a multiple of 41, which puts
+    the flag's faces on grid lines, is refused, as are counts that are not whole numbers."""
+    from elastoflow.validation import cells_across, run_setup
+    from elastoflow.validation._turek_hron import case_simulation
+
+    setup = default_setup(get_case("FSI1"), 10, cells=45, duration=0.02)
+    assert setup.h == 0.41 / 45
+    assert case_simulation(setup)[0].grid.ny == 45
+    assert case_simulation(default_setup(get_case("FSI1"), 10))[0].grid.ny == cells_across(10)
+    result = run_setup(setup)
+    assert result.cells == (math.ceil(2.5 / setup.h - 1e-9), 45) and result.steps >= 1
+    for bad in (82, 7, 44.5):
+        with pytest.raises(ValueError, match="cells = "):
+            default_setup(get_case("FSI1"), 10, cells=bad)  # type: ignore[arg-type]
+
+
 def test_grid_keeps_the_flag_faces_off_the_grid_lines() -> None:
     """The channel's height is whole cells, the flag's faces (y = 0.19, 0.21) lie about half a
     cell from the nearest grid line, the outflow at most one cell beyond 2.5 m."""

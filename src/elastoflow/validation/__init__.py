@@ -89,6 +89,7 @@ from elastoflow.validation._turek_hron import (
     get_case,
     rigid_flag_polygon,
     run_case,
+    run_setup,
 )
 
 # Benchmarks that `elastoflow validate NAME [CASE]` runs.
@@ -133,6 +134,7 @@ __all__ = [
     "quantities_json",
     "rigid_flag_polygon",
     "run_case",
+    "run_setup",
     "run_couette",
     "run_dfg",
     "run_dfg_steady",

@@ -236,12 +236,22 @@ class Setup:
 
 def default_setup(case: Case, resolution: int, *, duration: float | None = None,
                   dt: float | None = None, scheme: str = "monolithic",
-                  boundary: str = "cut_cell", incremental_pressure: bool = False) -> Setup:
+                  boundary: str = "cut_cell", incremental_pressure: bool = False,
+                  cells: int | None = None) -> Setup:
     """Resolution N -> h = 0.41 / `cells_across` (N), about N/5 flag layers; dt from a CFL
     number of 0.5 on the inflow peak (fluid cases), 0.005 s (CSM3, the benchmark's own
-    step). ``incremental_pressure`` is refused for the CSM cases, which have no fluid."""
+    step). ``incremental_pressure`` is refused for the CSM cases, which have no fluid.
+    ``cells``: the cells across the channel's height instead of `cells_across` (N), to place
+    the flag elsewhere in the grid at about the same h; a multiple of 41 (the flag's faces on
+    grid lines) is refused."""
     check_resolution(resolution)
-    h = CHANNEL[1] / cells_across(resolution)
+    if cells is None:
+        cells = cells_across(resolution)
+    elif not (isinstance(cells, int) and cells >= 8 and cells % 41 != 0):
+        raise ValueError(f"cells = {cells!r}: must be a whole number of cells across the "
+                         "channel's height, at least 8 and not a multiple of 41 (which puts "
+                         "the flag's faces on grid lines)")
+    h = CHANNEL[1] / cells
     if duration is None:
         duration = case.duration
     if not (duration >= 0.0 and math.isfinite(duration)):
@@ -321,9 +331,15 @@ def run_case(name: str, resolution: int = 20, *, duration: float | None = None,
         boundary: How the fluid sees the bodies (`elastoflow.coupling.BOUNDARY_TREATMENTS`).
         incremental_pressure: The fluid solves for the pressure increment (CFD and FSI cases).
     """
-    case = get_case(name)
-    setup = default_setup(case, resolution, duration=duration, dt=dt, scheme=scheme,
+    setup = default_setup(get_case(name), resolution, duration=duration, dt=dt, scheme=scheme,
                           boundary=boundary, incremental_pressure=incremental_pressure)
+    return run_setup(setup, progress)
+
+
+def run_setup(setup: Setup, progress: Progress | None = None) -> Result:
+    """Run one case as ``setup`` says (`default_setup`, possibly changed) and evaluate its
+    quantities."""
+    case = setup.case
     began = _time.perf_counter()
     if case.kind == "CSM":
         time, series, elements, steps = _run_solid(setup, progress)
@@ -425,9 +441,9 @@ def case_simulation(setup: Setup, *, tip_deflection: float = 0.0
     from elastoflow.grid import Grid2D
     from elastoflow.simulation import MonolithicCoupling, Simulation
 
-    n = setup.resolution
     case = setup.case
-    grid = Grid2D(nx=math.ceil(CHANNEL[0] / setup.h - 1e-9), ny=cells_across(n), h=setup.h)
+    grid = Grid2D(nx=math.ceil(CHANNEL[0] / setup.h - 1e-9), ny=round(CHANNEL[1] / setup.h),
+                  h=setup.h)
     boundaries = fluid.DomainBoundaries(
         left=fluid.Inflow(speed=1.5 * case.mean_speed, profile="parabolic", ramp_time=RAMP_TIME),
         right=fluid.Outflow(), bottom=fluid.WallNoSlip(), top=fluid.WallNoSlip(),
