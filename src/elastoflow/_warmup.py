@@ -65,7 +65,8 @@ def warm_up(
         for name, warm in (("free surface", _free_surface), ("3D fluid", _fluid_3d),
                            ("3D bodies", _bodies_3d), ("3D obstacle", _obstacle_3d),
                            ("3D strong coupling", _monolithic_3d),
-                           ("dual-cell boundary", _dual_cell)):
+                           ("dual-cell boundary", _dual_cell),
+                           ("flux-form advection", _flux_advection)):
             began = time.perf_counter()
             warm()
             if report is not None:
@@ -203,6 +204,27 @@ def _dual_cell() -> None:
     points = disc.points_at(0.0)
     bmap = build_boundary_map(grid, points, np.full_like(points, 0.1), disc.edges)
     interface_flux(grid, bmap, interior_boundary_dual_cell(grid, bmap))
+
+
+def _flux_advection() -> None:
+    """The flux form's kernels (``advection="upwind3"``, no built-in scene uses it), serial
+    and threaded, without bodies and around an obstacle."""
+    import numpy as np
+
+    from elastoflow.coupling import build_boundary_map, interior_boundary_from_map, obstacle_circle
+    from elastoflow.fluid import DomainBoundaries, FluidSolver, FluidState
+    from elastoflow.grid import Grid2D
+
+    for cells in (32, 160):
+        grid = Grid2D(cells, cells // 2, 1.0 / cells)
+        solver = FluidSolver(grid, density=1.0, viscosity=1e-3,
+                             boundaries=DomainBoundaries.closed_box(), advection="upwind3")
+        state = FluidState.zeros(grid)
+        disc = obstacle_circle((0.5, 0.25), 0.1, segments=24)
+        points = disc.points_at(0.0)
+        bmap = build_boundary_map(grid, points, np.zeros_like(points), disc.edges)
+        for interior in (None, interior_boundary_from_map(grid, bmap)):
+            solver.advect(state, 0.5 / cells, interior)
 
 
 _KERNEL_MODULES = ("fluid", "linalg", "solid", "coupling", "render")

@@ -530,8 +530,8 @@ def validate(
     json_file: Annotated[bool, typer.Option("--json", help="Benchmark: also write the "
                                             "quantities as JSON.")] = False,
     advection: Annotated[str, typer.Option(
-        help="dfg-2d-1, dfg-2d-2: the fluid's advection scheme, maccormack or "
-             "semi_lagrangian.")] = "maccormack",
+        help="dfg-2d-1, dfg-2d-2: the fluid's advection scheme, maccormack, "
+             "semi_lagrangian or upwind3 (flux form).")] = "maccormack",
     advecting_velocity: Annotated[str, typer.Option(
         help="dfg-2d-1, dfg-2d-2: the back-trace's velocity, current or extrapolated (to "
              "mid-step, second order in time).")] = "current",

@@ -554,6 +554,10 @@ class FreeSurfaceSolver:
                     f"FreeSurfaceSolver: the fluid's {name} side is {side!r}; a free-surface "
                     "liquid needs walls on all four sides (open sides are not supported yet)"
                 )
+        if fluid.advection == "upwind3":
+            raise ValueError(
+                "FreeSurfaceSolver: the fluid's advection 'upwind3' is not available with a "
+                "free surface (no air-side treatment); use 'semi_lagrangian' or 'maccormack'")
         if fluid.incremental_pressure or fluid.viscosity_scheme == "bdf2":
             raise ValueError(
                 "FreeSurfaceSolver: the fluid's incremental_pressure and viscosity_scheme "

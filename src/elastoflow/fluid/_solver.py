@@ -8,6 +8,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from elastoflow.fluid import _flux_kernels as flux_kernels
 from elastoflow.fluid import _kernels as kernels
 from elastoflow.fluid._boundaries import (
     DomainBoundaries,
@@ -28,7 +29,7 @@ from elastoflow.linalg import (
     apply_operator,
 )
 
-_ADVECTION_SCHEMES = ("semi_lagrangian", "maccormack")
+_ADVECTION_SCHEMES = ("semi_lagrangian", "maccormack", "upwind3")
 _ADVECTING_VELOCITIES = ("current", "extrapolated")
 _VISCOSITY_SCHEMES = ("backward_euler", "crank_nicolson", "bdf2")
 # Cells into the bodies that the incremental form's pressure is extended to after each step.
@@ -134,9 +135,13 @@ class FluidSolver:
         buoyancy: Upward acceleration per unit dye [m/s^2] (None or 0: passive dye).
         pressure_solver: Solver of the pressure Poisson equation.
         viscosity_solver: Solver of the implicit viscosity equations.
-        advection: "semi_lagrangian" (first-order in time per step, diffusive) or
+        advection: "semi_lagrangian" (first-order in time per step, diffusive),
             "maccormack" (semi-Lagrangian forward and backward with Selle et al.'s clamped
-            correction, second order in smooth regions).
+            correction, second order in smooth regions) or "upwind3" (flux form: the
+            velocity's momentum fluxes by third-order upwind-biased interpolation, carried
+            by the frozen advecting velocity, three-stage SSP Runge-Kutta in time, sub-steps
+            above an advective CFL number of 1; `_flux_kernels`). With "upwind3" the dye
+            is still carried by the plain semi-Lagrangian step.
         incremental_pressure: False (the paper's scheme): the projection solves for the whole
             pressure. True: `diffuse` already subtracts the previous pressure gradient and the
             projection solves for the increment (pressure-correction form), which removes the
@@ -359,6 +364,9 @@ class FluidSolver:
             self._ranges = tuple(np.zeros(shape) for shape in (fx, fx, fy, fy, c, c))
         else:
             self._ranges = (np.zeros((1, 1)),) * 6
+        # The flux form's two intermediate Runge-Kutta stages per component.
+        if self.advection == "upwind3":
+            self._flux_buffers = tuple((np.zeros(shape), np.zeros(shape)) for shape in (fx, fy))
         # The extrapolated advecting velocity, and A u* of the explicit Crank-Nicolson half.
         if self.advecting_velocity == "extrapolated":
             self._advecting = (np.zeros(fx), np.zeros(fy))
@@ -456,7 +464,7 @@ class FluidSolver:
         outs: tuple[np.ndarray, np.ndarray, np.ndarray], dt: float,
         interior: InteriorBoundary | None, velocity: tuple[np.ndarray, np.ndarray],
         pass_kind: int = kernels.PASS_TRACE, forwards: tuple[np.ndarray, ...] | None = None,
-        dye: bool = True,
+        dye: bool = True, only_dye: bool = False,
     ) -> None:
         h = self.grid.h
         has, solid_x, theta_x, cut_x, body_x = self._interior_arrays(interior, 0)
@@ -471,7 +479,7 @@ class FluidSolver:
                 (solid_y, body_y, self._modes_v, self._values_v),
                 (solid_cells, self._no_values, self._modes_dye, self._values_dye))
         fields = (kernels.FIELD_X, kernels.FIELD_Y, kernels.FIELD_CELLS)
-        for index in range(3 if dye else 2):
+        for index in range(2 if only_dye else 0, 3 if dye else 2):
             kernels.advect(velocity, sources[index], outs[index], fields[index], dt, h, ghosts,
                            has, bodies, owns[index], pass_kind,
                            (forwards[index], ranges[2 * index], ranges[2 * index + 1]))
@@ -486,7 +494,8 @@ class FluidSolver:
         inside bodies take the body velocity and dye does not enter bodies. With
         ``advection="maccormack"`` the semi-Lagrangian result is corrected by the error of a
         backward step and clamped to the local range at the departure point (Selle et al.
-        2008).
+        2008). With ``advection="upwind3"`` the velocity is transported in flux form instead
+        (`FluidSolver`'s ``advection``).
         """
         self._check_step_input(state, dt, interior)
         fields = (state.velocity_x, state.velocity_y, state.dye)
@@ -510,6 +519,11 @@ class FluidSolver:
         """``fields`` carried by ``velocity`` over ``dt``, into the solver's buffers (the
         third, the dye, only with ``dye``)."""
         forward = (self._buffer_u, self._buffer_v, self._buffer_dye)
+        if self.advection == "upwind3":
+            self._transport_flux(fields, velocity, dt, interior)
+            if dye:
+                self._advect_once(state, fields, forward, dt, interior, velocity, only_dye=True)
+            return forward
         if self.advection == "maccormack":
             # Two passes, one back-trace each: forward with the clamp's ranges, then backward
             # and corrected (`PASS_TRACE_RANGE`, `PASS_CORRECT`), written over the lows.
@@ -527,6 +541,34 @@ class FluidSolver:
             self._advect_once(state, fields, forward, dt, interior, velocity, dye=dye)
             result = forward
         return result
+
+    def _transport_flux(
+        self, fields: tuple[np.ndarray, np.ndarray, np.ndarray],
+        velocity: tuple[np.ndarray, np.ndarray], dt: float, interior: InteriorBoundary | None,
+    ) -> None:
+        """The velocity components of ``fields`` carried by the frozen ``velocity`` over
+        ``dt`` in flux form (three-stage SSP Runge-Kutta, in equal sub-steps of an advective
+        CFL number of at most `flux_kernels.CFL_LIMIT`), into ``_buffer_u`` / ``_buffer_v``."""
+        h = self.grid.h
+        ghosts = (self._modes_u, self._values_u, self._modes_v, self._values_v)
+        speed = (flux_kernels.largest_magnitude(velocity[0])
+                 + flux_kernels.largest_magnitude(velocity[1]))
+        substeps = max(1, math.ceil(abs(dt) * speed / (h * flux_kernels.CFL_LIMIT)))
+        sub_dt = dt / substeps
+        outs = (self._buffer_u, self._buffer_v)
+        for axis in range(2):
+            has, solid, theta, cut, body_velocity = self._interior_arrays(interior, axis)
+            first, second = self._flux_buffers[axis]
+            body = (solid, theta, cut, body_velocity)
+            start, out = fields[axis], outs[axis]
+            for _ in range(substeps):
+                # Shu & Osher's stages: u1 = u + dt L(u), u2 = 3/4 u + 1/4 (u1 + dt L(u1)),
+                # u_next = 1/3 u + 2/3 (u2 + dt L(u2)); the advecting velocity stays fixed.
+                for stage, weight, target in ((start, 0.0, first), (first, 0.75, second),
+                                              (second, 1.0 / 3.0, out)):
+                    flux_kernels.runge_kutta_stage(velocity, stage, start, target, axis,
+                                                   sub_dt, weight, h, ghosts, has, body)
+                start = out
 
     def _advecting_velocity(
         self, state: FluidState, dt: float

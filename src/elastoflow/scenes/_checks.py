@@ -187,6 +187,10 @@ def check_liquid(scene: Scene) -> list[str]:
     if scene.fluid.viscosity_scheme == "bdf2":
         problems.append('fluid.viscosity_scheme = "bdf2": not available with [liquid]; must be '
                         '"backward_euler" or "crank_nicolson"')
+    if scene.fluid.advection == "upwind3":
+        problems.append('fluid.advection = "upwind3": not available with [liquid] (the flux '
+                        'form has no air-side treatment yet); must be "semi_lagrangian" or '
+                        '"maccormack"')
     x0, y0, x1, y1 = scene.domain.bounds
     for index, box in enumerate(liquid.boxes):
         if box[0] < x0 or box[1] < y0 or box[2] > x1 or box[3] > y1:

@@ -155,11 +155,14 @@ class FluidSpec(_Spec):
     """Solver of the implicit viscosity equations (one per velocity component)."""
     viscosity_rtol: Annotated[float, Field(gt=0.0, lt=1.0)] = 1e-6
     """Relative residual each viscosity solve must reach; 1 or more would skip the solve."""
-    advection: Literal["semi_lagrangian", "maccormack"] = "maccormack"
+    advection: Literal["semi_lagrangian", "maccormack", "upwind3"] = "maccormack"
     """Transport of velocity and dye: MacCormack's limited correction of the semi-Lagrangian
     step (second order where the flow is smooth; the default, for wakes:
-    docs/validation/unsteady.md) or the paper's plain semi-Lagrangian step (first order,
-    diffusive; its advection phase about half the cost, docs/benchmarks.md)."""
+    docs/validation/unsteady.md), the paper's plain semi-Lagrangian step (first order,
+    diffusive; its advection phase about half the cost, docs/benchmarks.md), or "upwind3":
+    the velocity in flux form, third-order upwind-biased fluxes and three Runge-Kutta stages
+    (conserves momentum; 2D only, not with [liquid]; the dye then by the semi-Lagrangian
+    step)."""
     incremental_pressure: bool = False
     """Solve for the pressure increment (removes the plain splitting's O(dt) error at walls
     in steady flow; docs/method_notes.md item 6)."""

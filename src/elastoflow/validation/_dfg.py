@@ -62,7 +62,7 @@ BOUNDS: dict[str, tuple[float, float]] = {
     "delta_p": (2.4600, 2.5000),
 }
 LABELS = {"strouhal": "St", "drag_max": "c_D max", "lift_max": "c_L max", "delta_p": "Δp [Pa]"}
-ADVECTION_SCHEMES = ("maccormack", "semi_lagrangian")
+ADVECTION_SCHEMES = ("maccormack", "semi_lagrangian", "upwind3")
 ADVECTING_VELOCITIES = ("current", "extrapolated")
 VISCOSITY_SCHEMES = ("backward_euler", "crank_nicolson", "bdf2")
 

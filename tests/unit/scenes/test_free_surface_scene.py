@@ -124,3 +124,25 @@ def test_kinetic_energy_probe_counts_the_liquid_only() -> None:
     everywhere = 0.5 * 1000.0 * sim.grid.h ** 2 * (
         np.sum(fluid.velocity_x ** 2) + np.sum(fluid.velocity_y ** 2))
     assert expected < everywhere
+
+
+def test_flux_form_advection_is_refused_with_a_liquid() -> None:
+    """The flux form has no air-side treatment: refused in one line by the scene and by the
+    solver."""
+    from elastoflow import fluid
+    from elastoflow.grid import Grid2D
+
+    data = _scene(boxes=[(0.0, 0.0, 0.25, 0.4)])
+    data["fluid"] = {**data["fluid"], "advection": "upwind3"}
+    with pytest.raises(SceneError) as error:
+        parse_scene(data, source="pool.toml")
+    assert error.value.problems == [
+        'fluid.advection = "upwind3": not available with [liquid] (the flux form has no '
+        'air-side treatment yet); must be "semi_lagrangian" or "maccormack"']
+    grid = Grid2D(nx=8, ny=8, h=0.125)
+    walls = fluid.DomainBoundaries(fluid.WallNoSlip(), fluid.WallNoSlip(), fluid.WallNoSlip(),
+                                   fluid.WallNoSlip())
+    solver = fluid.FluidSolver(grid, density=1.0, viscosity=0.0, boundaries=walls,
+                               advection="upwind3")
+    with pytest.raises(ValueError, match="advection 'upwind3' is not available"):
+        fluid.FreeSurfaceSolver(solver)
