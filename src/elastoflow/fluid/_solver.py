@@ -140,8 +140,8 @@ class FluidSolver:
             correction, second order in smooth regions) or "upwind3" (flux form: the
             velocity's momentum fluxes by third-order upwind-biased interpolation, carried
             by the frozen advecting velocity, three-stage SSP Runge-Kutta in time, sub-steps
-            above an advective CFL number of 1; `_flux_kernels`). With "upwind3" the dye
-            is still carried by the plain semi-Lagrangian step.
+            above an advective CFL sum of 1.2; `_flux_kernels`). With "upwind3" the dye is
+            still carried by the plain semi-Lagrangian step.
         incremental_pressure: False (the paper's scheme): the projection solves for the whole
             pressure. True: `diffuse` already subtracts the previous pressure gradient and the
             projection solves for the increment (pressure-correction form), which removes the
