@@ -19,6 +19,7 @@ from elastoflow.cli import app
 from elastoflow.validation import dfg_setup, run_dfg
 from elastoflow.validation._dfg import (
     BOUNDS,
+    DfgResult,
     DIAMETER,
     MEAN_SPEED,
     describe,
@@ -29,22 +30,29 @@ from elastoflow.validation._dfg import (
 PUBLISHED_STROUHAL = 0.5 * sum(BOUNDS["strouhal"])
 
 
+def _coarse_run_sheds(advection: str) -> DfgResult:
+    """12 cells per diameter for 6 s: the lift oscillates about zero with an amplitude of
+    the published order (1), St within 10 % of the bounds' midpoint."""
+    result = run_dfg(12, duration=6.0, advection=advection)
+    assert result.failure is None, result.failure
+    lift = result.statistics["lift"]
+    assert lift.amplitude > 0.5, f"lift amplitude {lift.amplitude:.3f}: no shedding"
+    assert abs(lift.mean) < 0.1 * lift.amplitude
+    strouhal = result.quantities["strouhal"]
+    assert abs(strouhal / PUBLISHED_STROUHAL - 1.0) < 0.10, f"St = {strouhal:.4f}"
+    return result
+
+
 @pytest.mark.slow
 def test_coarse_run_sheds_with_strouhal_within_10_percent() -> None:
     """12 cells per diameter, 6 s (2195 steps), MacCormack (the scene default). Measured:
     St = 0.2789 (-7.0 % from the bounds' midpoint 0.300), lift amplitude 0.908, mean c_D
     3.487; 30 s and 138 s on one core in two runs at load averages of 5 and 6."""
-    result = run_dfg(12, duration=6.0, advection="maccormack")
-    assert result.failure is None, result.failure
-    lift = result.statistics["lift"]
-    # Shedding: a lift oscillating about zero with an amplitude of the published order (1).
-    assert lift.amplitude > 0.5, f"lift amplitude {lift.amplitude:.3f}: no shedding"
-    assert abs(lift.mean) < 0.1 * lift.amplitude
-    strouhal = result.quantities["strouhal"]
-    assert abs(strouhal / PUBLISHED_STROUHAL - 1.0) < 0.10, f"St = {strouhal:.4f}"
+    result = _coarse_run_sheds("maccormack")
     # The drag is periodic at twice the shedding frequency, about a mean near 3.2.
-    assert result.statistics["drag"].frequency == pytest.approx(2.0 * lift.frequency, rel=0.05)
-    assert 3.0 < result.statistics["drag"].mean < 4.0
+    drag = result.statistics["drag"]
+    assert drag.frequency == pytest.approx(2.0 * result.statistics["lift"].frequency, rel=0.05)
+    assert 3.0 < drag.mean < 4.0
 
 
 @pytest.mark.slow
@@ -53,14 +61,7 @@ def test_flux_form_sheds_at_a_coarse_grid_with_less_drag_than_maccormack() -> No
     (-5.9 %), lift amplitude 0.926, mean c_D 3.358 (MacCormack's 3.487 above: the flux form
     is nearer the published drag at every resolution, docs/validation/unsteady.md); 26 s on
     two shared cores."""
-    result = run_dfg(12, duration=6.0, advection="upwind3")
-    assert result.failure is None, result.failure
-    lift = result.statistics["lift"]
-    assert lift.amplitude > 0.5, f"lift amplitude {lift.amplitude:.3f}: no shedding"
-    assert abs(lift.mean) < 0.1 * lift.amplitude
-    strouhal = result.quantities["strouhal"]
-    assert abs(strouhal / PUBLISHED_STROUHAL - 1.0) < 0.10, f"St = {strouhal:.4f}"
-    assert 3.0 < result.statistics["drag"].mean < 3.45
+    assert 3.0 < _coarse_run_sheds("upwind3").statistics["drag"].mean < 3.45
 
 
 def test_evaluation_of_known_signals() -> None:
