@@ -1,4 +1,5 @@
-"""Run every benchmark: ``python -m benchmarks [NAME ...] [--options ...]``.
+"""Run every benchmark: ``python -m benchmarks [NAME ...] [--options ...]``
+(``python -m benchmarks [NAME ...] --help`` describes them and runs nothing).
 
 Each ``benchmarks/bench_NAME.py`` module exposes ``main(argv) -> list[dict]``; it prints its own
 table and writes ``benchmarks/results/NAME.json``. Timings are measurements, never assertions.
@@ -33,6 +34,13 @@ def main(argv: list[str] | None = None) -> int:
     if unknown:
         print(f"benchmark {unknown[0]!r}: unknown; available: {', '.join(available())}")
         return 2
+    if "-h" in options or "--help" in options:
+        # Help runs nothing: each named benchmark's own description (its options included).
+        print(__doc__.strip())
+        for name in names:
+            module = importlib.import_module(f"benchmarks.bench_{name}")
+            print(f"\n## {name}\n\n{(module.__doc__ or '').strip()}")
+        return 0
     for name in names:
         print(f"\n## {name}\n", flush=True)
         module = importlib.import_module(f"benchmarks.bench_{name}")

@@ -90,6 +90,19 @@ def test_runner_passes_option_values_to_the_benchmark(monkeypatch) -> None:
     assert runner.main(["coupling", "3"]) == 2
 
 
+def test_runner_help_describes_and_runs_nothing(monkeypatch, capsys) -> None:
+    """``python -m benchmarks unsteady --help`` prints the benchmark's description; it used
+    to run every part of the benchmark (and rewrite its files in docs/)."""
+    import benchmarks.__main__ as runner
+    from benchmarks import bench_unsteady
+
+    seen: list[list[str]] = []
+    monkeypatch.setattr(bench_unsteady, "main", lambda options: seen.append(options) or [])
+    assert runner.main(["unsteady", "--help"]) == 0
+    assert seen == []
+    assert "--parts=" in capsys.readouterr().out
+
+
 def test_three_d_scenes_benchmark_runs(results: Path) -> None:
     from benchmarks import bench_three_d_scenes
 
