@@ -556,10 +556,11 @@ class FluidSolver:
         substeps = max(1, math.ceil(abs(dt) * speed / (h * flux_kernels.CFL_LIMIT)))
         sub_dt = dt / substeps
         outs = (self._buffer_u, self._buffer_v)
+        near = self._near_regions(interior)
         for axis in range(2):
             has, solid, theta, cut, body_velocity = self._interior_arrays(interior, axis)
             first, second = self._flux_buffers[axis]
-            body = (solid, theta, cut, body_velocity)
+            body = (solid, theta, cut, body_velocity, near)
             start, out = fields[axis], outs[axis]
             for _ in range(substeps):
                 # Shu & Osher's stages: u1 = u + dt L(u), u2 = 3/4 u + 1/4 (u1 + dt L(u1)),
