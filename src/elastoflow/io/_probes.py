@@ -144,10 +144,51 @@ def _interpolate(values: np.ndarray, corner: Sequence[float], h: float, point: A
     return total
 
 
+def _cells_with_pressure(interior: Any, cells: np.ndarray) -> np.ndarray:
+    """Which of ``cells`` (index rows, shape (k, d)) carry a pressure: a cell some face of
+    which is open (`fluid.OPEN_MIN` or more, as the projection counts it). A body covering
+    every face of a cell takes it out of the pressure solve, which leaves 0 there."""
+    from elastoflow.fluid import OPEN_MIN
+
+    keep = np.zeros(len(cells), dtype=np.bool_)
+    for axis in range(cells.shape[1]):
+        fraction = getattr(interior, f"open_fraction_{'xyz'[axis]}")
+        for offset in (0, 1):
+            faces = cells.copy()
+            faces[:, axis] += offset
+            keep |= fraction[tuple(faces.T)] >= OPEN_MIN
+    return keep
+
+
 def _pressure_at(sim: Any, point: Any) -> float:
+    """The pressure at ``point``: bi- or trilinear in the cells around it; where one of them
+    carries no pressure (a body covers all its faces), the least-squares linear fit to the
+    cells that do in the 4 x 4 (x 4) block around the point, extrapolated to it (exact for a
+    linear field, as the boundary-layer pressure nearly is across a cell); NaN where none do."""
     grid = sim.grid
-    corner = [float(c) + 0.5 * grid.h for c in grid.origin]
-    return _interpolate(sim.state.fluid.pressure, corner, grid.h, point)
+    corner = np.array([float(c) + 0.5 * grid.h for c in grid.origin])
+    pressure = sim.state.fluid.pressure
+    interior = getattr(sim, "interior", None)
+    if interior is None:
+        return _interpolate(pressure, corner, grid.h, point)
+    shape = np.array(pressure.shape)
+    where = (np.asarray(point, dtype=np.float64) - corner) / grid.h
+    lower = np.clip(np.floor(where).astype(np.int64), 0, shape - 2)
+    block = np.array(list(itertools.product((0, 1), repeat=len(shape)))) + lower
+    if _cells_with_pressure(interior, block).all():
+        return _interpolate(pressure, corner, grid.h, point)
+    offsets = np.array(list(itertools.product((-1, 0, 1, 2), repeat=len(shape))))
+    cells = offsets + lower
+    cells = cells[((cells >= 0) & (cells < shape)).all(axis=1)]
+    cells = cells[_cells_with_pressure(interior, cells)]
+    if len(cells) == 0:
+        return float("nan")
+    values = pressure[tuple(cells.T)]
+    design = np.column_stack([np.ones(len(cells)), cells - where])
+    if np.linalg.matrix_rank(design) < design.shape[1]:
+        return float(values.mean())
+    coefficients = np.linalg.lstsq(design, values, rcond=None)[0]
+    return float(coefficients[0])
 
 
 def _point_name(point: Any) -> str:

@@ -10,14 +10,15 @@ import numpy as np
 import pytest
 
 import elastoflow
+from elastoflow.fluid import OPEN_MIN
 from elastoflow.io import ProbeRecorder, read_probes
 from elastoflow.scenes import ProbeSpec, Scene, SceneError, parse_scene, scene_to_toml
 from elastoflow.scenes._errors import check_scene
 
 
-def _channel(probes: list[dict]) -> Scene:
+def _channel(probes: list[dict], h: float = 0.02) -> Scene:
     return Scene.model_validate({
-        "domain": {"lx": 1.0, "ly": 0.4, "h": 0.02},
+        "domain": {"lx": 1.0, "ly": 0.4, "h": h},
         "fluid": {"density": 1.0, "viscosity": 0.01},
         "boundaries": {"left": {"type": "inflow", "speed": 0.3, "profile": "parabolic"},
                        "right": "outflow", "bottom": "no_slip", "top": "no_slip"},
@@ -141,3 +142,31 @@ def test_probe_statistics_json_final_and_periodic(tmp_path: Path) -> None:
     assert path == tmp_path / "probes_statistics.json"
     written = json.loads(path.read_text())
     assert set(written) == {"force_obstacle0_x [N/m]", "force_obstacle0_y [N/m]"}
+
+
+def test_pressure_inside_a_body_reads_only_cells_that_carry_a_pressure(tmp_path: Path
+                                                                       ) -> None:
+    """Points 1.2 cells inside the cylinder, in front and behind: the cells the body covers
+    whole hold no pressure (0 after a solve), the probe extrapolates from those that do,
+    exact for a linear field (it used to interpolate the zeros in)."""
+    front, back = (0.262, 0.2), (0.338, 0.2)
+    scene = _channel([{"kind": "pressure", "point": front},
+                      {"kind": "pressure_difference", "points": [front, back]}], h=0.01)
+    simulation = elastoflow.load(scene)
+    simulation.step()
+    interior = simulation.interior
+    assert interior is not None
+    grid, state = simulation.grid, simulation.state.fluid
+    x, y = grid.cell_centers()
+    state.pressure[...] = 3.0 * x - 2.0 * y + 1.0
+    closed_x = interior.open_fraction_x < OPEN_MIN
+    closed_y = interior.open_fraction_y < OPEN_MIN
+    covered = closed_x[:-1] & closed_x[1:] & closed_y[:, :-1] & closed_y[:, 1:]
+    assert covered[26, 19] and covered[26, 20] and not covered[25, 19]
+    state.pressure[covered] = 0.0
+    recorder = ProbeRecorder(scene.outputs.probes, simulation, tmp_path / "probes.csv")
+    recorder.record(simulation)
+    recorder.close()
+    _, rows = read_probes(tmp_path / "probes.csv")
+    assert rows[0][2] == pytest.approx(3.0 * 0.262 - 2.0 * 0.2 + 1.0, rel=1e-12)
+    assert rows[0][3] == pytest.approx(3.0 * (0.262 - 0.338), rel=1e-12)
