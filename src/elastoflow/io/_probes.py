@@ -126,7 +126,8 @@ def _torque(spec: Any) -> tuple[list[str], Sampler]:
     return [f"torque_{label} [N]"], sample
 
 
-def _interpolate(values: np.ndarray, corner: Sequence[float], h: float, point: Any) -> float:
+def _interpolate(values: np.ndarray, corner: Sequence[float] | np.ndarray, h: float,
+                 point: Any) -> float:
     """``values`` sampled at ``corner + index h`` (2D or 3D), interpolated (bi- or
     trilinearly) at ``point``, clamped to the samples."""
     lower, weights = [], []
