@@ -61,3 +61,37 @@ def test_three_d_jet_example_writes_a_video_and_image_data(tmp_path):
     assert last.cells == (32, 48, 32) and last.cell_data["dye"].max() > 0.5
     assert last.cell_data["velocity"][..., 1].max() > 0.1  # the jet pushes upwards
     assert "fluid_000004.vti" in (out / "fields" / "fluid.pvd").read_text()
+
+
+def test_dfg_2d_2_scene_file_is_the_validation_set_up(tmp_path):
+    """The scene file alone sets up DFG 2D-2 as `elastoflow validate dfg-2d-2` does (channel,
+    cylinder, inflow, fluid, numerics, start): at 10 cells per diameter its drag follows the
+    validation driver's step by step. And it runs from the command line with its probes."""
+    from elastoflow.validation import run_dfg
+
+    path = EXAMPLES / "dfg_2d_2.toml"
+    result = CliRunner().invoke(app, ["validate", str(path)])
+    assert result.exit_code == 0, result.output
+    scene = load_scene(path)
+    coarse = scene.model_copy(update={
+        "domain": scene.domain.model_copy(update={"h": 0.01}),
+        "time": scene.time.model_copy(update={"dt": 0.01 / 3.0}),
+        "obstacles": [scene.obstacles[0].model_copy(update={"segments": 126})],
+        "outputs": scene.outputs.model_copy(update={"video": None}),
+    })
+    simulation = build_simulation(coarse)
+    steps = 60
+    drag = []
+    for _ in range(steps):
+        simulation.step()
+        drag.append(simulation.traction_forces()[0].sum(axis=0)[0])
+    reference = run_dfg(10, duration=steps * 0.01 / 3.0, advection="upwind3",
+                        viscosity_scheme="bdf2", advecting_velocity="extrapolated")
+    coefficient = 2.0 / (1.0 * 1.0**2 * 0.1)  # 2 F / (rho U^2 D)
+    np.testing.assert_allclose(coefficient * np.array(drag[-20:]),
+                               reference.series["drag"][-20:], rtol=1e-3)
+    result = CliRunner().invoke(app, ["run", str(path), "--steps", "3", "--out",
+                                      str(tmp_path / "dfg"), "--quiet"])
+    assert result.exit_code == 0, result.output
+    header = (tmp_path / "dfg" / "probes.csv").read_text().splitlines()[0]
+    assert "force_obstacle0_x" in header and "pressure_(0.15,0.2)-(0.25,0.2)" in header
