@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import csv
 import importlib.util
 from pathlib import Path
 
 import imageio.v3 as iio
 import numpy as np
+import pytest
 from typer.testing import CliRunner
 
 from elastoflow.cli import app
@@ -95,3 +97,30 @@ def test_dfg_2d_2_scene_file_is_the_validation_set_up(tmp_path):
     assert result.exit_code == 0, result.output
     header = (tmp_path / "dfg" / "probes.csv").read_text().splitlines()[0]
     assert "force_obstacle0_x" in header and "pressure_(0.15,0.2)-(0.25,0.2)" in header
+
+
+def test_dfg_2d_2_quantities_script_evaluates_the_benchmark_from_probes(tmp_path, capsys):
+    """The script reads a run's probes.csv and evaluates the benchmark's definitions: on
+    sampled sinusoids of known frequency, peaks and phase it returns them."""
+    spec = importlib.util.spec_from_file_location("dfg_2d_2_quantities",
+                                                  EXAMPLES / "dfg_2d_2_quantities.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    time = np.arange(1, 8001) * 1e-3
+    phase = 2.0 * np.pi * 3.0 * time  # f = 3 Hz: St = D f / U = 0.3
+    rows = np.column_stack([np.arange(1, 8001), time,
+                            (3.2 + 0.03 * np.sin(2.0 * phase)) / 20.0,  # c_D = 20 F
+                            np.sin(phase) / 20.0,
+                            2.45 + 0.03 * np.sin(phase)])
+    with open(tmp_path / "probes.csv", "w", newline="") as file:
+        writer = csv.writer(file)
+        writer.writerow(["step", "time [s]", "force_obstacle0_x [N/m]",
+                         "force_obstacle0_y [N/m]", "pressure_(0.15,0.2)-(0.25,0.2) [Pa]"])
+        writer.writerows(rows.tolist())
+    quantities = module.main(tmp_path)
+    assert quantities["strouhal"] == pytest.approx(0.3, rel=1e-3)
+    assert quantities["drag_max"] == pytest.approx(3.23, rel=1e-4)
+    assert quantities["lift_max"] == pytest.approx(1.0, rel=1e-4)
+    # Half a period after the lift's maximum the difference is at its minimum.
+    assert quantities["delta_p"] == pytest.approx(2.42, rel=1e-4)
+    assert "c_L max" in capsys.readouterr().out

@@ -5,7 +5,8 @@ the benchmark defines them.
 ``run_case("FSI3", resolution=20)`` runs Turek & Hron's FSI3; `write_report` writes its time
 series (CSV), plots (PNG) and quantities (JSON); ``elastoflow validate turek-hron FSI3`` does
 both. ``run_dfg(20)`` runs DFG 2D-2 (vortex shedding at Re = 100) and `write_dfg_report`
-writes its report; ``elastoflow validate dfg-2d-2`` does both. ``run_dfg_steady(20)`` runs
+writes its report; ``elastoflow validate dfg-2d-2`` does both; `dfg_quantities` evaluates the
+benchmark's quantities from any time series (a scene's probes). ``run_dfg_steady(20)`` runs
 DFG 2D-1 (steady, Re = 20) through the same unsteady step, to show what the time scheme does
 to a steady state; ``elastoflow validate dfg-2d-1`` prints it. ``run_couette(CouetteSetup(64))``
 steps circular Couette flow between two cut-cell cylinders from its exact solution and
@@ -63,6 +64,7 @@ from elastoflow.validation._couette import CouetteResult, CouetteSetup, run_coue
 from elastoflow.validation._dfg import (
     DfgResult,
     DfgSetup,
+    dfg_quantities,
     dfg_setup,
     run_dfg,
     write_dfg_report,
@@ -124,6 +126,7 @@ __all__ = [
     "check_resolution",
     "default_setup",
     "describe",
+    "dfg_quantities",
     "dfg_setup",
     "flag_mesh",
     "flap_setup",

@@ -491,26 +491,52 @@ def evaluate(setup: DfgSetup, time: np.ndarray, series: dict[str, np.ndarray],
     result = DfgResult(setup, time, series, seconds=seconds)
     try:
         for key in ("lift", "drag", "drag_cv"):
-            values = series[key]
-            finite = np.isfinite(values)
-            result.statistics[key] = periodic_statistics(time[finite], values[finite],
-                                                         window=0.5)
+            result.statistics[key] = _statistics(time, series[key])
+        result.quantities.update(dfg_quantities(time, series["drag"], series["lift"],
+                                                series["delta_p"], setup.mean_speed))
     except ValueError as error:
         result.failure = f"not periodic yet: {error}"
-        return result
-    lift = result.statistics["lift"]
-    frequency = lift.frequency
-    result.quantities["strouhal"] = DIAMETER * frequency / setup.mean_speed
-    result.quantities["drag_max"] = result.statistics["drag"].maximum
-    result.quantities["lift_max"] = lift.maximum
+    return result
+
+
+def _statistics(time: np.ndarray, values: np.ndarray) -> PeriodicStatistics:
+    finite = np.isfinite(values)
+    return periodic_statistics(time[finite], values[finite], window=0.5)
+
+
+def dfg_quantities(time: np.ndarray, drag: np.ndarray, lift: np.ndarray,
+                   delta_p: np.ndarray, mean_speed: float = MEAN_SPEED) -> dict[str, float]:
+    """DFG 2D-2's quantities from time series, as the benchmark defines them: St = D f / U
+    with f from the lift over the last half of the record; c_D max and c_L max over the last
+    full period; Δp half a period after the last lift maximum that leaves room for it.
+
+    Args:
+        time: Sample times [s], increasing, shape (k,).
+        drag, lift: The coefficients ``2 F / (rho U^2 D)``, shape (k,).
+        delta_p: ``p(front) - p(back)`` [Pa], shape (k,).
+        mean_speed: U [m/s] (the inflow's mean; 1 m/s for 2D-2).
+
+    Returns:
+        "strouhal", "drag_max", "lift_max", "delta_p".
+
+    Raises:
+        ValueError: the lift or the drag is not periodic yet over the last half.
+    """
+    time = np.asarray(time, dtype=np.float64)
+    lift = np.asarray(lift, dtype=np.float64)
+    lift_statistics = _statistics(time, lift)
+    frequency = lift_statistics.frequency
+    quantities = {"strouhal": DIAMETER * frequency / mean_speed,
+                  "drag_max": _statistics(time, np.asarray(drag, dtype=np.float64)).maximum,
+                  "lift_max": lift_statistics.maximum}
     # The last lift maximum with half a period after it inside the record: the maximum over
     # the full period that ends half a period before the record does.
     end = time[-1] - 0.5 / frequency
     candidates = np.flatnonzero((time >= end - 1.0 / frequency) & (time <= end))
-    t0 = float(time[candidates[np.argmax(series["lift"][candidates])]])
-    result.quantities["delta_p"] = float(np.interp(t0 + 0.5 / frequency, time,
-                                                   series["delta_p"]))
-    return result
+    t0 = float(time[candidates[np.argmax(lift[candidates])]])
+    quantities["delta_p"] = float(np.interp(t0 + 0.5 / frequency, time,
+                                            np.asarray(delta_p, dtype=np.float64)))
+    return quantities
 
 
 def describe(result: DfgResult) -> str:
