@@ -673,9 +673,41 @@ def speed_part(steps: int, quick: bool) -> list[dict[str, Any]]:
     return rows
 
 
+PARTS = ("order", "dfg", "drag", "pieces", "speed", "time", "placement", "couette", "steady")
+OPTIONS = ("parts", "resolutions", "advection", "duration", "name", "drag-resolution",
+           "pieces-duration", "time-resolution", "time-fine", "time-fine-variants",
+           "couette-sizes", "placement-resolutions", "steady-resolutions", "steady-duration")
+FLAGS = ("--quick", "--reevaluate")
+
+
+def check_arguments(argv: list[str]) -> None:
+    """Refuse, in one line, an argument this benchmark does not know (``--name=value`` and
+    the flags only: ``--resolutions 20`` would otherwise run the defaults), an unknown part
+    or advection scheme."""
+    for item in argv:
+        name, has_value, value = item.removeprefix("--").partition("=")
+        if item in FLAGS:
+            continue
+        if not (item.startswith("--") and has_value and name in OPTIONS):
+            _refuse(f"unsteady: argument {item!r}: must be one of {', '.join(FLAGS)} or "
+                    f"--NAME=VALUE with NAME one of {', '.join(OPTIONS)}")
+        allowed = {"parts": PARTS, "advection": SCHEMES}.get(name)
+        unknown = [v for v in value.split(",") if allowed is not None and v not in allowed]
+        if unknown:
+            _refuse(f"unsteady: --{name}={value}: {unknown[0]!r} is not one of "
+                    f"{', '.join(allowed or ())}")
+
+
+def _refuse(message: str) -> None:
+    """One line on stderr, exit status 2 (bad input), as the CLI does."""
+    print(message, file=sys.stderr)
+    raise SystemExit(2)
+
+
 def main(argv: list[str] | None = None) -> list[dict[str, Any]]:
     global REEVALUATE
     argv = list(argv or [])
+    check_arguments(argv)
     quick = "--quick" in argv
     REEVALUATE = "--reevaluate" in argv
     parts = _option(argv, "parts", "order,dfg,drag,pieces,speed").split(",")

@@ -137,3 +137,22 @@ def test_turek_hron_placement_study_runs(results: Path) -> None:
     assert len(summary) == 1 and summary[0]["grids"] == 2
     assert summary[0]["min"] <= summary[0]["mean"] <= summary[0]["max"]
     assert _written(results, "turek_hron_placement")
+
+
+@pytest.mark.parametrize(("argv", "message"), [
+    (["--resolutions", "20"], "argument '--resolutions'"),
+    (["--resolution=20"], "argument '--resolution=20'"),
+    (["--parts=dfg,speeds"], "'speeds' is not one of"),
+    (["--advection=upwind5"], "'upwind5' is not one of"),
+])
+def test_unsteady_refuses_what_it_does_not_know(argv: list[str], message: str,
+                                                capsys) -> None:
+    """A malformed or unknown argument used to be ignored, and the defaults (every part)
+    ran instead; now it is refused in one line (exit status 2) before anything runs."""
+    from benchmarks import bench_unsteady
+
+    with pytest.raises(SystemExit) as refused:
+        bench_unsteady.main(argv)
+    assert refused.value.code == 2
+    error = capsys.readouterr().err
+    assert message in error and error.count("\n") == 1
