@@ -109,10 +109,17 @@ def _parse_formats(text: str | None, three_d: bool = False) -> list[str] | None:
 
 
 class _StopRequest:
-    """First Ctrl-C: finish the current step, then stop cleanly. Second: stop at once."""
+    """First Ctrl-C: finish the current step, then stop cleanly. Second: stop at once.
+
+    Leaving the ``with`` block (the stepping) does not give Ctrl-C back: the outputs are
+    then closed and the resume command printed, which a Ctrl-C must not cut short (a second
+    Ctrl-C 2 ms after the first, landing there, used to exit 130 without the command).
+    `release` gives it back.
+    """
 
     def __init__(self) -> None:
         self.requested = False
+        self.finishing = False
         self._previous: Any = None
 
     def __enter__(self) -> Self:
@@ -120,14 +127,20 @@ class _StopRequest:
         return self
 
     def __exit__(self, *exc: object) -> None:
-        signal.signal(signal.SIGINT, self._previous)
+        self.finishing = True
+
+    def release(self) -> None:
+        """Ctrl-C as before the stepping (safe to call when never entered, or twice)."""
+        if self._previous is not None:
+            signal.signal(signal.SIGINT, self._previous)
+            self._previous = None
 
     def _handle(self, signum: int, frame: Any) -> None:
         # Never raised inside Numba's compiler or cache loader: the exception lands in an
         # llvmlite ctypes callback, which ignores it and then crashes the process (SIGSEGV,
         # seen on a double Ctrl-C during the first step). There the second Ctrl-C stops after
         # the step, as the first one does.
-        if self.requested and not _inside_compiler(frame):
+        if self.requested and not self.finishing and not _inside_compiler(frame):
             raise KeyboardInterrupt
         self.requested = True
 
@@ -313,6 +326,7 @@ def run(
     except OSError as error:
         _fail(f"{folder_option} = {str(out_dir)!r}: cannot write there "
               f"({error.strerror or error}); choose a writable folder")
+    stop = _StopRequest()
     try:
         if removed:
             typer.echo(f"removed {len(removed)} temporary files left by an interrupted run",
@@ -358,7 +372,7 @@ def run(
         mid_step = False
         written: list[Path] = []
         try:
-            with _StopRequest() as stop:
+            with stop:
                 _step_loop(simulation, session, total, stop, quiet, compiling)
                 stopped = stop.requested
         except KeyboardInterrupt:
@@ -407,6 +421,7 @@ def run(
                        f"  {resume_command}")
             raise typer.Exit(130)
     finally:
+        stop.release()
         # Also on exit 2 below: a run in process (tests) must not keep the folder locked.
         lock.close()
 

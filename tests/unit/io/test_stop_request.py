@@ -33,3 +33,22 @@ def test_inside_the_compiler_the_second_ctrl_c_waits_for_the_step(where: str) ->
     _signal_in(where, stop)
     _signal_in(where, stop)  # no KeyboardInterrupt inside the compiler
     assert stop.requested
+
+
+def test_after_the_stepping_a_ctrl_c_does_not_cut_the_outputs_short() -> None:
+    """Once the stepping ends, the outputs are closed and the resume command printed; a
+    second Ctrl-C landing there (2 ms after the first, on a fast step) used to exit 130
+    without the command. The handler stays until `release`, which gives Ctrl-C back."""
+    previous = signal.getsignal(signal.SIGINT)
+    stop = _StopRequest()
+    try:
+        with stop:
+            _signal_in("/somewhere/elastoflow/cli.py", stop)
+        assert signal.getsignal(signal.SIGINT) == stop._handle
+        _signal_in("/somewhere/elastoflow/cli.py", stop)  # no KeyboardInterrupt
+        assert stop.requested
+    finally:
+        stop.release()
+    assert signal.getsignal(signal.SIGINT) == previous
+    stop.release()  # a second release changes nothing
+    assert signal.getsignal(signal.SIGINT) == previous
