@@ -6,6 +6,7 @@ Exit codes: 0 success, 2 bad input (one line per problem, no traceback), 1 the r
 
 from __future__ import annotations
 
+import _thread
 import functools
 import signal
 import sys
@@ -121,9 +122,12 @@ class _StopRequest:
         self.requested = False
         self.finishing = False
         self._previous: Any = None
+        self._previous_hook: Any = None
 
     def __enter__(self) -> Self:
         self._previous = signal.signal(signal.SIGINT, self._handle)
+        self._previous_hook = sys.unraisablehook
+        sys.unraisablehook = self._unraisable
         return self
 
     def __exit__(self, *exc: object) -> None:
@@ -134,6 +138,21 @@ class _StopRequest:
         if self._previous is not None:
             signal.signal(signal.SIGINT, self._previous)
             self._previous = None
+        if self._previous_hook is not None:
+            sys.unraisablehook = self._previous_hook
+            self._previous_hook = None
+
+    def _unraisable(self, unraisable: Any) -> None:
+        # The second Ctrl-C's KeyboardInterrupt can land where Python cannot raise it: in a
+        # weakref callback or a __del__ run by the garbage collector (seen in CI: the
+        # interpreter printed "Exception ignored in ... WeakValueDictionary ... remove" with
+        # a traceback, and the run went on to the end of the step). Deliver it again, so
+        # that it is raised at the next point that can raise it, and print nothing.
+        if (unraisable.exc_type is KeyboardInterrupt and self.requested
+                and not self.finishing):
+            _deliver_again()
+            return
+        (self._previous_hook or sys.__unraisablehook__)(unraisable)
 
     def _handle(self, signum: int, frame: Any) -> None:
         # Never raised inside Numba's compiler or cache loader: the exception lands in an
@@ -141,8 +160,24 @@ class _StopRequest:
         # seen on a double Ctrl-C during the first step). There the second Ctrl-C stops after
         # the step, as the first one does.
         if self.requested and not self.finishing and not _inside_compiler(frame):
+            if frame is not None and frame.f_code is _StopRequest._unraisable.__code__:
+                _deliver_again()
+                return
             raise KeyboardInterrupt
         self.requested = True
+
+
+def _deliver_again() -> None:
+    """SIGINT to the main thread again, a millisecond from now.
+
+    From another thread: a signal raised from the main thread is handled at once, inside
+    the unraisable hook that wants it handled after it returns.
+    """
+    import threading
+
+    timer = threading.Timer(0.001, _thread.interrupt_main, args=(signal.SIGINT,))
+    timer.daemon = True
+    timer.start()
 
 
 def _inside_compiler(frame: Any) -> bool:

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import signal
 import sys
+import time
 
 import pytest
 
@@ -52,3 +53,58 @@ def test_after_the_stepping_a_ctrl_c_does_not_cut_the_outputs_short() -> None:
     assert signal.getsignal(signal.SIGINT) == previous
     stop.release()  # a second release changes nothing
     assert signal.getsignal(signal.SIGINT) == previous
+
+
+class _RaisesInDel:
+    """Runs the second Ctrl-C's handler inside ``__del__``, where Python cannot raise."""
+
+    def __init__(self, stop: _StopRequest) -> None:
+        self.stop = stop
+
+    def __del__(self) -> None:
+        _signal_in("/somewhere/elastoflow/simulation/_simulation.py", self.stop)
+
+
+def test_a_second_ctrl_c_landing_in_a_finalizer_is_raised_after_it(
+        capsys: pytest.CaptureFixture[str]) -> None:
+    """CI saw the second Ctrl-C land in a weakref callback run by the garbage collector:
+    Python printed 'Exception ignored in ...' with a traceback and swallowed the interrupt.
+    It is now delivered again and raised at the next point that can raise it."""
+    previous_hook = sys.unraisablehook
+    stop = _StopRequest()
+    raised_after = False
+    try:
+        with stop:
+            stop.requested = True
+            try:
+                victim = _RaisesInDel(stop)
+                del victim
+                deadline = time.monotonic() + 5.0
+                while time.monotonic() < deadline:  # delivered again within milliseconds
+                    time.sleep(0.001)
+            except KeyboardInterrupt:
+                raised_after = True
+    finally:
+        stop.release()
+    assert raised_after
+    assert "Exception ignored" not in capsys.readouterr().err
+    assert sys.unraisablehook is previous_hook
+
+
+def test_other_unraisable_exceptions_still_reach_the_previous_hook() -> None:
+    seen: list[type[BaseException]] = []
+    previous_hook = sys.unraisablehook
+    sys.unraisablehook = lambda unraisable: seen.append(unraisable.exc_type)
+    stop = _StopRequest()
+    try:
+        with stop:
+            class Broken:
+                def __del__(self) -> None:
+                    raise ValueError("in a finalizer")
+
+            victim = Broken()
+            del victim
+    finally:
+        stop.release()
+        sys.unraisablehook = previous_hook
+    assert seen == [ValueError]
