@@ -123,6 +123,7 @@ class _StopRequest:
         self.finishing = False
         self._previous: Any = None
         self._previous_hook: Any = None
+        self._in_hook = False
 
     def __enter__(self) -> Self:
         self._previous = signal.signal(signal.SIGINT, self._handle)
@@ -150,7 +151,13 @@ class _StopRequest:
         # that it is raised at the next point that can raise it, and print nothing.
         if (unraisable.exc_type is KeyboardInterrupt and self.requested
                 and not self.finishing):
-            _deliver_again()
+            # Delivered while this hook runs (starting the timer thread can wait long enough
+            # under load), the handler delivers it once more instead of raising here.
+            self._in_hook = True
+            try:
+                _deliver_again()
+            finally:
+                self._in_hook = False
             return
         (self._previous_hook or sys.__unraisablehook__)(unraisable)
 
@@ -160,7 +167,7 @@ class _StopRequest:
         # seen on a double Ctrl-C during the first step). There the second Ctrl-C stops after
         # the step, as the first one does.
         if self.requested and not self.finishing and not _inside_compiler(frame):
-            if frame is not None and frame.f_code is _StopRequest._unraisable.__code__:
+            if self._in_hook:
                 _deliver_again()
                 return
             raise KeyboardInterrupt
