@@ -12,6 +12,7 @@ import pytest
 from typer.testing import CliRunner
 
 from elastoflow.cli import app
+from elastoflow.io import ProbeRecorder, read_probes
 from elastoflow.scenes import build_simulation, load_scene
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
@@ -82,21 +83,32 @@ def test_dfg_2d_2_scene_file_is_the_validation_set_up(tmp_path):
         "outputs": scene.outputs.model_copy(update={"video": None}),
     })
     simulation = build_simulation(coarse)
+    recorder = ProbeRecorder(coarse.outputs.probes, simulation, tmp_path / "probes.csv")
     steps = 60
-    drag = []
     for _ in range(steps):
-        simulation.step()
-        drag.append(simulation.traction_forces()[0].sum(axis=0)[0])
+        report = simulation.step()
+        recorder.observe(simulation)
+        recorder.record(simulation, report)
+    recorder.close()
+    columns, rows = read_probes(tmp_path / "probes.csv")
+    data = dict(zip(columns, np.asarray(rows).T, strict=True))
     reference = run_dfg(10, duration=steps * 0.01 / 3.0, advection="upwind3",
                         viscosity_scheme="bdf2", advecting_velocity="extrapolated")
     coefficient = 2.0 / (1.0 * 1.0**2 * 0.1)  # 2 F / (rho U^2 D)
-    np.testing.assert_allclose(coefficient * np.array(drag[-20:]),
+    np.testing.assert_allclose(coefficient * data["force_obstacle0_x [N/m]"][-20:],
                                reference.series["drag"][-20:], rtol=1e-3)
+    # The momentum balance over the validation driver's box (1.5 diameters from the centre),
+    # with BDF2's time derivative: the driver's drag_cv and lift_cv.
+    np.testing.assert_allclose(coefficient * data["balance_obstacle0_x [N/m]"][-20:],
+                               reference.series["drag_cv"][-20:], rtol=1e-3)
+    np.testing.assert_allclose(coefficient * data["balance_obstacle0_y [N/m]"][-20:],
+                               reference.series["lift_cv"][-20:], atol=2e-3)
     result = CliRunner().invoke(app, ["run", str(path), "--steps", "3", "--out",
                                       str(tmp_path / "dfg"), "--quiet"])
     assert result.exit_code == 0, result.output
     header = (tmp_path / "dfg" / "probes.csv").read_text().splitlines()[0]
     assert "force_obstacle0_x" in header and "pressure_(0.15,0.2)-(0.25,0.2)" in header
+    assert "balance_obstacle0_y [N/m]" in header
 
 
 def test_dfg_2d_2_quantities_script_evaluates_the_benchmark_from_probes(tmp_path, capsys):
@@ -111,13 +123,19 @@ def test_dfg_2d_2_quantities_script_evaluates_the_benchmark_from_probes(tmp_path
     rows = np.column_stack([np.arange(1, 8001), time,
                             (3.2 + 0.03 * np.sin(2.0 * phase)) / 20.0,  # c_D = 20 F
                             np.sin(phase) / 20.0,
-                            2.45 + 0.03 * np.sin(phase)])
+                            2.45 + 0.03 * np.sin(phase),
+                            (3.21 + 0.03 * np.sin(2.0 * phase)) / 20.0,
+                            1.05 * np.sin(phase) / 20.0])
     with open(tmp_path / "probes.csv", "w", newline="") as file:
         writer = csv.writer(file)
         writer.writerow(["step", "time [s]", "force_obstacle0_x [N/m]",
-                         "force_obstacle0_y [N/m]", "pressure_(0.15,0.2)-(0.25,0.2) [Pa]"])
+                         "force_obstacle0_y [N/m]", "pressure_(0.15,0.2)-(0.25,0.2) [Pa]",
+                         "balance_obstacle0_x [N/m]", "balance_obstacle0_y [N/m]"])
         writer.writerows(rows.tolist())
-    quantities = module.main(tmp_path)
+    both = module.main(tmp_path)
+    assert both["momentum_balance"]["lift_max"] == pytest.approx(1.05, rel=1e-4)
+    assert both["momentum_balance"]["drag_max"] == pytest.approx(3.24, rel=1e-4)
+    quantities = both["traction"]
     assert quantities["strouhal"] == pytest.approx(0.3, rel=1e-3)
     assert quantities["drag_max"] == pytest.approx(3.23, rel=1e-4)
     assert quantities["lift_max"] == pytest.approx(1.0, rel=1e-4)

@@ -4,13 +4,15 @@
 MacCormack advection, implicit viscosity, forces, and a projection whose faces are weighted by
 their open fraction so that bodies described by an ``InteriorBoundary`` (METHOD.md §6) enter
 with cut-distance boundary conditions. ``divergence_faces_to_cells`` and
-``gradient_cells_to_faces`` are the discrete operators the projection is built from.
+``gradient_cells_to_faces`` are the discrete operators the projection is built from;
+``MomentumBalance`` the force on what a box of cells holds, from the momentum balance.
 ``FreeSurfaceSolver`` adds a free surface (a level set in ``FreeSurfaceState``, a ghost-fluid
 projection, ``LevelSetTransport``). In 3D: ``FluidSolver3D`` on a ``FluidState3D`` with
 ``DomainBoundaries3D``, bodies through ``InteriorBoundary3D``. Validation: docs/validation_fluid.md, and for the free
 surface docs/validation/free_surface.md, for 3D docs/validation/three_d.md.
 """
 
+from elastoflow.fluid._balance import BoxCells, MomentumBalance
 from elastoflow.fluid._boundaries import (
     DomainBoundaries,
     Inflow,
@@ -60,6 +62,7 @@ from elastoflow.fluid._state3d import FluidState3D
 
 __all__ = [
     "OPEN_MIN",
+    "BoxCells",
     "CoupledBodies",
     "DomainBoundaries",
     "DomainBoundaries3D",
@@ -80,6 +83,7 @@ __all__ = [
     "Jet",
     "Jet3D",
     "LevelSetTransport",
+    "MomentumBalance",
     "Outflow",
     "RedistanceFastSweeping",
     "ViscosityStressFree",

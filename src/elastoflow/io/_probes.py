@@ -233,6 +233,42 @@ def _velocity(spec: Any, dimension: int) -> tuple[list[str], Sampler]:
     return [f"velocity_{name}_{axis} [m/s]" for axis in _axes(dimension)], sample
 
 
+class _MomentumBalanceProbe:
+    """``momentum_balance``: the force on the box's obstacles after every step
+    (`elastoflow.fluid.MomentumBalance`, which needs every step's momentum: `observe`), the
+    last one at each sample. A resumed run starts from the state's previous and current
+    velocity, so that its forces are those of the run it continues."""
+
+    def __init__(self, spec: Any, simulation: Any) -> None:
+        from elastoflow.fluid import BoxCells, MomentumBalance
+
+        solver, grid = simulation.fluid_solver, simulation.grid
+        x0, y0, x1, y1 = (float(c) for c in spec.region)
+        self.balance = MomentumBalance(
+            grid, BoxCells.around(grid, (x0, y0), (x1, y1)), solver.density, solver.viscosity,
+            bdf2=solver.viscosity_scheme == "bdf2", gravity=solver.gravity)
+        fluid = simulation.state.fluid
+        momenta = [self.balance.momentum(fluid.velocity_x, fluid.velocity_y)]
+        if fluid.previous_velocity_x is not None and fluid.previous_velocity_y is not None:
+            momenta.insert(0, self.balance.momentum(fluid.previous_velocity_x,
+                                                    fluid.previous_velocity_y))
+        self.balance.start(momenta, simulation.dt)
+        self.last = [float("nan"), float("nan")]
+        _, _, self.label = _targets(spec)
+
+    def observe(self, sim: Any) -> None:
+        fluid, interior = sim.state.fluid, sim.interior
+        solid = None if interior is None else (interior.solid_faces_x, interior.solid_faces_y)
+        self.last = list(self.balance.force(fluid.velocity_x, fluid.velocity_y,
+                                            fluid.pressure, sim.dt, solid))
+
+    def __call__(self, sim: Any, report: Any) -> list[float]:
+        return list(self.last)
+
+    def columns(self) -> list[str]:
+        return [f"balance_{self.label}_{axis} [N/m]" for axis in "xy"]
+
+
 def _resolve_node(sim: Any, spec: Any) -> int:
     if spec.node is not None:
         return int(spec.node)
@@ -261,6 +297,7 @@ class ProbeRecorder:
         self.path = Path(path)
         self.columns: list[str] = ["step", "time [s]"]
         self._samplers: list[Sampler] = []
+        self._observers: list[_MomentumBalanceProbe] = []
         dimension = int(getattr(simulation, "dimension", 2))
         makers: dict[str, Callable[[Any], tuple[list[str], Sampler]]] = {
             "node_displacement": lambda s: _node_displacement(
@@ -275,7 +312,13 @@ class ProbeRecorder:
             "pressure_iterations": lambda s: _pressure_iterations(),
         }
         for spec in probes:
-            names, sampler = makers[spec.kind](spec)
+            sampler: Sampler
+            if spec.kind == "momentum_balance":
+                observer = _MomentumBalanceProbe(spec, simulation)
+                self._observers.append(observer)
+                names, sampler = observer.columns(), observer
+            else:
+                names, sampler = makers[spec.kind](spec)
             self.columns.extend(names)
             self._samplers.append(sampler)
         self.rows: list[list[float]] = []
@@ -294,6 +337,12 @@ class ProbeRecorder:
     @staticmethod
     def _format(row: list[float]) -> str:
         return _line([str(int(row[0])), *(f"{v:.10g}" for v in row[1:])])
+
+    def observe(self, simulation: Any) -> None:
+        """Called after every step, sampled or not: the probes that need each step's fields
+        (the momentum balance's time derivative) take them here."""
+        for observer in self._observers:
+            observer.observe(simulation)
 
     def record(self, simulation: Any, report: Any = None) -> None:
         """Append one row: step, time and every probe's values."""

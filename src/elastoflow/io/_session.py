@@ -254,8 +254,10 @@ class OutputSession:
     def after_step(self, simulation: Any, report: Any) -> None:
         """The per-step callback: writes whatever is due at this step."""
         step = simulation.step_index
-        if self._probes is not None and step % self.outputs.probes_every == 0:
-            self._probes.record(simulation, report)
+        if self._probes is not None:
+            self._probes.observe(simulation)
+            if step % self.outputs.probes_every == 0:
+                self._probes.record(simulation, report)
         self._write_frame_outputs(report)
         checkpoint = self.outputs.checkpoint
         if checkpoint is not None and step % checkpoint.every == 0:

@@ -353,7 +353,50 @@ def check_scene(scene: Scene) -> list[str]:
         for key, place in places:
             if place is not None and not _inside((*place, *place), domain):
                 problems.append(f"{where}.{key} = {list(place)}: {allowed}")
+        if probe.kind == "momentum_balance" and probe.region is not None:
+            problems += _balance_problems(scene, where, probe)
     return problems
+
+
+def _balance_problems(scene: Scene, where: str, probe: Any) -> list[str]:
+    """A momentum balance's box: a cell inside the domain, its obstacles still and two cells
+    clear of its sides (the side fluxes read a cell on each side), nothing else in reach."""
+    region = tuple(probe.region)
+    h = scene.domain.cell_size
+    x0, y0, x1, y1 = scene.domain.bounds
+    key = f"{where}.region = {_fmt(region)}"
+    if scene.liquid is not None:
+        return [f"{key}: the momentum balance needs one fluid filling the box; a scene with "
+                "[liquid] (a free surface) cannot use it"]
+    problems = []
+    if not _inside(region, (x0 + h, y0 + h, x1 - h, y1 - h)):
+        problems.append(f"{key}: must lie inside the domain {domain_text(scene)} and keep one "
+                        f"cell ({h:.4g} m) from its edges")
+    inner = (region[0] + 2 * h, region[1] + 2 * h, region[2] - 2 * h, region[3] - 2 * h)
+    outer = (region[0] - 2 * h, region[1] - 2 * h, region[2] + 2 * h, region[3] + 2 * h)
+    for index, obstacle in enumerate(scene.obstacles):
+        bounds = obstacle.bounds()
+        if index in probe.obstacles:
+            if obstacle.motion is not None:
+                problems.append(f"{where}.obstacles: obstacles.{index} moves (it has a "
+                                "motion); the momentum balance reads the force on still "
+                                "obstacles")
+            elif not _inside(bounds, inner):
+                problems.append(f"{key}: must hold obstacles.{index} (bounds {_fmt(bounds)}) "
+                                f"two cells ({2 * h:.4g} m) clear of its sides")
+        elif obstacle.motion is not None or _overlaps(bounds, outer):
+            problems.append(f"{key}: obstacles.{index} is not in the probe's obstacles, and "
+                            + ("moves" if obstacle.motion is not None else
+                               f"reaches within two cells of the box (bounds {_fmt(bounds)})")
+                            + "; the box must hold only the probe's obstacles")
+    if scene.bodies:
+        problems.append(f"{key}: the scene has bodies, which could enter the box; the momentum "
+                        "balance reads the force on still obstacles in a scene without bodies")
+    return problems
+
+
+def _overlaps(a: tuple[float, ...], b: tuple[float, ...]) -> bool:
+    return a[0] < b[2] and b[0] < a[2] and a[1] < b[3] and b[1] < a[3]
 
 
 def obstacle_index(scene: Scene, reference: int | str) -> int | None:

@@ -759,11 +759,15 @@ class ProbeSpec(_Spec):
     listed ``bodies`` and ``obstacles`` together: drag and lift; torque about ``about``),
     ``pressure`` and ``velocity`` at ``point``, ``pressure_difference`` between ``points``,
     ``kinetic_energy`` (a body's, else the fluid's: with ``[liquid]`` the faces with liquid on a
-    side), ``pressure_iterations``.
+    side), ``pressure_iterations``, ``momentum_balance`` (the force on the still ``obstacles``
+    inside ``region`` from the fluid's momentum balance over that box: the scheme's own
+    force, which the traction integral reads with a first-order error, largest in the lift;
+    `elastoflow.fluid.MomentumBalance`).
     """
 
     kind: Literal["node_displacement", "body_force", "force", "torque", "pressure", "velocity",
-                  "pressure_difference", "kinetic_energy", "pressure_iterations"]
+                  "pressure_difference", "kinetic_energy", "pressure_iterations",
+                  "momentum_balance"]
     body: Annotated[int, Field(ge=0)] | None = None
     """Body index (node_displacement, body_force; kinetic_energy of a body, else the fluid's)."""
     node: Annotated[int, Field(ge=0)] | None = None
@@ -780,6 +784,12 @@ class ProbeSpec(_Spec):
     """torque: the axis [m] (counter-clockwise positive)."""
     points: Annotated[list[Point], Strict(False)] | None = None
     """pressure_difference: two points [m]; the column is p(first) - p(second)."""
+    region: Box | None = None
+    """momentum_balance: the control volume ``[x0, y0, x1, y1]`` [m], its sides taken to the
+    nearest face lines; it must hold the listed obstacles, two cells clear of its sides, and
+    nothing else."""
+
+    _region = field_validator("region")(lambda box: box if box is None else _check_box(box))
 
     @model_validator(mode="after")
     def _needs(self) -> ProbeSpec:
@@ -795,6 +805,13 @@ class ProbeSpec(_Spec):
             raise ValueError(f"probe kind {self.kind!r} needs point ([x, y])")
         if self.kind == "pressure_difference" and (self.points is None or len(self.points) != 2):
             raise ValueError("probe kind 'pressure_difference' needs points (two [x, y])")
+        if self.kind == "momentum_balance":
+            if not self.obstacles or self.bodies:
+                raise ValueError("probe kind 'momentum_balance' needs obstacles (an index "
+                                 "list) and no bodies: it reads the force on still obstacles")
+            if self.region is None:
+                raise ValueError("probe kind 'momentum_balance' needs region ([x0, y0, x1, "
+                                 "y1], the box around the obstacles)")
         return self
 
 

@@ -310,6 +310,7 @@ def _run(task: PointTask, folder: Path, row: dict[str, Any]) -> None:
                 break
             report = simulation.step()
             step = simulation.step_index
+            recorder.observe(simulation)
             if step % scene.outputs.probes_every == 0:
                 recorder.record(simulation, report)
             snapshots(simulation)

@@ -34,6 +34,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from elastoflow.analysis import PeriodicStatistics, periodic_statistics
+from elastoflow.fluid import BoxCells, MomentumBalance
 
 if TYPE_CHECKING:
     from elastoflow.fluid import FluidSolver, FluidState, InteriorBoundary
@@ -212,8 +213,13 @@ class DfgResult:
             "drag_cv" and "lift_cv" (by the control-volume balance), "delta_p" [Pa];
             shape (k,) each.
         quantities: "strouhal", "drag_max", "lift_max", "delta_p" (missing when the run is
-            not periodic yet, see ``failure``).
-        statistics: Periodic statistics of drag, lift, drag_cv over the last period.
+            not periodic yet, see ``failure``), the forces by the traction integral (what
+            a scene's force probe reads).
+        balance: "drag_max", "lift_max" from the control-volume momentum balance, the
+            scheme's own force (`ControlVolumeDrag`; the traction integral reads the lift
+            low by a first-order error, docs/validation/unsteady.md).
+        statistics: Periodic statistics of drag, lift, drag_cv, lift_cv over the last
+            period.
         seconds: Wall time of the stepping [s].
         failure: None, or why the quantities could not be computed.
     """
@@ -222,13 +228,14 @@ class DfgResult:
     time: np.ndarray
     series: dict[str, np.ndarray]
     quantities: dict[str, float] = field(default_factory=dict)
+    balance: dict[str, float] = field(default_factory=dict)
     statistics: dict[str, PeriodicStatistics] = field(default_factory=dict)
     seconds: float = 0.0
     failure: str | None = None
 
-    def within_bounds(self, key: str) -> bool:
+    def within_bounds(self, key: str, *, balance: bool = False) -> bool:
         low, high = BOUNDS[key]
-        value = self.quantities.get(key)
+        value = (self.balance if balance else self.quantities).get(key)
         return value is not None and low <= value <= high
 
 
@@ -297,75 +304,18 @@ def surface_pressure(grid: Grid2D, pressure: np.ndarray, solid: np.ndarray,
     return float(p1 - (p2 - p1) * abs(column - i))
 
 
-class ControlVolumeDrag:
-    """Force on the cylinder from a momentum balance over a box of whole cells around it.
+class ControlVolumeDrag(MomentumBalance):
+    """Force on the cylinder from the momentum balance over a box of whole cells around it
+    (`elastoflow.fluid.MomentumBalance`): the box reaches ``half`` diameters from the
+    cylinder's centre on each side (clipped to the channel), and ``bdf2`` takes the time
+    derivative a BDF2 step takes."""
 
-    ``F = -d/dt int_V rho u dV - oint_S (rho u (u.n) - sigma n) dS``,
-    ``sigma = -p I + mu (grad u + grad u^T)``, on a box 1.5 diameters from the cylinder's
-    centre on each side (clipped to the channel), where every value is read from the regular
-    grid: no cut cell enters it. The time derivative is the change of the box's momentum over
-    the last step.
-    """
-
-    def __init__(self, grid: Grid2D, center: tuple[float, float] = CENTER) -> None:
-        h = grid.h
-        self.h = h
-        half = 1.5 * DIAMETER
-        self.i0 = max(1, int(round((center[0] - half) / h)))
-        self.i1 = min(grid.nx - 1, int(round((center[0] + half) / h)))
-        self.j0 = max(1, int(round((center[1] - half) / h)))
-        self.j1 = min(grid.ny - 1, int(round((center[1] + half) / h)))
-        self._previous: tuple[float, float] | None = None
-
-    def momentum(self, u: np.ndarray, v: np.ndarray) -> tuple[float, float]:
-        i0, i1, j0, j1, h = self.i0, self.i1, self.j0, self.j1, self.h
-        # Faces on the box's sides count half.
-        px = (u[i0 + 1:i1, j0:j1].sum() + 0.5 * (u[i0, j0:j1].sum() + u[i1, j0:j1].sum()))
-        py = (v[i0:i1, j0 + 1:j1].sum() + 0.5 * (v[i0:i1, j0].sum() + v[i0:i1, j1].sum()))
-        return DENSITY * h * h * float(px), DENSITY * h * h * float(py)
-
-    def fluxes(self, u: np.ndarray, v: np.ndarray, p: np.ndarray) -> tuple[float, float]:
-        """``oint_S (rho u (u.n) - sigma n) dS`` (x, y) [N/m]."""
-        i0, i1, j0, j1, h = self.i0, self.i1, self.j0, self.j1, self.h
-        mu = DENSITY * VISCOSITY
-        fx = fy = 0.0
-        rows = slice(j0, j1)
-        for i, sign in ((i1, 1.0), (i0, -1.0)):
-            un = u[i, rows]
-            # v at the face centres (i h, (j + 1/2) h): four neighbours.
-            vc = 0.25 * (v[i - 1, j0:j1] + v[i, j0:j1] + v[i - 1, j0 + 1:j1 + 1]
-                         + v[i, j0 + 1:j1 + 1])
-            pc = 0.5 * (p[i - 1, rows] + p[i, rows])
-            dudx = (u[i + 1, rows] - u[i - 1, rows]) / (2.0 * h)
-            dudy = (u[i, j0 + 1:j1 + 1] - u[i, j0 - 1:j1 - 1]) / (2.0 * h)
-            dvdx = 0.5 * ((v[i, j0:j1] - v[i - 1, j0:j1])
-                          + (v[i, j0 + 1:j1 + 1] - v[i - 1, j0 + 1:j1 + 1])) / h
-            fx += sign * h * float(np.sum(DENSITY * un * un + pc - 2.0 * mu * dudx))
-            fy += sign * h * float(np.sum(DENSITY * un * vc - mu * (dudy + dvdx)))
-        columns = slice(i0, i1)
-        for j, sign in ((j1, 1.0), (j0, -1.0)):
-            vn = v[columns, j]
-            uc = 0.25 * (u[i0:i1, j - 1] + u[i0:i1, j] + u[i0 + 1:i1 + 1, j - 1]
-                         + u[i0 + 1:i1 + 1, j])
-            pc = 0.5 * (p[columns, j - 1] + p[columns, j])
-            dvdy = (v[columns, j + 1] - v[columns, j - 1]) / (2.0 * h)
-            dvdx = (v[i0 + 1:i1 + 1, j] - v[i0 - 1:i1 - 1, j]) / (2.0 * h)
-            dudy = 0.5 * ((u[i0:i1, j] - u[i0:i1, j - 1])
-                          + (u[i0 + 1:i1 + 1, j] - u[i0 + 1:i1 + 1, j - 1])) / h
-            fx += sign * h * float(np.sum(DENSITY * uc * vn - mu * (dudy + dvdx)))
-            fy += sign * h * float(np.sum(DENSITY * vn * vn + pc - 2.0 * mu * dvdy))
-        return fx, fy
-
-    def force(self, u: np.ndarray, v: np.ndarray, p: np.ndarray, dt: float
-              ) -> tuple[float, float]:
-        """The force [N/m] on what the box holds, after a step of ``dt``; NaN on the first."""
-        momentum = self.momentum(u, v)
-        flux = self.fluxes(u, v, p)
-        previous, self._previous = self._previous, momentum
-        if previous is None:
-            return math.nan, math.nan
-        return (-(momentum[0] - previous[0]) / dt - flux[0],
-                -(momentum[1] - previous[1]) / dt - flux[1])
+    def __init__(self, grid: Grid2D, center: tuple[float, float] = CENTER, *,
+                 half: float = 1.5, bdf2: bool = False) -> None:
+        reach = half * DIAMETER
+        box = BoxCells.around(grid, (center[0] - reach, center[1] - reach),
+                              (center[0] + reach, center[1] + reach))
+        super().__init__(grid, box, DENSITY, VISCOSITY, bdf2=bdf2)
 
 
 class SurfacePressureDrag:
@@ -449,7 +399,7 @@ def step_series(setup: DfgSetup, progress: Progress | None = None
 
     grid, solver, bmap, interior = dfg_solver(setup)
     state = initial_state(grid, interior, setup.kick, setup.center, setup.peak_speed)
-    balance = ControlVolumeDrag(grid, setup.center)
+    balance = ControlVolumeDrag(grid, setup.center, bdf2=setup.viscosity_scheme == "bdf2")
     surface = SurfacePressureDrag(grid, center=setup.center)
     front, back = setup.front_and_back
     steps = setup.steps
@@ -490,10 +440,12 @@ def evaluate(setup: DfgSetup, time: np.ndarray, series: dict[str, np.ndarray],
     lift maximum that leaves room for it."""
     result = DfgResult(setup, time, series, seconds=seconds)
     try:
-        for key in ("lift", "drag", "drag_cv"):
+        for key in ("lift", "drag", "drag_cv", "lift_cv"):
             result.statistics[key] = _statistics(time, series[key])
         result.quantities.update(dfg_quantities(time, series["drag"], series["lift"],
                                                 series["delta_p"], setup.mean_speed))
+        result.balance.update({"drag_max": result.statistics["drag_cv"].maximum,
+                               "lift_max": result.statistics["lift_cv"].maximum})
     except ValueError as error:
         result.failure = f"not periodic yet: {error}"
     return result
@@ -556,17 +508,21 @@ def describe(result: DfgResult) -> str:
 
 def format_quantities(result: DfgResult) -> list[str]:
     """Each quantity beside the published bounds, one per line."""
-    lines = []
-    for key, (low, high) in BOUNDS.items():
-        value = result.quantities.get(key)
-        if value is None:
-            continue
+    def line(label: str, value: float, low: float, high: float) -> str:
         if low <= value <= high:
             verdict = "inside"
         else:
             edge = low if value < low else high
             verdict = f"outside, {100.0 * (value / edge - 1.0):+.2f} % from the bound"
-        lines.append(f"{LABELS[key]:<10} {value:.4f}   bounds {low:.4f}-{high:.4f}   {verdict}")
+        return f"{label:<10} {value:.4f}   bounds {low:.4f}-{high:.4f}   {verdict}"
+
+    lines = [line(LABELS[key], result.quantities[key], *bounds)
+             for key, bounds in BOUNDS.items() if key in result.quantities]
+    if result.balance:
+        lines.append("by the momentum balance on a box around the cylinder (the scheme's own "
+                     "force):")
+        lines += [line(LABELS[key], result.balance[key], *BOUNDS[key])
+                  for key in ("drag_max", "lift_max") if key in result.balance]
     if "drag" in result.statistics and "drag_cv" in result.statistics:
         lines.append(f"{'c_D mean':<10} {result.statistics['drag'].mean:.4f}   (control volume: "
                      f"{result.statistics['drag_cv'].mean:.4f})")
@@ -602,6 +558,9 @@ def quantities_json(result: DfgResult) -> dict[str, Any]:
         "quantities": {key: {"value": value, "bounds": list(BOUNDS[key]),
                              "inside": result.within_bounds(key)}
                        for key, value in result.quantities.items()},
+        "balance": {key: {"value": value, "bounds": list(BOUNDS[key]),
+                          "inside": result.within_bounds(key, balance=True)}
+                    for key, value in result.balance.items()},
         "statistics": {key: value.as_dict() for key, value in result.statistics.items()},
         "failure": result.failure,
     }
