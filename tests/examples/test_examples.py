@@ -93,7 +93,8 @@ def test_dfg_2d_2_scene_file_is_the_validation_set_up(tmp_path):
     columns, rows = read_probes(tmp_path / "probes.csv")
     data = dict(zip(columns, np.asarray(rows).T, strict=True))
     reference = run_dfg(10, duration=steps * 0.01 / 3.0, advection="upwind3",
-                        viscosity_scheme="bdf2", advecting_velocity="extrapolated")
+                        viscosity_scheme="bdf2", advecting_velocity="extrapolated",
+                        incremental_pressure=True)
     coefficient = 2.0 / (1.0 * 1.0**2 * 0.1)  # 2 F / (rho U^2 D)
     np.testing.assert_allclose(coefficient * data["force_obstacle0_x [N/m]"][-20:],
                                reference.series["drag"][-20:], rtol=1e-3)

@@ -7,9 +7,9 @@ it. Taken with the time derivative the fluid's step takes, this is the scheme's 
 the obstacles inside, whatever the box (DFG 2D-2 at 20 cells per diameter with BDF2: c_L max
 1.0334 / 1.0326 / 1.0277 / 1.0319 on boxes reaching 0.75 / 1 / 1.5 / 1.9 diameters from the
 cylinder's centre); the traction integral on the outline reads the lift 7 % lower there
-(docs/validation/unsteady.md). Schäfer & Turek's reference values come from the same idea in
-finite elements: a volume integral of the momentum equation against a function that is 1 on
-the body, instead of the stress on its surface.
+(docs/validation/unsteady.md). Finite-element studies use the same idea where the surface
+integral is in doubt: a volume integral of the momentum equation against a function equal to
+1 on the body, instead of the stress on its surface.
 
 The box's momentum counts every face in it whose both sides are inside the box (faces on the
 box's sides count half), the faces inside static obstacles included: they hold the
