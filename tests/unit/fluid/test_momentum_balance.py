@@ -22,7 +22,10 @@ def test_still_water_pushes_an_obstacle_up_by_the_weight_of_the_water_it_displac
     yv = np.arange(grid.ny + 1)[None, :] * grid.h
     xu = np.arange(grid.nx + 1)[:, None] * grid.h
     yu = (np.arange(grid.ny)[None, :] + 0.5) * grid.h
-    inside = (lambda px, py: (px - 0.75) ** 2 + (py - 0.5) ** 2 < 0.2**2)
+
+    def inside(px: np.ndarray, py: np.ndarray) -> np.ndarray:
+        return (px - 0.75) ** 2 + (py - 0.5) ** 2 < 0.2**2
+
     solid = (inside(xu, yu), inside(xv, yv))
     box = BoxCells.around(grid, (0.3, 0.1), (1.2, 0.9))
     balance = MomentumBalance(grid, box, density, 1e-3, gravity=(0.0, gravity))
