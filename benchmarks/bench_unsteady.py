@@ -1,7 +1,7 @@
 """Unsteady accuracy (issue 11): DFG 2D-2, the advection schemes' order, the drag's
 convergence, and what each advection scheme costs on the paper's scenes.
 
-``python -m benchmarks unsteady [--parts=order,dfg,drag,pieces,speed,time,placement,couette,steady]
+``python -m benchmarks unsteady [--parts=order,dfg,drag,pieces,speed,time,placement,couette,steady,balance]
 [--resolutions=10,20,30] [--advection=maccormack,semi_lagrangian,upwind3] [--duration=10]
 [--name=NAME]
 [--quick]``
@@ -46,6 +46,13 @@ Parts:
   60), then both at CFL 0.25 and 0.125 at the second: c_D by the traction integral and by
   the control-volume balance against the fine reference, the traction's pressure part, c_L
   and Δp (what the time scheme does to a steady state). Not in the default parts.
+* ``balance``: how the force is read, DFG 2D-2 with the flux form and every second-order
+  option (BDF2, extrapolated trace, incremental pressure) at each resolution of
+  ``--balance-resolutions`` (default 10, 20, 30) over ``--balance-duration`` (default 6 s):
+  c_D max and c_L max over the last 0.7 s by the momentum balance
+  (`elastoflow.fluid.MomentumBalance`) on boxes reaching 0.75, 1, 1.5 and 1.9 diameters
+  from the centre, with the step's time derivative and with the two-level one, and by the
+  traction integral with its first sample at 0.5-2.5 h. Not in the default parts.
 * ``speed``: the paper's scenes (``bar_in_jet``, ``windmill``) stepped with each advection
   scheme: ms per step and the advection phase.
 
@@ -673,10 +680,73 @@ def speed_part(steps: int, quick: bool) -> list[dict[str, Any]]:
     return rows
 
 
-PARTS = ("order", "dfg", "drag", "pieces", "speed", "time", "placement", "couette", "steady")
+BALANCE_BOXES = (0.75, 1.0, 1.5, 1.9)
+BALANCE_SAMPLES = (0.5, 1.0, 1.5, 2.0, 2.5)
+
+
+def balance_part(resolutions: list[int], duration: float) -> list[dict[str, Any]]:
+    """The force on DFG 2D-2's cylinder read by the momentum balance over boxes of each size
+    (with BDF2's derivative, which the step takes, and the two-level one) and by the traction
+    integral with its samples at each distance: one row per reading."""
+    from elastoflow.coupling import force_traction
+    from elastoflow.validation._dfg import (
+        DENSITY,
+        DIAMETER,
+        VISCOSITY,
+        ControlVolumeDrag,
+        dfg_setup,
+        dfg_solver,
+        initial_state,
+    )
+
+    rows: list[dict[str, Any]] = []
+    for resolution in resolutions:
+        setup = dfg_setup(resolution, duration=duration, advection="upwind3",
+                          incremental_pressure=True, viscosity_scheme="bdf2",
+                          advecting_velocity="extrapolated")
+        grid, solver, bmap, interior = dfg_solver(setup)
+        state = initial_state(grid, interior, setup.kick, setup.center, setup.peak_speed)
+        balances = {(half, bdf2): ControlVolumeDrag(grid, setup.center, half=half, bdf2=bdf2)
+                    for half in BALANCE_BOXES for bdf2 in (True, False)}
+        for balance in balances.values():
+            balance.force(state.velocity_x, state.velocity_y, state.pressure, setup.dt)
+        scale = 2.0 / (DENSITY * setup.mean_speed**2 * DIAMETER)
+        window = int(round(0.7 / setup.dt))
+        readings: dict[str, list[tuple[float, float]]] = {}
+        began = time.perf_counter()
+        for step in range(setup.steps):
+            solver.step(state, setup.dt, step * setup.dt, interior)
+            u, v, p = state.velocity_x, state.velocity_y, state.pressure
+            for (half, bdf2), balance in balances.items():
+                force = balance.force(u, v, p, setup.dt)
+                key = f"balance {half:g} D, {'BDF2' if bdf2 else 'two-level'} derivative"
+                readings.setdefault(key, []).append(force)
+            if step < setup.steps - window:
+                continue
+            for distance in BALANCE_SAMPLES:
+                force = force_traction(grid, bmap, u, v, p, DENSITY, VISCOSITY, interior,
+                                       sample_distances=(distance, distance + 1.0,
+                                                         distance + 2.0)).sum(axis=0)
+                readings.setdefault(f"traction, first sample at {distance:g} h", []).append(
+                    (float(force[0]), float(force[1])))
+        seconds = time.perf_counter() - began
+        for reading, values in readings.items():
+            last = scale * np.asarray(values[-window:])
+            rows.append({"part": "balance", "N": resolution, "reading": reading,
+                         "c_D max": float(last[:, 0].max()),
+                         "c_L max": float(last[:, 1].max()),
+                         "c_L min": float(last[:, 1].min()), "wall [s]": round(seconds, 1)})
+    print(markdown_table(rows, ["N", "reading", "c_D max", "c_L max", "c_L min", "wall [s]"]),
+          flush=True)
+    return rows
+
+
+PARTS = ("order", "dfg", "drag", "pieces", "speed", "time", "placement", "couette", "steady",
+         "balance")
 OPTIONS = ("parts", "resolutions", "advection", "duration", "name", "drag-resolution",
            "pieces-duration", "time-resolution", "time-fine", "time-fine-variants",
-           "couette-sizes", "placement-resolutions", "steady-resolutions", "steady-duration")
+           "couette-sizes", "placement-resolutions", "steady-resolutions", "steady-duration",
+           "balance-resolutions", "balance-duration")
 FLAGS = ("--quick", "--reevaluate")
 
 
@@ -744,6 +814,10 @@ def main(argv: list[str] | None = None) -> list[dict[str, Any]]:
                                                      "8,12" if quick else "10,20,30,40,60"
                                                      ).split(",")],
                             float(_option(argv, "steady-duration", "2" if quick else "5")))
+    if "balance" in parts:
+        rows += balance_part([int(v) for v in _option(argv, "balance-resolutions",
+                                                      "8" if quick else "10,20,30").split(",")],
+                             float(_option(argv, "balance-duration", "1" if quick else "6")))
     if "speed" in parts:
         rows += speed_part(20 if quick else 100, quick)
     write_results(_option(argv, "name", "unsteady"), rows)

@@ -9,6 +9,7 @@ import json
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 pytest.importorskip("elastoflow.simulation")
@@ -156,3 +157,18 @@ def test_unsteady_refuses_what_it_does_not_know(argv: list[str], message: str,
     assert refused.value.code == 2
     error = capsys.readouterr().err
     assert message in error and error.count("\n") == 1
+
+
+def test_unsteady_balance_part_reads_each_force(capsys) -> None:
+    """``--parts=balance`` on a short coarse run: a row per reading (each box with each
+    derivative, the traction at each sample distance), all finite, and the table printed."""
+    from benchmarks import bench_unsteady
+
+    rows = bench_unsteady.balance_part([8], 0.3)
+    readings = {row["reading"]: row for row in rows}
+    assert len(readings) == 2 * len(bench_unsteady.BALANCE_BOXES) + len(
+        bench_unsteady.BALANCE_SAMPLES)
+    assert all(np.isfinite([row["c_D max"], row["c_L max"], row["c_L min"]]).all()
+               for row in rows)
+    assert "traction, first sample at 1.5 h" in readings
+    assert "reading" in capsys.readouterr().out

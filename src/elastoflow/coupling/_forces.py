@@ -1,5 +1,7 @@
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from elastoflow.coupling import _kernels
@@ -101,6 +103,7 @@ def force_traction(
     viscosity: float,
     interior: InteriorBoundary | None = None,
     gravity: tuple[float, float] = (0.0, 0.0),
+    sample_distances: tuple[float, ...] = _SAMPLE_DISTANCES,
 ) -> np.ndarray:
     """Fluid force on the boundary points by the traction integral (METHOD.md §7).
 
@@ -139,6 +142,9 @@ def force_traction(
             None.
         gravity: The fluid's gravitational acceleration (gx, gy) [m/s^2], for the hydrostatic
             carry to the wall.
+        sample_distances: Where along the normal the samples are taken, in cells, the next
+            tried when every stencil point of one is solid (a study of the carry's error:
+            the lift of DFG 2D-2 depends on it, docs/validation/unsteady.md).
 
     Returns:
         Nodal forces [N per metre of depth] on the map's boundary points, shape (P, 2).
@@ -151,6 +157,9 @@ def force_traction(
     _check_positive("density", density)
     if not (viscosity >= 0.0 and np.isfinite(viscosity)):
         raise ValueError(f"viscosity = {viscosity!r}: must be a finite number >= 0")
+    if not sample_distances or not all(math.isfinite(d) and d > 0.0 for d in sample_distances):
+        raise ValueError(f"sample_distances = {sample_distances!r}: must be one or more "
+                         "finite distances > 0 [cells]")
     if interior is None:
         interior = InteriorBoundary.empty(grid)
     else:
@@ -163,6 +172,6 @@ def force_traction(
          np.ascontiguousarray(interior.solid_cells)),
         (float(grid.origin[0]), float(grid.origin[1]), float(grid.h)),
         (float(density), float(density * viscosity), float(gravity[0]), float(gravity[1])),
-        np.asarray(_SAMPLE_DISTANCES) * grid.h, force,
+        np.asarray(sample_distances, dtype=np.float64) * grid.h, force,
     )
     return force

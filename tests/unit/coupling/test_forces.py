@@ -165,6 +165,23 @@ def test_bad_input_raises():
         force_traction(grid, bmap, u, v, np.zeros((8, 8)), DENSITY, -1.0, interior)
     with pytest.raises(ValueError, match="grid"):
         force_traction(Grid2D(8, 8, 0.1), bmap, u, v, np.zeros((8, 8)), DENSITY, 0.0)
+    for distances in ((), (1.5, -1.0), (math.inf,)):
+        with pytest.raises(ValueError, match="sample_distances"):
+            force_traction(grid, bmap, u, v, np.zeros((8, 8)), DENSITY, 0.0, interior,
+                           sample_distances=distances)
+
+
+def test_hydrostatic_force_does_not_depend_on_where_the_pressure_is_sampled():
+    """With the gravity carry the hydrostatic pressure is exact at any sample distance."""
+    grid = Grid2D(32, 32, 1.0 / 32.0)
+    body = obstacle_circle((0.5, 0.45), 0.2, 50)
+    bmap, interior = _setup(grid, body)
+    weight = DENSITY * GRAVITY * polygon_signed_area(body.polygon)
+    for first in (1.0, 1.5, 2.5):
+        force = force_traction(grid, bmap, *_still(grid), _hydrostatic(grid), DENSITY, 1e-3,
+                               interior, gravity=(0.0, -GRAVITY),
+                               sample_distances=(first, first + 1.0)).sum(axis=0)
+        np.testing.assert_allclose(force, [0.0, weight], rtol=0, atol=1e-9 * weight)
 
 
 def test_rotating_cylinder_in_couette_flow_gets_the_analytic_torque():
