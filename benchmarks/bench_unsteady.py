@@ -561,13 +561,14 @@ def steady_part(resolutions: list[int], duration: float) -> list[dict[str, Any]]
             row.update({"c_D": q["drag"], "c_D err": result.error("drag"),
                         "c_D cv": q["drag_cv"], "c_D cv err": result.error("drag_cv"),
                         "c_D pressure": q["drag_pressure"], "c_L": q["lift"],
+                        "c_L cv": q["lift_cv"], "c_L cv err": result.error("lift_cv"),
                         "Δp": q["delta_p"], "Δp err": result.error("delta_p"),
                         "drift": q["drift"], "c_L drift": q["lift_drift"]})
         print(row, flush=True)
         rows.append(row)
     print(markdown_table(rows, ["scheme", "N", "cfl", "c_D", "c_D err", "c_D cv", "c_D cv err",
-                                "c_D pressure", "c_L", "Δp", "Δp err", "drift", "c_L drift",
-                                "wall [s]", "note"]), flush=True)
+                                "c_D pressure", "c_L", "c_L cv", "c_L cv err", "Δp", "Δp err",
+                                "drift", "c_L drift", "wall [s]", "note"]), flush=True)
     return rows
 
 

@@ -82,10 +82,12 @@ def test_cli_prints_the_quantities_and_writes_the_report(tmp_path: Path) -> None
     assert outcome.exit_code == 0, outcome.output
     assert "DFG 2D-1, resolution 6" in outcome.output
     assert "c_D (control volume)" in outcome.output and "reference 5.5795" in outcome.output
+    assert "c_L (control volume)" in outcome.output
     data = json.loads((tmp_path / "dfg2d1_maccormack_n6.json").read_text())
     assert data["benchmark"] == "DFG 2D-1"
     assert data["reference"]["drag"] == STEADY_REFERENCE["drag"]
-    assert set(data["quantities"]) >= {"drag", "drag_cv", "lift", "delta_p", "drift"}
+    assert set(data["quantities"]) >= {"drag", "drag_cv", "lift", "lift_cv", "delta_p",
+                                       "drift"}
     assert (tmp_path / "dfg2d1_maccormack_n6.png").stat().st_size > 0
     header = (tmp_path / "dfg2d1_maccormack_n6.csv").read_text().splitlines()[0]
     assert header.startswith("time [s],drag,lift")
@@ -107,4 +109,5 @@ def test_cli_refuses_bad_input_in_one_line(arguments: list[str], message: str) -
 def test_format_names_each_quantity() -> None:
     result = run_dfg_steady(6, duration=1.0)
     lines = format_steady(result)
-    assert [line.split()[0] for line in lines] == ["c_D", "c_D", "c_D", "c_L", "Δp", "drift"]
+    assert [line.split()[0] for line in lines] == ["c_D", "c_D", "c_D", "c_L", "c_L", "Δp",
+                                                  "drift"]

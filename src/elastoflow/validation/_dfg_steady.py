@@ -45,7 +45,10 @@ STEADY_BOUNDS: dict[str, tuple[float, float]] = {
     "delta_p": (0.1172, 0.1176),
 }
 STEADY_LABELS = {"drag": "c_D", "lift": "c_L", "delta_p": "Δp [Pa]",
-                 "drag_cv": "c_D (control volume)", "drag_pressure": "c_D pressure part"}
+                 "drag_cv": "c_D (control volume)", "lift_cv": "c_L (control volume)",
+                 "drag_pressure": "c_D pressure part"}
+# Quantities read by the control-volume balance, and the traction quantity each stands for.
+_BALANCE_OF = {"drag_cv": "drag", "lift_cv": "lift"}
 # The window the steady quantities are averaged over, at the end of the run [s].
 STEADY_WINDOW = 0.5
 
@@ -59,8 +62,8 @@ class DfgSteadyResult:
         time: Sample times [s], one per step.
         series: As `DfgResult.series`, coefficients on U = 0.2 m/s.
         quantities: Means over the last `STEADY_WINDOW` seconds: "drag", "lift", "delta_p"
-            [Pa], "drag_cv" (control-volume balance), "drag_pressure" (the traction's
-            pressure part); and "drift" and "lift_drift", the largest minus the smallest
+            [Pa], "drag_cv" and "lift_cv" (control-volume balance), "drag_pressure" (the
+            traction's pressure part); and "drift" and "lift_drift", the largest minus the smallest
             traction c_D and c_L in that window (how steady the run ended; the lift, 0.2 %
             of the drag, settles last). Empty when ``failure`` is set.
         seconds: Wall time of the stepping [s].
@@ -76,7 +79,7 @@ class DfgSteadyResult:
 
     def error(self, key: str) -> float:
         """Relative error of a quantity against the fine reference value."""
-        reference = STEADY_REFERENCE["drag" if key == "drag_cv" else key]
+        reference = STEADY_REFERENCE[_BALANCE_OF.get(key, key)]
         return self.quantities[key] / reference - 1.0
 
 
@@ -118,7 +121,7 @@ def evaluate_steady(setup: DfgSetup, time: np.ndarray, series: dict[str, np.ndar
     if not all(np.isfinite(values[window]).all() for values in series.values()):
         result.failure = "non-finite forces: the run blew up"
         return result
-    for key in ("drag", "lift", "delta_p", "drag_cv", "drag_pressure"):
+    for key in ("drag", "lift", "delta_p", "drag_cv", "lift_cv", "drag_pressure"):
         result.quantities[key] = float(np.mean(series[key][window]))
     result.quantities["drift"] = float(np.ptp(series["drag"][window]))
     result.quantities["lift_drift"] = float(np.ptp(series["lift"][window]))
@@ -144,13 +147,14 @@ def format_steady(result: DfgSteadyResult) -> list[str]:
     if result.failure is not None:
         return [f"not evaluated: {result.failure}"]
     lines = []
-    for key in ("drag", "drag_cv", "drag_pressure", "lift", "delta_p"):
+    for key in ("drag", "drag_cv", "drag_pressure", "lift", "lift_cv", "delta_p"):
         value = result.quantities[key]
-        if key in STEADY_BOUNDS or key == "drag_cv":
-            low, high = STEADY_BOUNDS["drag" if key == "drag_cv" else key]
+        standing_for = _BALANCE_OF.get(key, key)
+        if standing_for in STEADY_BOUNDS:
+            low, high = STEADY_BOUNDS[standing_for]
             verdict = "inside" if low <= value <= high else "outside"
             lines.append(f"{STEADY_LABELS[key]:<22} {value:.5g}   reference "
-                         f"{STEADY_REFERENCE['drag' if key == 'drag_cv' else key]:.5g} "
+                         f"{STEADY_REFERENCE[standing_for]:.5g} "
                          f"({100.0 * result.error(key):+.2f} %), bounds {low:g}-{high:g}: "
                          f"{verdict}")
         else:
@@ -203,7 +207,8 @@ def _plot(result: DfgSteadyResult, path: Path) -> None:
     from elastoflow.io import atomic_path
 
     figure, axes = plt.subplots(1, 3, figsize=(13, 3.4))
-    panels = ((("drag", "traction"), ("drag_cv", "control volume")), (("lift", "traction"),),
+    panels = ((("drag", "traction"), ("drag_cv", "control volume")),
+              (("lift", "traction"), ("lift_cv", "control volume")),
               (("delta_p", "surface"),))
     for axis, lines, key in zip(axes, panels, ("drag", "lift", "delta_p")):
         for name, label in lines:
