@@ -29,11 +29,14 @@ Parts:
   named by ``--time-fine-variants`` (default: BDF2) at N = 20 (``--time-fine``, 0 skips
   it), CFL 0.5.
   Not in the default parts.
-* ``placement``: DFG 2D-2 with MacCormack at each resolution of ``--placement-resolutions``
-  (default 10, 20) with the cylinder moved downstream by 0, 1/4, 1/2 and 3/4 of a cell
-  (``run_dfg(offset=...)``): how much the quantities depend on where the grid cuts the
-  circle (at offset 0 the centre lies on a grid node and the circle passes through nodes);
-  their mean and spread over the placements. Not in the default parts.
+* ``placement``: DFG 2D-2 with the flux form and every second-order option (as
+  ``balance``) at each resolution N of ``--placement-resolutions`` (default 10, 20): the
+  benchmark's geometry on the grids of ``ceil(4.1 N) - 2 .. + 2`` cells across the height
+  (``run_dfg(across=...)``: where the grid cuts the circle; at the middle one the centre
+  lies on a grid node and the circle passes through nodes), their mean and spread; then
+  the middle grid with the cylinder moved downstream by one and two cells
+  (``run_dfg(offset=...)``: the same cuts, the cylinder's place in the channel changed).
+  Not in the default parts.
 * ``couette``: circular Couette flow between two cut-cell cylinders
   (`elastoflow.validation._couette`, exact at any Reynolds number; U = 1 m/s, nu = 0.01,
   3 s from the exact flow) on 32², 64², 128² with the first-order step, BDF2 with the
@@ -488,7 +491,10 @@ def pieces_part(resolution: int, duration: float) -> list[dict[str, Any]]:
     return rows
 
 
-PLACEMENTS = (0.0, 0.25, 0.5, 0.75)
+# The placement part's grids: ceil(4.1 N) + d cells across the height.
+PLACEMENT_GRIDS = (-2, -1, 0, 1, 2)
+# ... and the cylinder moved downstream on the benchmark's grid [cells].
+SHIFTS = (1, 2)
 COUETTE_SCHEMES: tuple[tuple[str, dict[str, Any]], ...] = (
     ("first order", {}),
     ("BDF2 + extrapolated trace", {"viscosity_scheme": "bdf2",
@@ -574,44 +580,69 @@ def steady_part(resolutions: list[int], duration: float) -> list[dict[str, Any]]
 
 def placement_part(resolutions: list[int], duration: float, quick: bool
                    ) -> list[dict[str, Any]]:
-    """The same flow on four placements of the grid per resolution, and each quantity's
-    mean and spread (largest minus smallest) over them; the plot into docs unless ``quick``."""
-    from elastoflow.validation import run_dfg
+    """Where the grid lies about the geometry, and where the cylinder lies in the channel.
 
+    Per resolution N, the flux form with every second-order option (as the ``balance``
+    part): (a) the benchmark's geometry on the grids of ``ceil(4.1 N) + d`` cells across
+    the height, d in `PLACEMENT_GRIDS` (h changes by a few percent, the circle's cuts
+    change; each quantity's mean and spread over them); (b) the benchmark's grid with the
+    cylinder moved downstream by whole cells, `SHIFTS` (the grid's placement about the
+    cylinder unchanged: what moving the cylinder in the channel does by itself). The plot
+    into docs unless ``quick``."""
+    from elastoflow.validation import run_dfg
+    from elastoflow.validation._dfg import cells_across
+
+    options = {"advection": "upwind3", "viscosity_scheme": "bdf2",
+               "advecting_velocity": "extrapolated", "incremental_pressure": True}
     rows: list[dict[str, Any]] = []
-    keys = ("strouhal", "drag_max", "lift_max", "delta_p", "drag mean", "drag_cv mean")
+    keys = ("strouhal", "drag_max", "lift_max", "delta_p", "c_D max (balance)",
+            "c_L max (balance)")
+
+    def measure(resolution: int, across: int, offset: float, kind: str, d: int
+                ) -> dict[str, Any]:
+        result = run_dfg(resolution, duration=duration, across=across, offset=offset,
+                         **options)
+        h = 0.41 / across
+        row: dict[str, Any] = {"part": "placement", "kind": kind, "N": resolution,
+                               "d": d, "across": across, "offset [cells]": offset,
+                               "centre [cells]": round(0.2 / h + offset, 3),
+                               "wall [s]": round(result.seconds, 1)}
+        row.update(result.quantities)
+        if result.balance:
+            row["c_D max (balance)"] = result.balance["drag_max"]
+            row["c_L max (balance)"] = result.balance["lift_max"]
+        if result.failure is not None:
+            row["note"] = result.failure
+        print(row, flush=True)
+        return row
+
     for resolution in resolutions:
-        group = []
-        for offset in PLACEMENTS:
-            result = run_dfg(resolution, duration=duration, offset=offset)
-            row: dict[str, Any] = {"part": "placement", "N": resolution, "offset": offset,
-                                   "wall [s]": round(result.seconds, 1)}
-            row.update(result.quantities)
-            for name in ("drag", "drag_cv"):
-                if name in result.statistics:
-                    row[f"{name} mean"] = result.statistics[name].mean
-            if result.failure is not None:
-                row["note"] = result.failure
-            print(row, flush=True)
-            group.append(row)
+        base = cells_across(resolution)
+        group = [measure(resolution, base + d, 0.0, "grid", d) for d in PLACEMENT_GRIDS]
         rows += group
-        summary: dict[str, Any] = {"part": "placement", "N": resolution, "offset": "mean"}
-        spread: dict[str, Any] = {"part": "placement", "N": resolution, "offset": "spread"}
+        summary: dict[str, Any] = {"part": "placement", "kind": "grid", "N": resolution,
+                                   "across": "mean"}
+        spread: dict[str, Any] = {"part": "placement", "kind": "grid", "N": resolution,
+                                  "across": "spread"}
         for key in keys:
             values = [row[key] for row in group if key in row]
             if len(values) == len(group):
                 summary[key] = float(np.mean(values))
                 spread[key] = float(np.max(values) - np.min(values))
         rows += [summary, spread]
-    print(markdown_table(rows, ["N", "offset", *keys, "wall [s]", "note"]), flush=True)
+        rows += [measure(resolution, base, float(shift), "shift", 0) for shift in SHIFTS]
+    print(markdown_table(rows, ["N", "kind", "across", "offset [cells]", "centre [cells]",
+                                *keys, "wall [s]", "note"]), flush=True)
     if not quick:
         plot_placement(rows)
     return rows
 
 
 def plot_placement(rows: list[dict[str, Any]]) -> None:
-    """``docs/validation/unsteady/dfg2d2_placement.png``: each quantity against the offset,
-    one line per resolution (rows of `placement_part`, from one run or several)."""
+    """``docs/validation/unsteady/dfg2d2_placement.png``: c_L max and c_D max by the
+    balance against the cylinder's distance downstream of its benchmark position, one line
+    per resolution: the shifted cylinder on the benchmark's grid, and the benchmark's
+    geometry on the nearby grids (at distance 0; rows of `placement_part`)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -619,22 +650,30 @@ def plot_placement(rows: list[dict[str, Any]]) -> None:
 
     from elastoflow.validation._dfg import BOUNDS, LABELS
 
-    runs = [r for r in rows if r.get("part") == "placement" and isinstance(r["offset"], float)]
-    figure, axes = plt.subplots(1, 4, figsize=(15, 3.4))
-    for axis, key in zip(axes, QUANTITIES):
-        for resolution in sorted({r["N"] for r in runs}):
-            chosen = [r for r in runs if r["N"] == resolution and key in r]
-            axis.plot([r["offset"] for r in chosen], [r[key] for r in chosen], "o-",
-                      label=f"N = {resolution}")
-        low, high = BOUNDS[key]
+    runs = [r for r in rows if r.get("part") == "placement" and isinstance(r["across"], int)]
+    figure, axes = plt.subplots(1, 2, figsize=(10, 3.6))
+    for axis, key, bound in zip(axes, ("c_L max (balance)", "c_D max (balance)"),
+                                ("lift_max", "drag_max")):
+        for index, resolution in enumerate(sorted({r["N"] for r in runs})):
+            colour = f"C{index}"
+            # The cylinder on the benchmark's grid (d = 0), in its place and moved.
+            shifted = [r for r in runs if r["N"] == resolution and key in r and r["d"] == 0]
+            shifted.sort(key=lambda r: r["offset [cells]"])
+            axis.plot([1e3 * r["offset [cells]"] * 0.41 / r["across"] for r in shifted],
+                      [r[key] for r in shifted], "o-", color=colour,
+                      label=f"N = {resolution}: cylinder moved")
+            grids = [r[key] for r in runs if r["N"] == resolution and r["kind"] == "grid"
+                     and key in r]
+            axis.plot([0.0] * len(grids), grids, "x", color=colour, markersize=8,
+                      label=f"N = {resolution}: {len(grids)} grids, benchmark's geometry")
+        low, high = BOUNDS[bound]
         axis.axhspan(low, high, color="tab:green", alpha=0.25, label="published bounds")
-        axis.set_xticks(PLACEMENTS)
-        axis.set_xlabel("cylinder moved downstream [cells]")
-        axis.set_title(LABELS[key], fontsize=9)
+        axis.set_xlabel("cylinder moved downstream [mm]")
+        axis.set_title(f"{LABELS[bound]} (momentum balance)", fontsize=9)
         axis.grid(alpha=0.3)
     axes[0].legend(fontsize=7)
-    figure.suptitle("DFG 2D-2, MacCormack: the same flow on four placements of the grid "
-                    "(offset 0: the benchmark's, centre on a grid node)", fontsize=9)
+    figure.suptitle("DFG 2D-2, flux form (BDF2, extrapolated trace, incremental pressure): "
+                    "the grid's placement and the cylinder's position", fontsize=9)
     figure.tight_layout()
     DOCS.mkdir(parents=True, exist_ok=True)
     figure.savefig(DOCS / "dfg2d2_placement.png", dpi=100)

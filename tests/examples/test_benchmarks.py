@@ -172,3 +172,32 @@ def test_unsteady_balance_part_reads_each_force(capsys) -> None:
                for row in rows)
     assert "traction, first sample at 1.5 h" in readings
     assert "reading" in capsys.readouterr().out
+
+
+def test_unsteady_placement_part_moves_the_grid_and_the_cylinder(capsys, tmp_path,
+                                                                 monkeypatch) -> None:
+    """``--parts=placement`` on a tiny short run: the benchmark's geometry on the grids
+    around the resolution's own, then the cylinder moved by whole cells on its grid; the
+    table printed, and the plot drawn from such rows."""
+    from benchmarks import bench_unsteady
+    from elastoflow.validation._dfg import cells_across
+
+    rows = bench_unsteady.placement_part([4], 0.05, quick=True)
+    grids = [row for row in rows if row["kind"] == "grid" and isinstance(row["across"], int)]
+    assert [row["across"] for row in grids] == [
+        cells_across(4) + d for d in bench_unsteady.PLACEMENT_GRIDS]
+    assert all(row["offset [cells]"] == 0.0 for row in grids)
+    shifted = [row for row in rows if row["kind"] == "shift"]
+    assert [row["offset [cells]"] for row in shifted] == [float(s) for s in bench_unsteady.SHIFTS]
+    assert all(row["across"] == cells_across(4) for row in shifted)
+    assert {row["across"] for row in rows if not isinstance(row["across"], int)} == {
+        "mean", "spread"}
+    assert "centre [cells]" in capsys.readouterr().out
+
+    # The plot, from rows as a finished run has them.
+    for row in grids + shifted:
+        row["c_L max (balance)"] = 1.0 - 0.01 * row["offset [cells]"] + 0.001 * row["d"]
+        row["c_D max (balance)"] = 3.2 - 0.02 * row["offset [cells]"]
+    monkeypatch.setattr(bench_unsteady, "DOCS", tmp_path)
+    bench_unsteady.plot_placement(rows)
+    assert (tmp_path / "dfg2d2_placement.png").stat().st_size > 0

@@ -9,6 +9,7 @@ made by ``python -m benchmarks unsteady``.
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 
 import numpy as np
@@ -200,7 +201,7 @@ def test_offset_moves_the_cylinder_and_the_pressure_points_by_a_fraction_of_a_ce
     round-off cannot decide), and Δp's points move with it."""
     from elastoflow.validation._dfg import BACK, CENTER, FRONT, RADIUS, dfg_solver
 
-    for offset in (0.0, 0.5, 0.75):
+    for offset in (0.0, 0.5, 0.75, 1.5):
         setup = dfg_setup(10, duration=0.1, offset=offset)
         h = setup.h
         assert setup.center == (CENTER[0] + offset * h, CENTER[1])
@@ -228,7 +229,35 @@ def test_offset_zero_is_the_benchmark_placement_and_other_offsets_run() -> None:
     assert quantities_json(moved)["offset"] == 0.5
 
 
-@pytest.mark.parametrize("offset", [-0.1, 1.0, 2, True, float("nan")])
-def test_offset_outside_a_cell_is_refused(offset: float) -> None:
-    with pytest.raises(ValueError, match=r"offset = .*must be a fraction of a cell in \[0, 1\)"):
+@pytest.mark.parametrize("offset", [-0.1, 20.0, 25, True, float("nan"), "1"])
+def test_offset_outside_the_channel_is_refused(offset: float) -> None:
+    with pytest.raises(ValueError, match=r"offset = .*must be a number of cells in \[0, 20\)"):
         dfg_setup(10, offset=offset)
+
+
+def test_across_sets_the_grid_about_the_same_geometry() -> None:
+    """``across`` cells across the height: h = 0.41 / across, the cylinder where the
+    benchmark puts it (its centre no longer on a grid node), the default grid's run
+    unchanged bitwise when ``across`` names it."""
+    from elastoflow.validation._dfg import CENTER, cells_across
+
+    setup = dfg_setup(10, duration=0.1, across=43)
+    assert setup.h == pytest.approx(0.41 / 43, rel=1e-15)
+    assert setup.cells == (math.ceil(2.2 / setup.h - 1e-9), 43)
+    assert setup.center == CENTER
+    assert setup.dt == pytest.approx(setup.h / 3.0, rel=1e-12)
+    assert "across" in repr(setup)
+    reference = run_dfg(4, duration=0.05)
+    same = run_dfg(4, duration=0.05, across=cells_across(4))
+    for key, values in reference.series.items():
+        np.testing.assert_array_equal(values, same.series[key])
+    other = run_dfg(4, duration=0.05, across=cells_across(4) + 1)
+    assert other.setup.cells[1] == cells_across(4) + 1
+    assert all(np.isfinite(values[1:]).all() for values in other.series.values())
+    assert quantities_json(other)["cells"][1] == cells_across(4) + 1
+
+
+@pytest.mark.parametrize("across", [11, 657, 20.5, True, "40"])
+def test_across_outside_its_range_is_refused(across: object) -> None:
+    with pytest.raises(ValueError, match=r"across = .*must be a whole number of cells across"):
+        dfg_setup(10, across=across)  # type: ignore[arg-type]

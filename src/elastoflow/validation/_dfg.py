@@ -64,6 +64,8 @@ BOUNDS: dict[str, tuple[float, float]] = {
 }
 LABELS = {"strouhal": "St", "drag_max": "c_D max", "lift_max": "c_L max", "delta_p": "Δp [Pa]"}
 ADVECTION_SCHEMES = ("maccormack", "semi_lagrangian", "upwind3")
+# The farthest the cylinder may be moved downstream [cells] (`DfgSetup.offset`).
+MAX_OFFSET = 20.0
 ADVECTING_VELOCITIES = ("current", "extrapolated")
 VISCOSITY_SCHEMES = ("backward_euler", "crank_nicolson", "bdf2")
 
@@ -101,9 +103,16 @@ class DfgSetup:
         advecting_velocity: The back-trace's velocity (`FluidSolver`): "current" or
             "extrapolated" (to mid-step, second order in time).
         viscosity_scheme: "backward_euler" or "crank_nicolson" (`FluidSolver`).
-        offset: The cylinder moved downstream by this fraction of a cell (0 <= offset < 1):
-            the same flow on another placement of the grid (at 0 the centre lies on a grid
-            node and the circle passes through nodes; docs/validation/unsteady.md).
+        offset: The cylinder moved downstream by this many cells (0 <= offset < 20).
+            This changes the problem as well as the grid's placement: the cylinder's
+            distance from the inflow decides much of the lift (c_L max falls by about 0.65 %
+            per millimetre the cylinder moves downstream, at every resolution;
+            docs/validation/unsteady.md). ``across`` places the grid differently about the
+            same geometry.
+        across: Cells across the channel's height 0.41 m (default ``ceil(4.1 N)``): another
+            h about the same geometry, so another placement of the grid about the
+            cylinder (at the default the centre lies on a grid node and the circle passes
+            through nodes).
         peak_speed: The inflow's peak velocity [m/s]: 1.5 for 2D-2 (Re = 100), 0.3 for the
             steady 2D-1 (Re = 20, `run_dfg_steady`).
     """
@@ -120,6 +129,7 @@ class DfgSetup:
     viscosity_scheme: str = "backward_euler"
     offset: float = 0.0
     peak_speed: float = PEAK_SPEED
+    across: int | None = None
 
     @property
     def mean_speed(self) -> float:
@@ -152,7 +162,8 @@ class DfgSetup:
 
     @property
     def cells(self) -> tuple[int, int]:
-        return (math.ceil(CHANNEL[0] / self.h - 1e-9), cells_across(self.resolution))
+        across = cells_across(self.resolution) if self.across is None else self.across
+        return (math.ceil(CHANNEL[0] / self.h - 1e-9), across)
 
 
 def dfg_setup(resolution: int = 20, *, duration: float | None = None, dt: float | None = None,
@@ -160,10 +171,10 @@ def dfg_setup(resolution: int = 20, *, duration: float | None = None, dt: float 
               incremental_pressure: bool = False, kick: float = 0.3,
               limiter: bool = True, advecting_velocity: str = "current",
               viscosity_scheme: str = "backward_euler", offset: float = 0.0,
-              peak_speed: float = PEAK_SPEED) -> DfgSetup:
-    """Resolution N -> h = 0.41 / ceil(4.1 N); dt from ``cfl`` on the inflow peak (0.5:
-    dt = h / 3 s/m at 2D-2's peak); 10 s of simulated time by default; the cylinder
-    ``offset`` cells downstream of its benchmark position (see `DfgSetup`).
+              peak_speed: float = PEAK_SPEED, across: int | None = None) -> DfgSetup:
+    """Resolution N -> h = 0.41 / ceil(4.1 N) (or 0.41 / ``across``); dt from ``cfl`` on
+    the inflow peak (0.5: dt = h / 3 s/m at 2D-2's peak); 10 s of simulated time by default;
+    the cylinder ``offset`` cells downstream of its benchmark position (see `DfgSetup`).
 
     Raises:
         ValueError: one line naming the bad argument.
@@ -172,7 +183,11 @@ def dfg_setup(resolution: int = 20, *, duration: float | None = None, dt: float 
     if advection not in ADVECTION_SCHEMES:
         raise ValueError(f"advection = {advection!r}: must be one of "
                          f"{', '.join(ADVECTION_SCHEMES)}")
-    h = CHANNEL[1] / cells_across(resolution)
+    if across is not None and (isinstance(across, bool) or not isinstance(across, int)
+                               or not 12 <= across <= 656):
+        raise ValueError(f"across = {across!r}: must be a whole number of cells across the "
+                         "channel's 0.41 m in 12..656")
+    h = CHANNEL[1] / (cells_across(resolution) if across is None else across)
     if duration is None:
         duration = 10.0
     if not (isinstance(duration, (int, float)) and math.isfinite(duration) and duration > 0.0):
@@ -185,8 +200,9 @@ def dfg_setup(resolution: int = 20, *, duration: float | None = None, dt: float 
                          f"{', '.join(VISCOSITY_SCHEMES)}")
     if not (isinstance(cfl, (int, float)) and math.isfinite(cfl) and cfl > 0.0):
         raise ValueError(f"cfl = {cfl!r}: must be a finite number > 0")
-    if isinstance(offset, bool) or not (isinstance(offset, (int, float)) and 0.0 <= offset < 1.0):
-        raise ValueError(f"offset = {offset!r}: must be a fraction of a cell in [0, 1)")
+    if isinstance(offset, bool) or not (isinstance(offset, (int, float))
+                                        and 0.0 <= offset < MAX_OFFSET):
+        raise ValueError(f"offset = {offset!r}: must be a number of cells in [0, {MAX_OFFSET:g})")
     if isinstance(peak_speed, bool) or not (isinstance(peak_speed, (int, float))
                                             and math.isfinite(peak_speed) and peak_speed > 0.0):
         raise ValueError(f"peak_speed = {peak_speed!r}: must be a finite number > 0 [m/s]")
@@ -196,7 +212,7 @@ def dfg_setup(resolution: int = 20, *, duration: float | None = None, dt: float 
         raise ValueError(f"dt = {dt!r}: must be a finite positive time step [s]")
     return DfgSetup(resolution, h, float(dt), float(duration), advection,
                     incremental_pressure, float(kick), limiter, advecting_velocity,
-                    viscosity_scheme, float(offset), float(peak_speed))
+                    viscosity_scheme, float(offset), float(peak_speed), across)
 
 
 @dataclass
@@ -354,7 +370,8 @@ def run_dfg(resolution: int = 20, *, duration: float | None = None, dt: float | 
             advection: str = "maccormack", cfl: float = 0.5,
             incremental_pressure: bool = False, kick: float = 0.3, limiter: bool = True,
             advecting_velocity: str = "current", viscosity_scheme: str = "backward_euler",
-            offset: float = 0.0, progress: Progress | None = None) -> DfgResult:
+            offset: float = 0.0, across: int | None = None,
+            progress: Progress | None = None) -> DfgResult:
     """Run DFG 2D-2 and evaluate its quantities over the last period.
 
     Args:
@@ -368,13 +385,14 @@ def run_dfg(resolution: int = 20, *, duration: float | None = None, dt: float | 
         limiter: MacCormack's clamp (False only for studies).
         advecting_velocity: "current" or "extrapolated" (`FluidSolver`).
         viscosity_scheme: "backward_euler" or "crank_nicolson" (`FluidSolver`).
-        offset: The cylinder moved downstream by this fraction of a cell (`DfgSetup`).
+        offset: The cylinder moved downstream by this many cells (`DfgSetup`).
+        across: Cells across the channel's height (`DfgSetup`).
         progress: Called with (steps done, steps in all) as the run goes.
     """
     setup = dfg_setup(resolution, duration=duration, dt=dt, advection=advection, cfl=cfl,
                       incremental_pressure=incremental_pressure, kick=kick, limiter=limiter,
                       advecting_velocity=advecting_velocity, viscosity_scheme=viscosity_scheme,
-                      offset=offset)
+                      offset=offset, across=across)
     times, columns, seconds = step_series(setup, progress)
     if not all(np.isfinite(values[1:]).all() for values in columns.values()):
         result = DfgResult(setup, times, columns, seconds=seconds)
