@@ -76,6 +76,9 @@ def test_dfg_2d_2_scene_file_is_the_validation_set_up(tmp_path):
     result = CliRunner().invoke(app, ["validate", str(path)])
     assert result.exit_code == 0, result.output
     scene = load_scene(path)
+    # The file names no advection scheme: the default, the flux form, is the one compared.
+    assert "advection =" not in path.read_text()
+    assert scene.fluid.advection == "upwind3"
     coarse = scene.model_copy(update={
         "domain": scene.domain.model_copy(update={"h": 0.01}),
         "time": scene.time.model_copy(update={"dt": 0.01 / 3.0}),

@@ -295,6 +295,8 @@ def build_fluid_solver(scene: Scene, grid: Grid2D) -> Any:
         left=_side(b.left), right=_side(b.right), bottom=_side(b.bottom), top=_side(b.top)
     )
     jets = tuple(fluid.Jet(region=j.region, velocity=j.velocity, dye=j.dye) for j in scene.jets)
+    advection = scene.fluid.advection
+    assert advection is not None  # `Scene` fills in the default
     return fluid.FluidSolver(
         grid,
         density=scene.fluid.density,
@@ -304,7 +306,7 @@ def build_fluid_solver(scene: Scene, grid: Grid2D) -> Any:
         gravity=scene.fluid.gravity,
         pressure_solver=solvers[scene.fluid.pressure_solver](rtol=scene.fluid.pressure_rtol),
         viscosity_solver=solvers[scene.fluid.viscosity_solver](rtol=scene.fluid.viscosity_rtol),
-        advection=scene.fluid.advection,
+        advection=advection,
         incremental_pressure=scene.fluid.incremental_pressure,
         advecting_velocity=scene.fluid.advecting_velocity,
         viscosity_scheme=scene.fluid.viscosity_scheme,

@@ -155,14 +155,16 @@ class FluidSpec(_Spec):
     """Solver of the implicit viscosity equations (one per velocity component)."""
     viscosity_rtol: Annotated[float, Field(gt=0.0, lt=1.0)] = 1e-6
     """Relative residual each viscosity solve must reach; 1 or more would skip the solve."""
-    advection: Literal["semi_lagrangian", "maccormack", "upwind3"] = "maccormack"
-    """Transport of velocity and dye: MacCormack's limited correction of the semi-Lagrangian
-    step (second order where the flow is smooth; the default, for wakes:
-    docs/validation/unsteady.md), the paper's plain semi-Lagrangian step (first order,
-    diffusive; its advection phase about half the cost, docs/benchmarks.md), or "upwind3":
-    the velocity in flux form, third-order upwind-biased fluxes and three Runge-Kutta stages
-    (conserves momentum; 2D only, not with [liquid]; the dye then by the semi-Lagrangian
-    step)."""
+    advection: Literal["semi_lagrangian", "maccormack", "upwind3"] | None = None
+    """Transport of velocity and dye: "upwind3", the velocity in flux form, third-order
+    upwind-biased fluxes and three Runge-Kutta stages, sub-stepped above an advective CFL
+    sum of 1.2 (conserves momentum; the dye by the semi-Lagrangian step; the default, the
+    scheme that puts DFG 2D-2 inside the published bounds: docs/validation/unsteady.md);
+    "maccormack", the limited correction of the semi-Lagrangian step (second order where the
+    flow is smooth, any CFL number in one pass; the default with [liquid], where the flux
+    form has no air-side treatment); or "semi_lagrangian", the paper's plain step (first
+    order, diffusive; the cheapest, docs/benchmarks.md). Left out: "upwind3", or
+    "maccormack" with [liquid]."""
     incremental_pressure: bool = False
     """Solve for the pressure increment (removes the plain splitting's O(dt) error at walls
     in steady flow; docs/method_notes.md item 6)."""
@@ -855,3 +857,11 @@ class Scene(_Spec):
     source: str | None = Field(default=None, exclude=True)
     """Where the scene came from (its file, or "built-in scene 'NAME'"), for messages; not
     saved."""
+
+    @model_validator(mode="after")
+    def _default_advection(self) -> Scene:
+        # The flux form is the default where it is available (issue 11: the default must
+        # reproduce DFG 2D-2); a free surface takes MacCormack, which has an air side.
+        if self.fluid.advection is None:
+            self.fluid.advection = "maccormack" if self.liquid is not None else "upwind3"
+        return self

@@ -83,6 +83,23 @@ def test_solver_choices_and_tolerances_reach_the_fluid_solver() -> None:
     assert default.viscosity_solver.rtol == 1e-6
 
 
+def test_the_default_advection_is_the_flux_form_and_maccormack_with_a_liquid() -> None:
+    """Left out, ``fluid.advection`` is "upwind3" (the scheme that reproduces DFG 2D-2), and
+    "maccormack" with [liquid], which the flux form does not serve; a choice written in the
+    file is kept; the saved scene names the scheme it ran with."""
+    single = parse_scene(scene_data())
+    assert single.fluid.advection == "upwind3"
+    assert build_simulation(single, warnings=[]).fluid_solver.advection == "upwind3"
+    assert 'advection = "upwind3"' in scene_to_toml(single)
+    liquid = parse_scene(scene_data(liquid={"boxes": [[0.0, 0.0, 0.5, 0.5]]}))
+    assert liquid.fluid.advection == "maccormack"
+    for chosen in ("semi_lagrangian", "maccormack", "upwind3"):
+        assert parse_scene(scene_data(fluid={"advection": chosen})).fluid.advection == chosen
+    explicit = only(scene_data(fluid={"advection": "upwind3"},
+                               liquid={"boxes": [[0.0, 0.0, 0.5, 0.5]]}))
+    assert 'fluid.advection = "upwind3": not available with [liquid]' in explicit
+
+
 def test_viscosity_tolerance_changes_the_solve() -> None:
     """A loose viscosity tolerance takes fewer iterations than a tight one on the same flow."""
     from elastoflow.fluid import FluidState
