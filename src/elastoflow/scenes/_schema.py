@@ -863,5 +863,7 @@ class Scene(_Spec):
         # The flux form is the default where it is available (issue 11: the default must
         # reproduce DFG 2D-2); a free surface takes MacCormack, which has an air side.
         if self.fluid.advection is None:
-            self.fluid.advection = "maccormack" if self.liquid is not None else "upwind3"
+            # A copy: a FluidSpec given to several scenes must not take the first one's fill.
+            chosen = "maccormack" if self.liquid is not None else "upwind3"
+            self.fluid = self.fluid.model_copy(update={"advection": chosen})
         return self

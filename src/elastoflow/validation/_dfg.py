@@ -105,7 +105,7 @@ class DfgSetup:
         viscosity_scheme: "backward_euler" or "crank_nicolson" (`FluidSolver`).
         offset: The cylinder moved downstream by this many cells (0 <= offset < 20).
             This changes the problem as well as the grid's placement: the cylinder's
-            distance from the inflow decides much of the lift (c_L max falls by about 0.65 %
+            distance from the inflow decides much of the lift (c_L max falls by 0.62-0.66 %
             per millimetre the cylinder moves downstream, at every resolution;
             docs/validation/unsteady.md). ``across`` places the grid differently about the
             same geometry.

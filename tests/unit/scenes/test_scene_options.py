@@ -604,3 +604,19 @@ def _toml(value: Any) -> str:
     if isinstance(value, dict):
         return "{ " + ", ".join(f"{k} = {_toml(v)}" for k, v in value.items()) + " }"
     return repr(value)
+
+
+def test_the_default_advection_does_not_change_a_shared_fluid_table() -> None:
+    """Through the Python API one FluidSpec may serve two scenes: each gets its own default
+    and the table given stays as it was."""
+    from elastoflow.scenes import Scene
+    from elastoflow.scenes._schema import FluidSpec
+
+    shared = FluidSpec()
+    base = scene_data()
+    with_liquid = Scene.model_validate({**base, "fluid": shared,
+                                        "liquid": {"boxes": [[0.0, 0.0, 0.5, 0.5]]}})
+    single = Scene.model_validate({**base, "fluid": shared})
+    assert with_liquid.fluid.advection == "maccormack"
+    assert single.fluid.advection == "upwind3"
+    assert shared.advection is None
