@@ -72,9 +72,10 @@ class SettlingRun:
 
 def run_settling(cells_per_diameter: float = 6.0, duration: float = 4.0, dt: float = 0.01,
                  progress: Callable[[str], None] | None = None,
-                 scheme: str | None = None) -> SettlingRun:
+                 scheme: str | None = None, viscosity_factor: float = 1.0) -> SettlingRun:
     """The library scene at ``cells_per_diameter`` to ``duration`` [s] with step ``dt``, with
-    its own coupling scheme or ``scheme`` ("explicit", "monolithic").
+    its own coupling scheme or ``scheme`` ("explicit", "monolithic"), in an oil
+    ``viscosity_factor`` times as viscous as ten Cate's.
 
     The box (100 x 160 x 100 mm) must be a whole number of cells: h = 20 mm / k, i.e. 0.75 k
     cells per diameter (4.5, 6, 7.5, 9, ...)."""
@@ -89,6 +90,7 @@ def run_settling(cells_per_diameter: float = 6.0, duration: float = 4.0, dt: flo
     data["bodies"][0]["shape"]["element_size"] = h
     data["time"] = {"dt": dt, "duration": duration}
     data["outputs"] = {}
+    data["fluid"]["viscosity"] *= viscosity_factor
     if scheme is not None:
         # The scheme alone: the scene's other coupling keys (its numerical damping) stay.
         data["coupling"] = {**data.get("coupling", {}), "scheme": scheme}

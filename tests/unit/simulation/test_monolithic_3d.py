@@ -195,27 +195,40 @@ def test_a_scene_file_chooses_the_monolithic_scheme() -> None:
         build_simulation(parse_scene(bad, source="light.toml"))
 
 
-def test_the_viscous_damping_blocks_are_the_tractions_wall_weight_on_the_tangents() -> None:
-    """Sum of the blocks' traces: mu 1.5 / h times twice the surface area (each triangle's
-    ``I - n n^T`` has trace 2); each block is symmetric positive semi-definite with the
-    surface normal in its null space."""
+def test_the_viscous_damping_blocks_hold_the_wall_weight_and_bound_the_surface_gradient(
+) -> None:
+    """Per surface triangle and corner, ``mu 1.5 / h (A / 3) (I - n n^T)`` (the wall value's
+    weight in the traction's normal derivative) plus ``mu (l_1 + l_2) / 6 (I + n n^T)`` (the
+    Gershgorin bound of the wall's own surface gradient): the traces sum to ``mu (1.5 / h * 2
+    * area + 4 / 6 * 2 * edges)``; each block is symmetric positive semi-definite; on a flat
+    face the normal direction keeps only the bound, twice the tangential bound."""
     from elastoflow.simulation._schemes3d import _viscous_damping
 
     body = cube(1.0)
-    blocks = _viscous_damping(body, body.mesh.points, 2.0, 0.1)
+    mu, h = 2.0, 0.1
+    blocks = _viscous_damping(body, body.mesh.points, mu, h)
     corners = body.mesh.points[body.boundary_triangles]
     area = 0.5 * np.linalg.norm(np.cross(corners[:, 1] - corners[:, 0],
                                          corners[:, 2] - corners[:, 0]), axis=1).sum()
-    assert np.trace(blocks, axis1=1, axis2=2).sum() == pytest.approx(2.0 * 1.5 / 0.1 * 2 * area)
-    np.testing.assert_array_equal(blocks, np.transpose(blocks, (0, 2, 1)))
+    edges = np.linalg.norm(np.roll(corners, -1, axis=1) - corners, axis=2).sum()
+    assert np.trace(blocks, axis1=1, axis2=2).sum() == pytest.approx(
+        mu * (1.5 / h * 2.0 * area + 4.0 / 6.0 * 2.0 * edges))
+    np.testing.assert_allclose(blocks, np.transpose(blocks, (0, 2, 1)), atol=1e-12)
     assert np.linalg.eigvalsh(blocks).min() > -1e-12
-    # A node inside the cube's top face (normal +y): no damping along y. (Until 2026-12-07
-    # this looked for (0.5, 0.65, 0.5), which is no node of this mesh, and so checked
-    # nothing.)
+    # A node inside the cube's top face (normal +y). (Until 2026-12-07 this looked for
+    # (0.5, 0.65, 0.5), which is no node of this mesh, and so checked nothing.)
     top = np.flatnonzero(np.all(np.isclose(body.mesh.points, (0.45, 0.65, 0.45)), axis=1))
     assert top.size == 1
-    np.testing.assert_allclose(blocks[top[0]] @ np.array([0.0, 1.0, 0.0]), 0.0, atol=1e-12)
-    assert blocks[top[0], 0, 0] > 0.0
+    block = blocks[top[0]]
+    np.testing.assert_allclose(block @ np.array([0.0, 1.0, 0.0]), [0.0, block[1, 1], 0.0],
+                               atol=1e-12)
+    # It is a corner of four right triangles (legs 0.1 m at the node): the bound is mu (4 * 2
+    # * 0.1) / 6 along the face, twice that across it; the wall weight adds mu 1.5 / h times
+    # a third of their area (4 * 0.005 m^2) along the face.
+    reach = mu * 4 * 2 * 0.1 / 6.0
+    np.testing.assert_allclose(
+        block, np.diag([reach + mu * 1.5 / h * 4 * 0.005 / 3.0, 2.0 * reach,
+                        reach + mu * 1.5 / h * 4 * 0.005 / 3.0]), atol=1e-12)
 
 
 @pytest.mark.parametrize("rule", ["midpoint", "energy_momentum", "newmark"])

@@ -39,9 +39,15 @@ def test_monolithic_cube_on_the_floor_stays_on_it_and_settles(step_above_floor):
 
 
 def test_monolithic_cube_without_contact_goes_below_the_floor():
+    # It rings on the floor, so the lowest node over the steps, not at one of them (at step
+    # 30 it was 1.2 mm below the floor before the viscous bound of 2026-12-07, 0.2 mm above
+    # after; 0.5 mm below by step 15 with both).
     simulation = _simulation(0.0, contact=None)
-    simulation.run(30)
-    assert simulation.state.bodies[0].positions[:, 1].min() < -1e-4
+    lowest = np.inf
+    for _ in range(30):
+        simulation.step()
+        lowest = min(lowest, float(simulation.state.bodies[0].positions[:, 1].min()))
+    assert lowest < -1e-4
 
 
 def test_monolithic_cube_dropped_near_the_floor_lands_and_rests(step_above_floor):
