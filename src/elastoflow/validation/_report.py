@@ -14,7 +14,7 @@ import numpy as np
 
 from elastoflow.analysis import PeriodicStatistics
 from elastoflow.io import write_text_atomic
-from elastoflow.validation._turek_hron import REFERENCE, UNITS, Result
+from elastoflow.validation._turek_hron import BALANCE_OF, REFERENCE, UNITS, Result
 
 def step_and_record(simulation: Any, steps: int, record: Callable[[int], None]
                     ) -> tuple[str | None, float]:
@@ -36,6 +36,7 @@ def step_and_record(simulation: Any, steps: int, record: Callable[[int], None]
 
 
 _LABELS = {"ux_A": "u_x(A)", "uy_A": "u_y(A)", "drag": "drag", "lift": "lift",
+           "drag_cv": "drag, balance", "lift_cv": "lift, balance",
            "ux_tip": "u_x(tip)", "uy_tip": "u_y(tip)"}
 
 
@@ -90,10 +91,11 @@ def format_quantities(result: Result) -> list[str]:
             text = f"{value * scale:.5g}"
             if key in result.drift:
                 text += f"   (change over the last 10 %: {result.drift[key] * scale:+.3g})"
-        if key in reference:
-            text += (f"   reference {reference[key] * scale:.5g}, "
+        published = reference.get(BALANCE_OF.get(key, key))
+        if published is not None and key in result.errors:
+            text += (f"   reference {published * scale:.5g}, "
                      f"error {100.0 * result.errors[key]:+.2f} %")
-        lines.append(f"{label:<18} {text}")
+        lines.append(f"{label:<20} {text}")
     if result.failure is not None:
         lines.append(f"not evaluated: {result.failure}")
     return lines
@@ -107,7 +109,7 @@ def quantities_json(result: Result) -> dict[str, Any]:
         quantities[key] = (value.as_dict() if isinstance(value, PeriodicStatistics)
                            else {"value": value, "drift": result.drift.get(key)})
         if key in result.errors:
-            quantities[key]["reference"] = REFERENCE[s.case.name][key]
+            quantities[key]["reference"] = REFERENCE[s.case.name][BALANCE_OF.get(key, key)]
             quantities[key]["relative_error"] = result.errors[key]
     return {
         "benchmark": s.case.benchmark,
