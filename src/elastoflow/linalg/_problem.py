@@ -12,6 +12,7 @@ from elastoflow.linalg._kernels import (
     finite_minimum_kernel,
     label_components_kernel,
     remove_component_means_kernel,
+    sum_of_squares_kernel,
 )
 from elastoflow.linalg._operator import Operator5Point
 
@@ -75,7 +76,9 @@ def _compatible_rhs(
         raise ValueError("rhs: values must be finite; got NaN or inf")
     null_space = _analyse(operator)
     b = np.where(null_space.active, rhs, 0.0)
-    norm = float(np.linalg.norm(b))
+    # Not np.linalg.norm: that is BLAS, whose own threads then spin beside Numba's and
+    # halved the speed of every phase of a step that used this solver (2 cores).
+    norm = float(np.sqrt(sum_of_squares_kernel(b)))
     removed = null_space.remove_means(b)
     return b, null_space, incompatibility(removed, norm)
 
