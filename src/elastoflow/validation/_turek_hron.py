@@ -52,8 +52,8 @@ FLAG_LEFT = CENTER[0] + math.sqrt(RADIUS**2 - (FLAG_Y[1] - CENTER[1]) ** 2)
 POINT_A = (0.6, 0.2)
 RAMP_TIME = 2.0
 # The CFD cases' control volume reaches this far beyond the cylinder and the flag [m] (one
-# diameter): CFD1's drag and lift by boxes reaching 0.05-0.13 m further agreed within 0.9 %
-# and 0.2 % at N = 10-40.
+# diameter): boxes reaching 0.05 / 0.10 / 0.13 m beyond the cylinder gave CFD1's drag within
+# 0.8 % and its lift within 0.2 % of each other at N = 10-40.
 BALANCE_REACH = 0.1
 
 # Published values (Turek & Hron 2006, as quoted in ../shared/reference/turek_hron.json).
