@@ -35,9 +35,9 @@ def test_a_sphere_in_an_oil_64_times_as_viscous_settles() -> None:
     vibrate and diverge from 16 times the viscosity before they were bounded implicitly
     (docs/method_notes.md item 14). It now settles near Stokes' scaling of its speed at four
     times the viscosity (11.3 mm/s there, so about 0.7 mm/s here). What is left swings from
-    step to step and decays: the traction's fluid samples answer the body's translation a
-    step late. Measured: speeds 0.743 and 0.826 mm/s at the last two steps, their
-    difference falling from 0.095 to 0.083 mm/s over the last 0.3 s."""
+    step to step and decays (its source not traced). Measured: speeds 0.743 and 0.826 mm/s
+    at the last two steps, their difference falling from 0.095 to 0.083 mm/s over the last
+    0.3 s."""
     run = run_settling(4.5, duration=0.6, viscosity_factor=64.0)
     assert run.failure is None
     late = run.speeds[run.times > 0.3]

@@ -394,7 +394,8 @@ def _viscous_damping(body: ElasticBody3D, positions: np.ndarray, dynamic_viscosi
       the wall's own surface gradient ``L``, which enters the traction as ``mu (L^T n - 2
       tr(L) n)``, couples each node to its neighbours and so stays explicit; held alone it
       pumped node-scale vibrations of a sphere at sixteen times ten Cate's viscosity, and
-      the fluid's samples, a step late, shook its translation at 64 times. The blocks are
+      with the bound taken off the translation the sphere's translation swung apart at 64
+      times (a term not traced, which the full bound damps). The blocks are
       its Gershgorin bound (row sums of its coefficients, ``|grad phi_k| A / 3 = l_k / 6``
       per neighbour), so the explicit coupling is damped by an implicit term at least as
       large; ``-C (v - v0)`` vanishes as the motion settles (an O(dt) lag of transients,
