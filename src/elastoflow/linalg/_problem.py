@@ -76,8 +76,8 @@ def _compatible_rhs(
         raise ValueError("rhs: values must be finite; got NaN or inf")
     null_space = _analyse(operator)
     b = np.where(null_space.active, rhs, 0.0)
-    # Not np.linalg.norm: that is BLAS, whose own threads then spin beside Numba's and
-    # halved the speed of every phase of a step that used this solver (2 cores).
+    # Not np.linalg.norm: that is BLAS (OpenBLAS, with threads of its own beside Numba's);
+    # with it every phase of a step that used this solver ran at half speed (2 cores).
     norm = float(np.sqrt(sum_of_squares_kernel(b)))
     removed = null_space.remove_means(b)
     return b, null_space, incompatibility(removed, norm)

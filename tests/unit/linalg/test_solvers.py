@@ -467,11 +467,10 @@ def test_chebyshev_iteration_without_weights_is_exact() -> None:
 
 @pytest.mark.parametrize("make_solver", [PoissonSolverJacobi, PoissonSolverMGPCG])
 def test_a_solve_calls_no_blas(make_solver, monkeypatch: pytest.MonkeyPatch) -> None:
-    """No solve goes through NumPy's BLAS (here: `np.linalg.norm`, `np.dot`). BLAS keeps its
-    own threads, which spin after each call beside Numba's: one `np.linalg.norm` of the
-    right-hand side per Jacobi solve made every phase of the DFG 2D-2 scene with
-    ``viscosity_solver = "jacobi"`` twice as slow on 2 cores (pressure 15 -> 28 ms a step,
-    advection 12 -> 19 ms; 2026-12-07)."""
+    """No solve goes through NumPy's BLAS (here: `np.linalg.norm`, `np.dot`), which keeps
+    threads of its own beside Numba's: one `np.linalg.norm` of the right-hand side per Jacobi
+    solve made every phase of the DFG 2D-2 scene with ``viscosity_solver = "jacobi"`` twice
+    as slow on 2 cores (pressure 15 -> 28 ms a step, advection 12 -> 19 ms; 2026-12-07)."""
 
     def refuse(*args: object, **kwargs: object) -> None:
         raise AssertionError("BLAS called")
