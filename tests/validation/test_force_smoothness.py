@@ -50,7 +50,7 @@ def test_the_drags_noise_falls_as_h_and_dt_are_refined_together() -> None:
     """The noise is a discretization error: measured (2026-12-03) 3.60 -> 0.97 % of the drag
     with the cut cells and 2.68 -> 0.56 % with the dual cells from 48 to 96 cells (dt 0.02 ->
     0.01 s), order 1.9 / 2.3."""
-    runs = disc_refinement(joint=(48, 96), dts=())
+    runs = disc_refinement(joint=(48, 96), dts=(), square_dts=())
     for boundary in BOUNDARIES:
         coarse, fine = (r for r in runs if r.run.boundary == boundary)
         assert (coarse.cells, fine.cells) == (48, 96)
@@ -91,7 +91,26 @@ def test_the_refinement_block_survives_the_main_report(tmp_path) -> None:
     write_force_smoothness_report(study, tmp_path)
     text = page.read_text()
     assert text.startswith("# Force smoothness (issue 12)")
-    assert text.count("## The coasting disc refined") == 1
+    assert text.count("## The coasting disc refined, and a coasting square") == 1
     assert table[-1] in text
     write_refinement_report(runs[:1], tmp_path)
     assert table[-1] not in page.read_text() and table[-2] in page.read_text()
+
+
+def test_the_split_tells_what_repeats_with_the_position_from_the_rest() -> None:
+    """A drag that varies with the body's place in the grid (period h of travel) and
+    alternates from step to step: the part locked to the position is the first, the rest
+    the second, each about its own root mean square."""
+    h, speed, dt = 1.0 / 96, 0.2, 0.01
+    steps = np.arange(1, 2001)
+    position = 0.5 + speed * dt * steps
+    locked = 0.5 * np.sin(2.0 * np.pi * position / h)
+    alternating = 0.1 * (-1.0) ** steps
+    run = ForceRun("square", "dual_cell", "drag", dt * steps, -10.0 + locked + alternating,
+                   1.0, position)
+    part_locked, rest = run.grid_locked_split(15, h)
+    noise = run.noise_over(15)
+    assert part_locked**2 + rest**2 == pytest.approx(noise**2, rel=1e-9)
+    # The 15-step fit cannot follow a period of 5.2 steps: most of each part is left.
+    assert 0.25 < part_locked < 0.5 * np.sqrt(0.5) + 0.01
+    assert rest == pytest.approx(0.1, rel=0.25)
