@@ -10,7 +10,8 @@ percentile, and the noise: the root mean square of the force less a 15-step cubi
 Savitzky-Golay fit (what is left when the smooth signal, however fast, is taken out).
 ``elastoflow validate force-smoothness`` writes ``docs/validation/force_smoothness.md``;
 ``elastoflow validate force-smoothness refinement`` adds the disc refined in h and dt together
-and in dt alone (`disc_refinement`).
+and in dt alone, and a coasting square in dt alone (`disc_refinement`), with the noise split
+into its part locked to the body's place in the grid and the rest.
 """
 
 from __future__ import annotations
