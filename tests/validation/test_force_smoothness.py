@@ -114,3 +114,25 @@ def test_the_split_tells_what_repeats_with_the_position_from_the_rest() -> None:
     # The 15-step fit cannot follow a period of 5.2 steps: most of each part is left.
     assert 0.25 < part_locked < 0.5 * np.sqrt(0.5) + 0.01
     assert rest == pytest.approx(0.1, rel=0.25)
+
+
+def test_the_refinement_figure_is_written_with_the_dt_series(tmp_path) -> None:
+    from elastoflow.validation._force_smoothness import REFINEMENT_FIGURE
+
+    steps = np.arange(1, 101)
+    runs = tuple(
+        RefinementRun(series, 96, 0.01,
+                      ForceRun(case, "dual_cell", "drag", 0.5 + 0.01 * steps,
+                               -10.0 + 0.1 * (-1.0) ** steps, 1.0, 0.5 + 0.002 * steps))
+        for series, case in (("dt alone", "disc"), ("square, dt alone", "square")))
+    page = write_refinement_report(runs, tmp_path)
+    figure = tmp_path / REFINEMENT_FIGURE
+    assert figure.stat().st_size > 0
+    assert f"]({REFINEMENT_FIGURE})" in page.read_text()
+    # Without the dt series no figure is written or named.
+    other = tmp_path / "other"
+    other.mkdir()
+    page = write_refinement_report(runs[:0] + (RefinementRun("h and dt", 48, 0.02, _run(
+        "cut_cell", 0.4)),), other)
+    assert not (other / REFINEMENT_FIGURE).exists()
+    assert REFINEMENT_FIGURE not in page.read_text()

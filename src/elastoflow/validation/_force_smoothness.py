@@ -404,8 +404,67 @@ def refinement_table(runs: Sequence[RefinementRun]) -> list[str]:
     return lines
 
 
-def refinement_block(runs: Sequence[RefinementRun]) -> str:
-    """The Markdown section of the refinement study, between its markers."""
+REFINEMENT_FIGURE = "force_smoothness_refinement.png"
+# What the figure shows of each run: this many cells of travel from the window's start.
+_FIGURE_CELLS = 4.0
+_SQUARE_HALF_SIDE = 0.1  # [m], `coasting_square`'s
+
+
+def _positions(r: RefinementRun) -> np.ndarray:
+    if r.run.position is None:
+        raise ValueError(f"{r.run.case}: the run recorded no positions")
+    return r.run.position
+
+
+def _plot_refinement(runs: Sequence[RefinementRun], path: Path) -> bool:
+    """The dual cells' drag against the distance travelled, at each step of the "dt alone"
+    series, the disc above and the square below (its front face's crossings of the columns
+    of v points dotted); False, and nothing written, when there are no such runs."""
+    panels = [[r for r in runs if r.series == series and r.run.boundary == "dual_cell"
+               and r.run.position is not None]
+              for series in ("dt alone", "square, dt alone")]
+    panels = [panel for panel in panels if panel]
+    if not panels:
+        return False
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    figure, axes = plt.subplots(len(panels), 1, figsize=(9, 3.0 * len(panels)), squeeze=False)
+    for axis, panel in zip(axes[:, 0], panels, strict=True):
+        h = 1.0 / panel[0].cells
+        start = float(_positions(panel[0])[0])
+        for r in panel:
+            cells = (_positions(r) - start) / h
+            shown = cells <= _FIGURE_CELLS
+            axis.plot(cells[shown], r.run.force[shown], lw=0.8, marker=".", ms=2,
+                      label=f"dt = {r.dt:g} s")
+        if panel[0].run.case == "square":
+            front = (start + _SQUARE_HALF_SIDE) / h
+            first = math.ceil(front - 0.5) + 0.5
+            for column in np.arange(first, front + _FIGURE_CELLS, 1.0):
+                axis.axvline(column - front, color="0.6", lw=0.6, ls=":")
+            axis.set_title("square (dotted: its front face passes a column of v points)",
+                           fontsize=9)
+        else:
+            axis.set_title("disc", fontsize=9)
+        axis.set_ylabel("drag [N/m]")
+        axis.legend(fontsize=8)
+    axes[-1, 0].set_xlabel("cells travelled from 0.5 s (dual cells, 96 cells, MacCormack)")
+    figure.tight_layout()
+    from elastoflow.io import atomic_path
+
+    with atomic_path(path) as temporary:
+        figure.savefig(temporary, dpi=90)
+    plt.close(figure)
+    return True
+
+
+def refinement_block(runs: Sequence[RefinementRun], figure: str | None = None) -> str:
+    """The Markdown section of the refinement study, between its markers (with ``figure``,
+    the file name of `_plot_refinement`'s figure beside the page)."""
+    shown = [] if figure is None else [f"![drag against the distance travelled]({figure})", ""]
     return "\n".join([
         REFINEMENT_BEGIN, "", "## The coasting disc refined, and a coasting square", "",
         "The disc of the table above (R = 0.1 m, 0.2 m/s, Re 40) over 0.5-1.5 s, refined in h "
@@ -421,15 +480,17 @@ def refinement_block(runs: Sequence[RefinementRun]) -> str:
         "which come at the same phase every cell); the rest: what is left about those "
         "means, which does not repeat (docs/method_notes.md item 9). Command: `elastoflow "
         "validate force-smoothness refinement --out docs/validation`.", "",
-        *refinement_table(runs), "", REFINEMENT_END])
+        *refinement_table(runs), "", *shown, REFINEMENT_END])
 
 
 def write_refinement_report(runs: Sequence[RefinementRun], folder: str | Path) -> Path:
-    """The refinement block in ``folder / force_smoothness.md`` (created if missing)."""
+    """The refinement block in ``folder / force_smoothness.md`` (created if missing), and
+    its figure beside it where the runs hold the "dt alone" series."""
     from elastoflow.validation._report import replace_block
 
     page = Path(folder) / "force_smoothness.md"
     if not page.exists():
         write_text_atomic(page, "# Force smoothness (issue 12)\n")
-    return replace_block(page, refinement_block(runs), REFINEMENT_BEGIN, REFINEMENT_END,
-                         before=None)
+    figure = REFINEMENT_FIGURE if _plot_refinement(runs, page.parent / REFINEMENT_FIGURE) else None
+    return replace_block(page, refinement_block(runs, figure), REFINEMENT_BEGIN,
+                         REFINEMENT_END, before=None)
