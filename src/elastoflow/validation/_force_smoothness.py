@@ -246,6 +246,18 @@ def force_smoothness_table(study: ForceSmoothnessStudy) -> list[str]:
     return lines
 
 
+def _save_figure(figure: Any, path: Path) -> None:
+    """Lay out ``figure``, write it to ``path`` whole or not at all, and close it."""
+    import matplotlib.pyplot as plt
+
+    from elastoflow.io import atomic_path
+
+    figure.tight_layout()
+    with atomic_path(path) as temporary:
+        figure.savefig(temporary, dpi=90)
+    plt.close(figure)
+
+
 def _plot(study: ForceSmoothnessStudy, path: Path) -> None:
     import matplotlib
 
@@ -265,12 +277,7 @@ def _plot(study: ForceSmoothnessStudy, path: Path) -> None:
         axis.set_ylabel(f"{study.run(case, study.boundaries[0]).component} [N/m]")
         axis.legend(fontsize=8)
     axes[-1, 0].set_xlabel("time [s] (the first third of each window)")
-    figure.tight_layout()
-    from elastoflow.io import atomic_path
-
-    with atomic_path(path) as temporary:
-        figure.savefig(temporary, dpi=90)
-    plt.close(figure)
+    _save_figure(figure, path)
 
 
 def write_force_smoothness_report(study: ForceSmoothnessStudy, folder: str | Path
@@ -452,12 +459,7 @@ def _plot_refinement(runs: Sequence[RefinementRun], path: Path) -> bool:
         axis.set_ylabel("drag [N/m]")
         axis.legend(fontsize=8)
     axes[-1, 0].set_xlabel("cells travelled from 0.5 s (dual cells, 96 cells, MacCormack)")
-    figure.tight_layout()
-    from elastoflow.io import atomic_path
-
-    with atomic_path(path) as temporary:
-        figure.savefig(temporary, dpi=90)
-    plt.close(figure)
+    _save_figure(figure, path)
     return True
 
 
