@@ -52,13 +52,20 @@ def test_rod_across_a_closed_box_lets_nothing_through(offset: float) -> None:
 def test_rod_clamped_in_a_stream_bends_as_euler_bernoulli_under_the_measured_load() -> None:
     """A rod 0.5 m long clamped to the floor of a channel 1 m high (64 x 32 cells, inflow
     0.1 m/s, Re 5, free-slip walls), E t^3/12 = 167 N m, 24 segments, 0.3 of a cell past a
-    face line. After 160 steps (8 s) the tip is steady (2.70 mm, 0.54 % of L); the load is
-    the fluid's nodal force of the last two steps (the light rod's end velocity rings from
-    step to step, so one step's force is not the mean), and the Euler-Bernoulli tip
-    deflection under it, ``sum_j F_j y_j^2 (3 L - y_j) / (6 EI)``, is 2.62 mm: measured 2.9 %
-    below the rod's. The rod alone under that load held (dynamic or `static_equilibrium`)
-    reaches 2.62 mm, so the difference is the coupled step's, not the rod's; not explained
-    yet."""
+    face line, as dense as the water. After 160 steps (8 s) the tip is steady; the load is
+    the fluid's nodal force of the last two steps (the rod's end velocity rings from step to
+    step, so one step's force is not the mean), and the Euler-Bernoulli tip deflection
+    under it is ``sum_j F_j y_j^2 (3 L - y_j) / (6 EI)``. Measured: tip 2.6233 mm against
+    2.6244 mm (-0.04 %). While the inflow ramps up, the water's acceleration pushes the tip
+    out to 18.7 mm at t = 0.45 s; it swings back and settles by t = 3 s.
+
+    Until the rod took the viscous traction's dependence on its own velocity implicitly
+    (`simulation._schemes._viscous_damping`, as elastic bodies do), that dependence was an
+    explicit nodal damping of ``c dt / m = 2 * 1.07 mu dt / (h rho_s t) = 3.4`` (both sides
+    of the rod), past the bound 2: the tip crept on past the ramp to 51 mm at t = 1.9 s
+    before it swung back, and the rod then rang from step to step with a force that kept the ringing
+    going; at 8 s it stood 2.9 % past Euler-Bernoulli (2.70 mm against 2.62), until the
+    ringing changed at t = 15 s and the gap closed (docs/method_notes.md item 4, rods)."""
     nx, ny = 64, 32
     grid = Grid2D(nx=nx, ny=ny, h=2.0 / nx)
     boundaries = fluid.DomainBoundaries(
@@ -72,7 +79,10 @@ def test_rod_clamped_in_a_stream_bends_as_euler_bernoulli_under_the_measured_loa
     material = solid.MaterialRod(1000.0, 2e9, 0.01, damping_time=0.02)
     rod = solid.RodBody(points, material, clamped=("start",))
     simulation = Simulation(grid, solver, bodies=[rod], dt=0.05, coupling="monolithic")
-    simulation.run(160)
+    largest = 0.0
+    for _ in range(160):
+        simulation.step()
+        largest = max(largest, abs(float(simulation.state.bodies[0].positions[-1, 0] - x0)))
     load = simulation.state.body_forces[0].copy()
     simulation.step()
     load = 0.5 * (load + simulation.state.body_forces[0])
@@ -81,4 +91,5 @@ def test_rod_clamped_in_a_stream_bends_as_euler_bernoulli_under_the_measured_loa
                      / (6.0 * material.flexural_rigidity))
     tip = float(simulation.state.bodies[0].positions[-1, 0] - x0)
     assert expected > 0.002
-    assert abs(tip / expected - 1.0) < 0.03
+    assert abs(tip / expected - 1.0) < 0.005
+    assert largest < 10.0 * expected

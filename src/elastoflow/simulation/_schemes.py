@@ -32,6 +32,7 @@ from elastoflow.solid import (
     ExplicitFem,
     MidpointFem,
     NewmarkFem,
+    RodBody,
     WallHold,
     hold_response,
     project_onto_box,
@@ -410,12 +411,13 @@ def wall_holds(model: CoupledModel | CoupledModel3D, state_in: CoupledState, dt:
 _WALL_WEIGHT = (1.5 + 2.5) / (1.5 * 2.5)
 
 
-def _viscous_damping(body: ElasticBody, positions: np.ndarray, dynamic_viscosity: float,
+def _viscous_damping(body: ElasticBody | RodBody, positions: np.ndarray, dynamic_viscosity: float,
                     h: float) -> np.ndarray:
     """What the implicit rules take of the viscous traction's dependence on a 2D body's own
     velocity, as nodal blocks (n, 2, 2) ``C``: the body takes ``-C (v - v0)`` implicitly
     beside the traction held at ``v0`` (docs/method_notes.md item 8). Per boundary edge
-    (length ``L``, unit tangent ``t``, normal ``n``) and each of its two nodes:
+    (length ``L``, unit tangent ``t``, normal ``n``) and each of its two nodes (a rod's
+    outline is its line and back, so both its sides count):
 
     * ``mu w / h (L / 2) t t^T`` (``w`` = `_WALL_WEIGHT`): the wall value's weight in the
       one-sided normal derivative (its normal part is replaced by continuity in
@@ -458,7 +460,7 @@ def implicit_predictor(fem: MidpointFem | NewmarkFem, model: CoupledModel,
     fluid = model.fluid
     dampings = [_viscous_damping(body, body_state.positions,
                                 fluid.density * fluid.viscosity, model.grid.h)
-                if damped and fluid.viscosity > 0.0 and isinstance(body, ElasticBody)
+                if damped and fluid.viscosity > 0.0 and isinstance(body, ElasticBody | RodBody)
                 else None
                 for body, body_state in zip(model.bodies, state_in.bodies, strict=True)]
     responses = []

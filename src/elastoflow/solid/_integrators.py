@@ -218,12 +218,12 @@ class NewmarkFem:
                  nodal_damping: np.ndarray | None = None) -> StepResponse:
         """The answer of `advance` to a force held over the step, at the state's positions:
         mean velocity ``dt/2 A^-1 f`` with ``A = M + gamma dt (D + C + alpha M) + beta dt^2 K``
-        (end velocity twice that; ``C`` the ``nodal_damping`` blocks; rods take none)."""
+        (end velocity twice that; ``C`` the ``nodal_damping`` blocks)."""
         gamma = self.gamma
         return self.factors.response(
             body, state, dt, lambda positions: body.response_at(
                 positions, gamma * dt, np.sqrt(0.5 * gamma) * dt, 0.5 * dt,
-                **_damping_keyword(nodal_damping)), nodal_damping)
+                nodal_damping=nodal_damping), nodal_damping)
 
     def advance(
         self, body: ImplicitBody, state_in: BodyState, state_out: BodyState, dt: float,
@@ -279,7 +279,7 @@ class NewmarkFem:
 
         def tangent_at(x: np.ndarray) -> StepResponse:
             return body.response_at(x, gamma * dt, np.sqrt(beta) * dt, 0.5 * dt,
-                                    **_damping_keyword(nodal_damping))
+                                    nodal_damping=nodal_damping)
 
         return _implicit_step(body, state_in, state_out, dt, residual_at, response, tangent_at,
                               self.tolerance, self.max_iterations, step, hold)
@@ -335,7 +335,7 @@ class MidpointFem:
                      nodal_damping: np.ndarray | None = None) -> StepResponse:
         """`response`'s matrix at ``positions``, built and factored (no reuse)."""
         return body.response_at(positions, 0.5 * dt, 0.5 * dt, 0.5 * dt,
-                                **_damping_keyword(nodal_damping))
+                                nodal_damping=nodal_damping)
 
     def _extra_forces(self, body: ImplicitBody, middle: np.ndarray, rate: np.ndarray,
                       dt: float) -> np.ndarray:
@@ -415,17 +415,11 @@ class EnergyMomentumFem(MidpointFem):
         # dt^2 / 4 in the step's matrix.
         stiffness = dt * np.sqrt(0.25 + 0.5 * self.damping)
         return body.response_at(positions, 0.5 * dt, stiffness, 0.5 * dt,
-                                **_damping_keyword(nodal_damping))
+                                nodal_damping=nodal_damping)
 
     def _extra_forces(self, body: ImplicitBody, middle: np.ndarray, rate: np.ndarray,
                       dt: float) -> np.ndarray:
         return body.viscous_forces_at(middle, rate, self.damping * dt)
-
-
-def _damping_keyword(nodal_damping: np.ndarray | None) -> dict[str, np.ndarray]:
-    """``response_at``'s keyword for nodal damping blocks: none when there are none (rods
-    take none)."""
-    return {} if nodal_damping is None else {"nodal_damping": nodal_damping}
 
 
 def _checked_forces(body: ImplicitBody, external_forces: np.ndarray) -> np.ndarray:

@@ -352,12 +352,14 @@ class RodBody:
 
     def response_at(self, positions: np.ndarray, dt: float,
                     stiffness_step: float | None = None,
-                    scale: float | None = None) -> StepResponse:
+                    scale: float | None = None,
+                    nodal_damping: np.ndarray | None = None) -> StepResponse:
         """The linearised answer ``(M + dt D + s^2 K + dt alpha M) dv = scale f`` at
-        ``positions`` (as `ElasticBody.response_at`), factored as a band (natural order,
-        half-band 5). K keeps what is positive semi-definite for any shape: the material
-        parts of stretching and bending and the geometric part of tension (compression and
-        the bending's own curvature term left out), so the matrix stays SPD."""
+        ``positions`` (as `ElasticBody.response_at`, ``nodal_damping`` blocks (n, 2, 2) added
+        to ``D`` when given), factored as a band (natural order, half-band 5). K keeps what
+        is positive semi-definite for any shape: the material parts of stretching and
+        bending and the geometric part of tension (compression and the bending's own
+        curvature term left out), so the matrix stays SPD."""
         s = dt if stiffness_step is None else float(stiffness_step)
         answer = dt if scale is None else float(scale)
         m = self.material
@@ -398,6 +400,8 @@ class RodBody:
         storage = flat_storage.reshape(layout.band + 1, layout.free.size)
         lumped = np.repeat(self.mass * (1.0 + dt * self.velocity_damping), 2)[layout.free]
         storage[layout.band] += lumped
+        if nodal_damping is not None:
+            _add_nodal_blocks(storage, layout, dt * np.asarray(nodal_damping[:n]))
         if layout.free.size == 0:
             return StepResponse(layout.free, answer, None)
         with _BLAS.limit(limits=1, user_api="blas"):
@@ -479,6 +483,23 @@ def _rod_band_layout(n: int, hinges: np.ndarray, fixed_mask: np.ndarray) -> _Rod
     upper = valid & (r <= c)
     target[upper] = (band + r[upper] - c[upper]) * free.size + c[upper]
     return _RodBandLayout(free, band, target)
+
+
+def _add_nodal_blocks(storage: np.ndarray, layout: _RodBandLayout, blocks: np.ndarray) -> None:
+    """Add symmetric 2x2 blocks (n, 2, 2), one per node, to the upper banded ``storage`` of
+    the free degrees of freedom (a held component keeps none of its block)."""
+    n = blocks.shape[0]
+    local = np.full(2 * n, -1, np.int64)
+    inside = layout.free < 2 * n
+    local[layout.free[inside]] = np.flatnonzero(inside)
+    x, y = local[0::2], local[1::2]
+    band = layout.band
+    for dof, value in ((x, blocks[:, 0, 0]), (y, blocks[:, 1, 1])):
+        free = dof >= 0
+        storage[band, dof[free]] += value[free]
+    both = (x >= 0) & (y >= 0)
+    # (x, y) of one node are neighbours in the natural order: one above the diagonal.
+    storage[band - 1, y[both]] += blocks[both, 0, 1]
 
 
 def _state_array(name: str, value: np.ndarray | None, default: np.ndarray) -> np.ndarray:

@@ -69,6 +69,31 @@ def test_step_matrix_at_rest_is_mass_plus_stiffness() -> None:
     assert np.abs(np.linalg.inv(inverse) - expected).max() < 1e-8 * np.abs(expected).max()
 
 
+@pytest.mark.parametrize("options", [{"clamped": ("start",)}, {"pinned_nodes": (0, 5)}, {}])
+def test_nodal_damping_blocks_enter_the_step_matrix(options: dict) -> None:
+    """``response_at(..., nodal_damping=C)`` factors ``A + dt blockdiag(C)`` (the viscous
+    traction's dependence on the rod's velocity, `simulation._schemes._viscous_damping`),
+    held nodes left out: the difference of the two answers' inverses is ``dt C`` on the free
+    degrees of freedom, the coupling of a node's x and y included."""
+    rod = _rod(**options)
+    rng = np.random.default_rng(3)
+    blocks = rng.standard_normal((rod.point_count, 2, 2))
+    blocks = np.einsum("nab,ncb->nac", blocks, blocks)
+    x = rod.mesh.points + 0.01 * rng.standard_normal(rod.mesh.points.shape)
+    dt = 0.01
+    plain = rod.response_at(x, dt)
+    damped = rod.response_at(x, dt, nodal_damping=blocks)
+    free = plain.free
+    assert free.size < 2 * rod.point_count or not options
+    compliance = [response.compliance(free) / dt for response in (plain, damped)]
+    difference = np.linalg.inv(compliance[1]) - np.linalg.inv(compliance[0])
+    dense = np.zeros((2 * rod.point_count, 2 * rod.point_count))
+    for node in range(rod.point_count):
+        dense[2 * node:2 * node + 2, 2 * node:2 * node + 2] = blocks[node]
+    expected = dt * dense[np.ix_(free, free)]
+    assert np.abs(difference - expected).max() < 1e-7 * np.abs(expected).max()
+
+
 @pytest.mark.parametrize("segments", [10, 20, 40])
 def test_cantilever_under_uniform_load_bends_as_euler_bernoulli(segments: int) -> None:
     """Clamped at one end, loaded by its weight q = rho t g: tip deflection q L^4 / (8 EI)
